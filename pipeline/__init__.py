@@ -1,0 +1,1 @@
+"""Sources, sinks, configuration, the simulator and the ``fisheye-des`` command line."""

@@ -1,0 +1,71 @@
+"""The ``fisheye-des`` command line (typer).
+
+Each sub-command lives in ``pipeline/commands/<name>.py`` and defines ``register(app)``; add its
+name to ``COMMANDS`` below. Commands import heavy modules (cv2, matplotlib, torch) inside their
+functions so that ``fisheye-des --help`` stays fast.
+
+Errors: library code raises ``estimators.errors.FisheyeDesError``; here it becomes one line on
+stderr and exit code 2 (no traceback unless ``--debug``). Ctrl-C exits with 130 after the command's
+own clean-up has run.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import typer
+
+from estimators.errors import FisheyeDesError
+
+COMMANDS: tuple[str, ...] = ("thesis",)
+
+app = typer.Typer(
+    name="fisheye-des",
+    help="Obstacle ranges for drones from raw fisheye cameras (monocular parallax, stereo, fusion).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+_state = {"debug": False}
+
+
+@app.callback()
+def _root(debug: bool = typer.Option(False, "--debug", help="Show full tracebacks on errors.")) -> None:
+    _state["debug"] = debug
+
+
+for _name in COMMANDS:
+    importlib.import_module(f"pipeline.commands.{_name}").register(app)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console-script entry point; returns the process exit code."""
+    args = sys.argv[1:] if argv is None else argv
+    try:
+        rc = app(args=args, standalone_mode=False)
+    except FisheyeDesError as e:
+        if _state["debug"] or "--debug" in args:
+            raise
+        print(f"fisheye-des: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fisheye-des: interrupted; outputs written so far are kept", file=sys.stderr)
+        return 130
+    except SystemExit as e:  # typer/click exits (e.g. --help)
+        return int(e.code or 0)
+    except Exception as e:  # click usage errors and the like
+        import click
+
+        if isinstance(e, click.exceptions.ClickException):
+            e.show()
+            return e.exit_code
+        if isinstance(e, click.exceptions.Abort):
+            return 130
+        raise
+    return rc if isinstance(rc, int) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per ``fisheye-des`` sub-command; each defines ``register(app)``."""
