@@ -1,0 +1,189 @@
+"""Typed records passed between the stages: front end -> fusion -> sinks.
+
+They live in ``estimators`` (the bottom layer) because ``trackers`` produces them and ``estimators``
+consumes them, and ``estimators`` may import nothing from ``trackers``.
+
+Frames: ``b_C`` is a unit bearing in the optical frame of the named camera; ``b_B`` in the body frame
+B (FLU); ``p_W`` / ``v_W`` in the world frame W. Units SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from estimators.errors import InputError
+
+TrackStatus = Literal["tentative", "confirmed", "lost"]
+TRACK_STATUSES: tuple[str, ...] = ("tentative", "confirmed", "lost")
+
+
+def _unit_rows(name: str, a: np.ndarray, ncols: int = 3) -> np.ndarray:
+    a = np.asarray(a, dtype=float)
+    if a.ndim == 1:
+        a = a.reshape(1, -1) if a.size else a.reshape(0, ncols)
+    if a.ndim != 2 or a.shape[1] != ncols:
+        raise InputError(f"{name}: expected shape (M, {ncols}), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: contains NaN or infinite values")
+    return a
+
+
+@dataclass(frozen=True)
+class CameraView:
+    """An obstacle as one camera sees it in one frame.
+
+    Attributes:
+        camera: camera name in the rig (e.g. ``"cam0"``).
+        b_C: (3,) unit bearing of the obstacle's representative point, camera optical frame.
+        uv: (2,) pixel position of the representative point (OpenCV convention), for drawing.
+        sigma_rad: 1-sigma angular uncertainty of ``b_C`` (radians, isotropic about the ray).
+        feature_ids: (M,) int64 ids of the member features (stable over their lives).
+        feature_b_C: (M, 3) unit bearings of the member features in this camera's frame.
+    """
+
+    camera: str
+    b_C: np.ndarray
+    uv: np.ndarray
+    sigma_rad: float
+    feature_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    feature_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def __post_init__(self) -> None:
+        b = np.asarray(self.b_C, dtype=float).reshape(-1)
+        if b.shape != (3,) or not np.all(np.isfinite(b)) or abs(np.linalg.norm(b) - 1.0) > 1e-6:
+            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
+        if not (np.isfinite(self.sigma_rad) and self.sigma_rad > 0):
+            raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {self.sigma_rad!r}")
+        ids = np.asarray(self.feature_ids, dtype=np.int64).reshape(-1)
+        fb = _unit_rows("CameraView.feature_b_C", self.feature_b_C)
+        if len(ids) != len(fb):
+            raise InputError(
+                f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"
+            )
+        object.__setattr__(self, "b_C", b)
+        object.__setattr__(self, "uv", np.asarray(self.uv, dtype=float).reshape(2))
+        object.__setattr__(self, "feature_ids", ids)
+        object.__setattr__(self, "feature_b_C", fb)
+
+
+@dataclass(frozen=True)
+class ObstacleObservation:
+    """One obstacle track in one frame, as the front end (trackers) reports it.
+
+    Attributes:
+        track_id: stable id over the track's life.
+        frame: frame index; t_s: frame time in seconds (the filter takes dt from t_s).
+        status: ``tentative`` | ``confirmed`` | ``lost`` (a lost track is reported once, then dropped).
+        views: one CameraView per camera that sees the obstacle in this frame (empty when lost).
+        label: what found it (``"orb"``, ``"navlights"``, a plug-in's name).
+        attributes: detector-specific extras, JSON-serialisable (e.g. navlights' ``heading``).
+    """
+
+    track_id: int
+    frame: int
+    t_s: float
+    status: TrackStatus
+    views: tuple[CameraView, ...]
+    label: str = "orb"
+    attributes: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.status not in TRACK_STATUSES:
+            raise InputError(f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {self.status!r}")
+        if not np.isfinite(self.t_s):
+            raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {self.t_s!r}")
+        names = [v.camera for v in self.views]
+        if len(set(names)) != len(names):
+            raise InputError(f"ObstacleObservation.views: one view per camera expected, got {names}")
+
+    @property
+    def cameras(self) -> tuple[str, ...]:
+        return tuple(v.camera for v in self.views)
+
+
+def azimuth_elevation_deg(b_B: np.ndarray) -> tuple[float, float]:
+    """Azimuth and elevation in degrees of a body-frame bearing (FLU).
+
+    azimuth = atan2(y, x): 0 straight ahead, +90 to the left, +-180 behind;
+    elevation = asin(z): +90 straight up.
+    """
+    x, y, z = (float(v) for v in np.asarray(b_B, dtype=float).reshape(3))
+    n = float(np.sqrt(x * x + y * y + z * z))
+    return float(np.degrees(np.arctan2(y, x))), float(np.degrees(np.arcsin(np.clip(z / n, -1.0, 1.0))))
+
+
+def _opt_float(x: float | None) -> float | None:
+    return None if x is None else float(x)
+
+
+def _opt_list(a: np.ndarray | None) -> list[float] | None:
+    return None if a is None else [float(v) for v in np.asarray(a).reshape(-1)]
+
+
+@dataclass(frozen=True)
+class TrackReport:
+    """The estimate for one obstacle track in one frame: one entry of ``tracks.jsonl``'s ``tracks``.
+
+    Field names and meanings follow CONVENTIONS.md "Outputs". Ranges and positions are measured from
+    the body origin at this frame's time; ``None`` means unobservable / not available, and
+    ``unobservable_reason`` then says why. ``nis`` / ``innovation`` are the last fused update's, for
+    diagnostics; ``gated`` counts measurements rejected by the chi-square gate so far.
+    """
+
+    id: int
+    status: TrackStatus
+    camera: str | list[str]
+    bearing_body: np.ndarray
+    range_m: float | None = None
+    range_sigma_m: float | None = None
+    range_min_m: float | None = None
+    range_max_m: float | None = None
+    position_body_m: np.ndarray | None = None
+    velocity_world_mps: np.ndarray | None = None
+    speed_mps: float | None = None
+    ttc_s: float | None = None
+    source: str = ""
+    label: str = "orb"
+    nis: float | None = None
+    innovation: np.ndarray | None = None
+    gated: int = 0
+    unobservable_reason: str | None = None
+    attributes: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of CONVENTIONS.md, all values plain Python (finite floats or null)."""
+        b = np.asarray(self.bearing_body, dtype=float).reshape(3)
+        az, el = azimuth_elevation_deg(b)
+        d: dict[str, Any] = {
+            "id": int(self.id),
+            "status": self.status,
+            "camera": self.camera,
+            "bearing_body": [float(v) for v in b],
+            "azimuth_deg": az,
+            "elevation_deg": el,
+            "range_m": _opt_float(self.range_m),
+            "range_sigma_m": _opt_float(self.range_sigma_m),
+            "range_min_m": _opt_float(self.range_min_m),
+            "range_max_m": _opt_float(self.range_max_m),
+            "position_body_m": _opt_list(self.position_body_m),
+            "velocity_world_mps": _opt_list(self.velocity_world_mps),
+            "speed_mps": _opt_float(self.speed_mps),
+            "ttc_s": _opt_float(self.ttc_s),
+            "source": self.source,
+            "label": self.label,
+            "nis": _opt_float(self.nis),
+            "innovation": _opt_list(self.innovation),
+            "gated": int(self.gated),
+            "unobservable_reason": self.unobservable_reason,
+        }
+        if self.attributes:
+            d["attributes"] = self.attributes
+        for k, v in d.items():  # never emit NaN/inf: JSON has no such numbers
+            if isinstance(v, float) and not np.isfinite(v):
+                d[k] = None
+            elif isinstance(v, list) and any(isinstance(x, float) and not np.isfinite(x) for x in v):
+                d[k] = None
+        return d
