@@ -92,7 +92,9 @@ class ObstacleObservation:
 
     def __post_init__(self) -> None:
         if self.status not in TRACK_STATUSES:
-            raise InputError(f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {self.status!r}")
+            raise InputError(
+                f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {self.status!r}"
+            )
         if not np.isfinite(self.t_s):
             raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {self.t_s!r}")
         names = [v.camera for v in self.views]
