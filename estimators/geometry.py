@@ -1,0 +1,513 @@
+"""Two-ray geometry: triangulation, moving-obstacle range bounds, velocity from two fixes.
+
+These are the thesis's planar law-of-sines formulas (eq. 3.1-3.13, see ``estimators/thesis.py``)
+generalised to 3-D rays: a ray is a centre ``c`` (3,) in metres and a unit direction ``b`` (3,), both
+in one common frame (world W, or body B when both poses are expressed in the current body frame).
+Mono parallax is one camera at two poses (ray a = earlier pose, ray b = the current pose); stereo is
+two cameras at one instant. Bearings may point anywhere (also beyond 90 degrees off an optical axis):
+only their direction matters here.
+
+Every estimator returns a frozen result record or ``Unobservable(reason)``: degenerate geometry
+(parallel rays, zero baseline, a point behind a camera, planar angles summing to >= 180 degrees,
+motion inconsistent with the speed limit) is an answer, never NaN and never an exception. Malformed
+input (wrong shape, NaN/inf, a zero direction, negative speed limit) raises ``InputError``.
+
+Planar helpers (``planar_rays``, ``planar_triangulate``) build the thesis's configuration: baseline
+A -> B of length d along +x, the obstacle C at y > 0, ``theta1`` the interior angle at A (between
+A->B and A->C), ``theta2`` the interior angle at B (between B->A and B->C). Then
+``triangulate(...).range_m`` (from B) is eq. 3.8 ``Y = d sin th1 / cos(th1 + th2 - 90 deg)``,
+``p[1]`` is eq. 3.1's perpendicular ``Z`` and the range from the baseline's midpoint is eq. 3.2's CF,
+for any interior angles in (0, 180 deg) with th1 + th2 < 180 deg (so also eq. 3.9, 3.10 with an
+angle over 90 degrees).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.errors import InputError
+
+__all__ = [
+    "Unobservable",
+    "Triangulation",
+    "RangeBounds",
+    "Velocity",
+    "triangulate",
+    "moving_obstacle_bounds",
+    "velocity_from_fixes",
+    "planar_rays",
+    "planar_triangulate",
+    "planar_moving_obstacle_bounds",
+]
+
+# Below this squared sine of the angle between two rays they are treated as exactly parallel
+# in the closed forms (the user-facing threshold is ``min_parallax_rad``).
+_PARALLEL_SIN2 = 1e-24
+
+
+@dataclass(frozen=True)
+class Unobservable:
+    """A degenerate-geometry answer: the quantity cannot be estimated from these inputs.
+
+    ``reason`` says why, e.g. "parallel rays", "zero baseline", "point behind camera a",
+    "angles sum to >= 180 deg", "inconsistent with max speed", "zero time interval".
+    """
+
+    reason: str
+
+    def __bool__(self) -> bool:  # so that ``if result:`` reads "if observable"
+        return False
+
+
+@dataclass(frozen=True)
+class Triangulation:
+    """Two-ray triangulation result; every length in metres, in the common frame of the inputs.
+
+    p: (3,) the point (midpoint of the rays' common perpendicular).
+    range_m: |p - origin| (origin defaults to ray b's centre, i.e. where the drone is now).
+    range_sigma_m: first-order standard deviation of ``range_m`` from isotropic bearing noise of
+        ``bearing_sigma_rad`` on each of the two rays (0.0 when that sigma is 0).
+    depth_a_m, depth_b_m: distance from each ray's centre to the closest point on that ray.
+    parallax_rad: angle between the two ray directions, in [0, pi].
+    miss_m: closest-approach distance between the two rays (0 for consistent, noise-free rays).
+    """
+
+    p: np.ndarray
+    range_m: float
+    range_sigma_m: float
+    depth_a_m: float
+    depth_b_m: float
+    parallax_rad: float
+    miss_m: float
+
+
+@dataclass(frozen=True)
+class RangeBounds:
+    """Interval that must contain a moving obstacle's range (metres).
+
+    range_min_m, range_max_m: range from the origin (default ray b's centre); ``range_max_m`` is
+        None when unbounded (the obstacle could be anywhere beyond ``range_min_m``).
+    depth_min_m, depth_max_m: the same interval as depths along ray b (None = unbounded).
+    """
+
+    range_min_m: float
+    range_max_m: float | None
+    depth_min_m: float
+    depth_max_m: float | None
+
+
+@dataclass(frozen=True)
+class Velocity:
+    """Velocity from two position fixes, in the frame of the inputs.
+
+    v: (3,) m/s. speed_mps: |v|. heading_rad: atan2(v_y, v_x) in that frame (0 when v_x = v_y = 0).
+    speed_sigma_mps: first-order standard deviation of the speed, None when the fixes carry no sigma.
+    """
+
+    v: np.ndarray
+    speed_mps: float
+    heading_rad: float
+    speed_sigma_mps: float | None
+
+
+# --------------------------------------------------------------------------- input checks
+
+
+def _vec3(name: str, x) -> np.ndarray:
+    """Return ``x`` as a finite float64 (3,) array or raise InputError naming ``name``."""
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name}: expected a (3,) array of finite numbers, got {x!r}") from e
+    if a.shape != (3,):
+        raise InputError(f"{name}: expected an array of shape (3), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: expected finite values, got {a.tolist()}")
+    return a
+
+
+def _unit3(name: str, x) -> np.ndarray:
+    """Return ``x`` normalised to a unit (3,) vector; a zero or non-finite vector is an InputError."""
+    a = _vec3(name, x)
+    n = float(np.linalg.norm(a))
+    if not n > 1e-12:
+        raise InputError(f"{name}: expected a non-zero direction (unit bearing), got {a.tolist()}")
+    return a / n
+
+
+def _scalar(name: str, x, *, min_value: float | None = None, allow_inf: bool = False) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name}: expected a number, got {x!r}") from e
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise InputError(f"{name}: expected a finite number, got {v}")
+    if min_value is not None and v < min_value:
+        raise InputError(f"{name}: expected a value >= {min_value}, got {v}")
+    return v
+
+
+# --------------------------------------------------------------------------- triangulation
+
+
+def _closest_depths(c_a, b_a, c_b, b_b):
+    """Depths (s, t) of the closest points c_a + s b_a, c_b + t b_b of two lines (vectorised).
+
+    Arrays (..., 3), unit directions. Minimising |w0 + s b_a - t b_b|^2 with w0 = c_a - c_b:
+        s = (k e - d) / (1 - k^2),   t = (e - k d) / (1 - k^2)
+    with k = b_a.b_b, d = b_a.w0, e = b_b.w0 and 1 - k^2 = |b_a x b_b|^2 = sin^2(parallax).
+    """
+    w0 = c_a - c_b
+    k = np.sum(b_a * b_b, axis=-1)
+    d = np.sum(b_a * w0, axis=-1)
+    e = np.sum(b_b * w0, axis=-1)
+    den = np.sum(np.cross(b_a, b_b) ** 2, axis=-1)
+    s = (k * e - d) / den
+    t = (e - k * d) / den
+    return s, t
+
+
+def _tangent_basis(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors orthogonal to unit ``b`` (3,) and to each other."""
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(b)))] = 1.0
+    u1 = np.cross(b, e)
+    u1 /= np.linalg.norm(u1)
+    return u1, np.cross(b, u1)
+
+
+def _range_sigma(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> float:
+    """First-order std of the midpoint range under isotropic bearing noise ``sigma_rad`` per ray.
+
+    sigma_range = sigma_rad * |J|, J = d range / d(phi_a1, phi_a2, phi_b1, phi_b2), the four small
+    rotations of the two bearings in their tangent planes; J by central differences (h = 1e-6 rad),
+    evaluated in one vectorised call.
+    """
+    if sigma_rad == 0.0:
+        return 0.0
+    h = 1e-6
+    ua = _tangent_basis(b_a)
+    ub = _tangent_basis(b_b)
+    rows_ba, rows_bb = [], []
+    for u in ua:  # perturb ray a
+        for sgn in (1.0, -1.0):
+            v = b_a + sgn * h * u
+            rows_ba.append(v / np.linalg.norm(v))
+            rows_bb.append(b_b)
+    for u in ub:  # perturb ray b
+        for sgn in (1.0, -1.0):
+            v = b_b + sgn * h * u
+            rows_ba.append(b_a)
+            rows_bb.append(v / np.linalg.norm(v))
+    BA = np.array(rows_ba)
+    BB = np.array(rows_bb)
+    s, t = _closest_depths(c_a[None], BA, c_b[None], BB)
+    P = 0.5 * ((c_a + s[:, None] * BA) + (c_b + t[:, None] * BB))
+    r = np.linalg.norm(P - origin, axis=1)
+    J = (r[0::2] - r[1::2]) / (2 * h)  # (4,)
+    return float(sigma_rad * np.linalg.norm(J))
+
+
+def triangulate(
+    c_a,
+    b_a,
+    c_b,
+    b_b,
+    *,
+    origin=None,
+    bearing_sigma_rad: float = 0.0,
+    min_parallax_rad: float = 1e-4,
+) -> Triangulation | Unobservable:
+    """Triangulate a static point seen along two rays (mono parallax or stereo).
+
+    c_a, c_b: (3,) ray origins (camera centres) in metres; b_a, b_b: (3,) directions (normalised
+    here; unit bearings expected), all in one common frame (W or B). origin: (3,) point the range is
+    measured from, default ``c_b`` (the second pose / where the drone is now). bearing_sigma_rad:
+    isotropic 1-sigma bearing noise of each ray (radians) for ``range_sigma_m``. min_parallax_rad:
+    smaller angles between the rays are "parallel rays".
+
+    Method: midpoint of the common perpendicular. For noise-free rays it is exact; with equal angular
+    noise on rays of similar depth it is within first order of the optimal (L2-angular) estimate, and
+    it is closed form, which the fusion filter and the property tests rely on.
+
+    Returns Triangulation, or Unobservable for: zero baseline, parallel rays, a closest point at zero
+    or negative depth on either ray ("point behind camera a/b", or both when the rays diverge).
+    Raises InputError on malformed input (shapes, NaN, zero directions, negative sigma).
+    """
+    c_a = _vec3("c_a", c_a)
+    c_b = _vec3("c_b", c_b)
+    b_a = _unit3("b_a", b_a)
+    b_b = _unit3("b_b", b_b)
+    o = c_b if origin is None else _vec3("origin", origin)
+    sigma = _scalar("bearing_sigma_rad", bearing_sigma_rad, min_value=0.0)
+    min_par = _scalar("min_parallax_rad", min_parallax_rad, min_value=0.0)
+
+    baseline = float(np.linalg.norm(c_b - c_a))
+    scale = max(1.0, float(np.linalg.norm(c_a)), float(np.linalg.norm(c_b)))
+    if baseline <= 1e-12 * scale:
+        return Unobservable("zero baseline")
+    # parallax = atan2(|b_a x b_b|, b_a . b_b): accurate at small and large angles
+    sin_par = float(np.linalg.norm(np.cross(b_a, b_b)))
+    parallax = math.atan2(sin_par, float(b_a @ b_b))
+    if parallax < min_par or sin_par**2 <= _PARALLEL_SIN2:
+        return Unobservable("parallel rays")
+    if math.pi - parallax < min_par:
+        # anti-parallel rays: they can only meet between the centres if collinear with the baseline
+        return Unobservable("parallel rays (opposite directions)")
+
+    s, t = _closest_depths(c_a, b_a, c_b, b_b)
+    s, t = float(s), float(t)
+    tol = 1e-12 * scale
+    if s <= tol and t <= tol:
+        return Unobservable("point behind both cameras (rays diverge)")
+    if s <= tol:
+        return Unobservable("point behind camera a")
+    if t <= tol:
+        return Unobservable("point behind camera b")
+
+    q_a = c_a + s * b_a
+    q_b = c_b + t * b_b
+    p = 0.5 * (q_a + q_b)  # midpoint of the common perpendicular
+    rng = float(np.linalg.norm(p - o))
+    return Triangulation(
+        p=p,
+        range_m=rng,
+        range_sigma_m=_range_sigma(c_a, b_a, c_b, b_b, o, sigma),
+        depth_a_m=s,
+        depth_b_m=t,
+        parallax_rad=parallax,
+        miss_m=float(np.linalg.norm(q_a - q_b)),
+    )
+
+
+# --------------------------------------------------------------------------- moving obstacle bounds
+
+
+def _quad_le0(A: float, B: float, C: float) -> tuple[float, float] | None:
+    """Solution set {r : A r^2 + B r + C <= 0} (A >= 0) as (lo, hi) with +-inf, or None if empty."""
+    if A <= 1e-15 * (abs(B) + abs(C) + 1.0):
+        if abs(B) <= 1e-15 * (abs(C) + 1.0):
+            return (-math.inf, math.inf) if C <= 0 else None
+        root = -C / B
+        return (-math.inf, root) if B > 0 else (root, math.inf)
+    disc = B * B - 4 * A * C
+    if disc < 0:
+        # tangent to within rounding: a single point
+        if disc > -1e-12 * (B * B + abs(4 * A * C)):
+            disc = 0.0
+        else:
+            return None
+    sq = math.sqrt(disc)
+    q = -0.5 * (B + math.copysign(sq, B))  # numerically stable roots q/A and C/q
+    r1 = q / A
+    r2 = C / q if q != 0 else r1
+    return (min(r1, r2), max(r1, r2))
+
+
+def _intersect(a: tuple[float, float] | None, lo: float, hi: float) -> tuple[float, float] | None:
+    if a is None:
+        return None
+    lo2, hi2 = max(a[0], lo), min(a[1], hi)
+    return (lo2, hi2) if lo2 <= hi2 else None
+
+
+def moving_obstacle_bounds(
+    c_a, b_a, c_b, b_b, max_displacement_m: float, *, origin=None
+) -> RangeBounds | Unobservable:
+    """Range interval of an obstacle that moved at most ``max_displacement_m`` between two sightings.
+
+    Generalises the thesis's eq. 3.11-3.13 to 3-D and any direction of motion. The obstacle was on
+    ray a (half-line c_a + s b_a, s >= 0) at time a and is on ray b at time b; it moved at most
+    D = max_displacement_m (= max speed * dt) in between. The feasible depths along ray b are
+        R = {r >= 0 : dist(c_b + r b_b, ray a) <= D},
+    an interval (distance to a convex set is convex along a line). Closed form, piecewise:
+    with w(r) = c_b - c_a + r b_b and the foot depth s(r) = b_a.w(r) = s0 + r k on line a,
+      where s(r) >= 0:  |w|^2 - s^2 <= D^2   (distance to the line)
+      where s(r) <  0:  |w|^2       <= D^2   (distance to c_a)
+    each a quadratic inequality in r. The range from ``origin`` is convex along ray b, so its
+    minimum over R is at the clamped foot of the perpendicular from origin (an interior minimum is
+    possible) and its maximum at an end point (None when R is unbounded).
+
+    c_a, c_b: (3,) centres in metres; b_a, b_b: (3,) directions (normalised here); origin: (3,),
+    default c_b; all in one common frame. max_displacement_m >= 0 (may be +inf: then only the
+    half-line constraint remains). Returns RangeBounds, or Unobservable("inconsistent with max speed")
+    when R is empty. Raises InputError on malformed input.
+    """
+    c_a = _vec3("c_a", c_a)
+    c_b = _vec3("c_b", c_b)
+    b_a = _unit3("b_a", b_a)
+    b_b = _unit3("b_b", b_b)
+    o = c_b if origin is None else _vec3("origin", origin)
+    D = _scalar("max_displacement_m", max_displacement_m, min_value=0.0, allow_inf=True)
+
+    if math.isinf(D):
+        lo, hi = 0.0, math.inf
+    else:
+        w0 = c_b - c_a
+        k = float(b_a @ b_b)
+        s0 = float(b_a @ w0)
+        bw = float(b_b @ w0)
+        ww = float(w0 @ w0)
+        # region where the foot on line a has s(r) = s0 + k r >= 0
+        if abs(k) <= 1e-15:
+            reg_line = (-math.inf, math.inf) if s0 >= 0 else None
+        elif k > 0:
+            reg_line = (-s0 / k, math.inf)
+        else:
+            reg_line = (-math.inf, -s0 / k)
+        # |w|^2 - s^2 = (1 - k^2) r^2 + 2 (b_b.w0 - s0 k) r + |w0|^2 - s0^2
+        A1 = float(np.sum(np.cross(b_a, b_b) ** 2))  # 1 - k^2, accurately
+        sol_line = _quad_le0(A1, 2 * (bw - s0 * k), ww - s0 * s0 - D * D)
+        # |w|^2 = r^2 + 2 b_b.w0 r + |w0|^2
+        sol_pt = _quad_le0(1.0, 2 * bw, ww - D * D)
+        pieces = []
+        if reg_line is not None:
+            pieces.append(_intersect(sol_line, max(0.0, reg_line[0]), reg_line[1]))
+            # complement of the line region (s < 0) uses the distance to c_a
+            if math.isinf(reg_line[0]) and not math.isinf(reg_line[1]):
+                pieces.append(_intersect(sol_pt, max(0.0, reg_line[1]), math.inf))
+            elif not math.isinf(reg_line[0]):
+                pieces.append(_intersect(sol_pt, 0.0, reg_line[0]))
+        else:
+            pieces.append(_intersect(sol_pt, 0.0, math.inf))
+        pieces = [p for p in pieces if p is not None]
+        if not pieces:
+            return Unobservable("inconsistent with max speed")
+        lo = min(p[0] for p in pieces)
+        hi = max(p[1] for p in pieces)
+
+    # range from the origin along ray b: |c_b + r b_b - o| is convex in r
+    def rng(r: float) -> float:
+        return float(np.linalg.norm(c_b + r * b_b - o))
+
+    r_star = min(max(float(b_b @ (o - c_b)), lo), hi)
+    range_min = rng(r_star)
+    if math.isinf(hi):
+        range_max = None
+        depth_max = None
+    else:
+        range_max = max(rng(lo), rng(hi))
+        depth_max = hi
+    return RangeBounds(range_min_m=range_min, range_max_m=range_max, depth_min_m=lo, depth_max_m=depth_max)
+
+
+# --------------------------------------------------------------------------- velocity
+
+
+def _cov(name: str, sigma) -> np.ndarray | None:
+    """Position uncertainty as a (3,3) covariance: None, a scalar per-axis std (m), or (3,3) cov (m^2)."""
+    if sigma is None:
+        return None
+    a = np.asarray(sigma, dtype=float)
+    if a.shape == ():
+        s = _scalar(name, float(a), min_value=0.0)
+        return np.eye(3) * s * s
+    if a.shape != (3, 3) or not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: expected a per-axis std (m) or a finite (3, 3) covariance (m^2), "
+                         f"got shape {a.shape}")
+    return a
+
+
+def velocity_from_fixes(p_1, t1_s, p_2, t2_s, *, sigma_1=None, sigma_2=None) -> Velocity | Unobservable:
+    """Velocity of an obstacle from two position fixes (generalises the thesis's eq. 3.3-3.6).
+
+    p_1, p_2: (3,) positions in metres at times t1_s < t2_s (seconds), in one frame that does not
+    move between the two times (W; a body frame only when the drone's motion was removed).
+    sigma_1, sigma_2: position uncertainty of each fix, a per-axis std in metres or a (3,3)
+    covariance in m^2 (None: no sigma).
+
+    v = (p_2 - p_1) / (t2 - t1); speed sigma to first order: sqrt(u^T (S1 + S2) u) / dt with u = v/|v|
+    (for v = 0: sqrt(trace(S1 + S2) / 3) / dt). Returns Unobservable("zero time interval") for
+    t2 == t1; raises InputError for t2 < t1 or non-finite inputs.
+    """
+    p_1 = _vec3("p_1", p_1)
+    p_2 = _vec3("p_2", p_2)
+    t1 = _scalar("t1_s", t1_s)
+    t2 = _scalar("t2_s", t2_s)
+    S1 = _cov("sigma_1", sigma_1)
+    S2 = _cov("sigma_2", sigma_2)
+    dt = t2 - t1
+    if dt < 0:
+        raise InputError(f"t2_s: expected a time after t1_s = {t1}, got {t2}")
+    if dt == 0:
+        return Unobservable("zero time interval")
+    v = (p_2 - p_1) / dt  # eq. 3.3-3.6: CD / 0.1 s, CD = |p_2 - p_1|
+    speed = float(np.linalg.norm(v))
+    heading = math.atan2(float(v[1]), float(v[0]))
+    sig = None
+    if S1 is not None or S2 is not None:
+        S = (S1 if S1 is not None else 0.0) + (S2 if S2 is not None else 0.0)
+        if speed > 0:
+            u = v / speed
+            var = float(u @ S @ u)
+        else:
+            var = float(np.trace(S)) / 3.0
+        sig = math.sqrt(max(var, 0.0)) / dt
+    return Velocity(v=v, speed_mps=speed, heading_rad=heading, speed_sigma_mps=sig)
+
+
+# --------------------------------------------------------------------------- planar (thesis) helpers
+
+
+def planar_rays(d_m: float, theta1_rad: float, theta2_rad: float):
+    """The thesis's planar two-ray configuration from a baseline and two interior angles.
+
+    A = (0, 0, 0), B = (d, 0, 0) (A -> B is the drone's motion for mono, camera 1 -> camera 2 for
+    stereo); the obstacle C is at y > 0. theta1_rad: interior angle at A between A->B and A->C;
+    theta2_rad: interior angle at B between B->A and B->C; both in (0, pi), may exceed pi/2.
+    Returns (c_a, b_a, c_b, b_b), each (3,) in metres / unit directions:
+        b_a = (cos th1, sin th1, 0),  b_b = (-cos th2, sin th2, 0).
+    """
+    d = _scalar("d_m", d_m)
+    t1 = _scalar("theta1_rad", theta1_rad)
+    t2 = _scalar("theta2_rad", theta2_rad)
+    c_a = np.zeros(3)
+    c_b = np.array([d, 0.0, 0.0])
+    b_a = np.array([math.cos(t1), math.sin(t1), 0.0])
+    b_b = np.array([-math.cos(t2), math.sin(t2), 0.0])
+    return c_a, b_a, c_b, b_b
+
+
+def _planar_check(d_m: float, theta1_rad: float, theta2_rad: float) -> Unobservable | None:
+    if d_m <= 0:
+        return Unobservable("zero baseline")
+    if not (0 < theta1_rad < math.pi and 0 < theta2_rad < math.pi):
+        return Unobservable("interior angle outside (0, 180) deg")
+    if theta1_rad + theta2_rad >= math.pi:
+        return Unobservable("angles sum to >= 180 deg")
+    return None
+
+
+def planar_triangulate(
+    d_m: float, theta1_rad: float, theta2_rad: float, *, origin: str = "b", bearing_sigma_rad: float = 0.0
+) -> Triangulation | Unobservable:
+    """Triangulate the thesis's planar configuration (see ``planar_rays``) with ``triangulate``.
+
+    origin: "b" (range from B: eq. 3.8, 3.9, 3.10, the mono range and the stereo "Y"),
+    "a" (range from A), or "mid" (from the baseline's midpoint: eq. 3.2's CF). ``p[1]`` is the
+    perpendicular distance to the baseline (eq. 3.1's Z). Angles summing to >= 180 deg, or outside
+    (0, 180) deg, or d <= 0 give Unobservable.
+    """
+    bad = _planar_check(float(d_m), float(theta1_rad), float(theta2_rad))
+    if bad is not None:
+        return bad
+    c_a, b_a, c_b, b_b = planar_rays(d_m, theta1_rad, theta2_rad)
+    o = {"b": c_b, "a": c_a, "mid": 0.5 * (c_a + c_b)}.get(origin)
+    if o is None:
+        raise InputError(f"origin: expected one of 'a', 'b', 'mid', got {origin!r}")
+    return triangulate(
+        c_a, b_a, c_b, b_b, origin=o, bearing_sigma_rad=bearing_sigma_rad, min_parallax_rad=0.0
+    )
+
+
+def planar_moving_obstacle_bounds(
+    d_m: float, theta1_rad: float, theta2_rad: float, max_displacement_m: float
+) -> RangeBounds | Unobservable:
+    """``moving_obstacle_bounds`` for the thesis's planar configuration (range from B)."""
+    if float(d_m) < 0 or not (0 < float(theta1_rad) < math.pi and 0 < float(theta2_rad) < math.pi):
+        return Unobservable("zero baseline" if float(d_m) < 0 else "interior angle outside (0, 180) deg")
+    c_a, b_a, c_b, b_b = planar_rays(d_m, theta1_rad, theta2_rad)
+    return moving_obstacle_bounds(c_a, b_a, c_b, b_b, max_displacement_m)
