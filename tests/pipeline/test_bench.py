@@ -1,0 +1,222 @@
+"""The benchmark harness on tiny synthetic inputs: statistics, memory sampler, decode-only, thread
+pinning in a subprocess, render cache, table and JSON report. No wall-clock thresholds."""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from estimators.errors import InputError, SourceError
+from pipeline import bench
+
+
+def write_video(path: Path, values: list[int], size: tuple[int, int] = (64, 48), fps: float = 30.0) -> Path:
+    """FFV1 (lossless) video whose frame i is uniformly grey ``values[i]``."""
+    w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"FFV1"), fps, size)
+    if not w.isOpened():
+        pytest.skip("OpenCV cannot write FFV1 here")
+    for v in values:
+        w.write(np.full((size[1], size[0], 3), v, np.uint8))
+    w.release()
+    return path
+
+
+@pytest.fixture()
+def video(tmp_path: Path) -> Path:
+    return write_video(tmp_path / "cam0.mkv", [10 * i for i in range(10)])
+
+
+# ------------------------------------------------------------------------------------- statistics
+@pytest.mark.parametrize(
+    "samples",
+    [[1.0, 2.0, 3.0, 4.0], list(range(101)), [5.0], [0.003, 0.001, 0.002, 0.010, 0.004, 0.002, 0.0015]],
+)
+def test_percentile_matches_statistics_inclusive_quantiles(samples):
+    # statistics.quantiles(method="inclusive") interpolates linearly between order statistics:
+    # an independent implementation of the same definition.
+    if len(samples) == 1:
+        assert bench.percentile(samples, 99) == samples[0]
+        return
+    q = statistics.quantiles(samples, n=100, method="inclusive")
+    assert bench.percentile(samples, 50) == pytest.approx(statistics.median(samples))
+    assert bench.percentile(samples, 99) == pytest.approx(q[98])
+    assert bench.percentile(samples, 25) == pytest.approx(q[24])
+
+
+def test_percentile_hand_worked():
+    # rank r = 0.99 * (2 - 1) = 0.99 -> 0 + 0.99 * (10 - 0)
+    assert bench.percentile([10.0, 0.0], 99) == pytest.approx(9.9)
+    assert bench.percentile([10.0, 0.0], 0) == 0.0 and bench.percentile([10.0, 0.0], 100) == 10.0
+
+
+@pytest.mark.parametrize("samples,q", [([], 50), ([1.0], -1), ([1.0], 101)])
+def test_percentile_rejects_bad_input(samples, q):
+    with pytest.raises(InputError):
+        bench.percentile(samples, q)
+
+
+def test_stats_from_samples():
+    s = bench.Stats.from_samples([0.004, 0.001, 0.002, 0.003])
+    assert (s.n, s.median_s, s.max_s) == (4, pytest.approx(0.0025), 0.004)
+    assert s.mean_s == pytest.approx(0.0025) and s.total_s == pytest.approx(0.010)
+    assert s.p99_s == pytest.approx(0.003 + 0.97 * 0.001)  # r = 2.97
+    assert set(s.to_json()) == {"n", "median_s", "p99_s", "mean_s", "max_s", "total_s"}
+    with pytest.raises(InputError):
+        bench.Stats.from_samples([])
+
+
+def test_stage_clock_accumulates_within_a_frame_and_zero_fills():
+    c = bench.StageClock()
+    c.add("detect", 0.002)
+    c.add("detect", 0.003)  # second camera
+    c.add("decode", 0.001)
+    c.end_frame()
+    c.add_all({"decode": 0.004, "fuse": 0.5})
+    c.end_frame()
+    assert c.n_frames == 2
+    assert c.stages() == ["decode", "detect", "fuse"]  # pipeline order
+    np.testing.assert_allclose(c.samples("detect"), [0.005, 0.0])
+    np.testing.assert_allclose(c.per_frame_total(), [0.006, 0.504])
+    assert c.summary()["fuse"]["median_s"] == pytest.approx(0.25)
+
+
+# ------------------------------------------------------------------------------------------ memory
+def test_rss_sees_a_touched_allocation():
+    before = bench.rss_bytes()
+    block = np.ones(64 * 2**20, dtype=np.uint8)  # 64 MiB, every page written
+    after = bench.rss_bytes()
+    assert after - before > 48 * 2**20
+    assert bench.peak_rss_bytes() >= after
+    del block
+
+
+def test_memory_sampler_checkpoints_and_growth():
+    m = bench.MemorySampler([3, 5])
+    fake = iter([100 * 2**20, 200 * 2**20])
+    m._rss_fn = lambda: next(fake)
+    for n in range(1, 7):
+        m.after_frame(n)
+    assert m.samples == {3: 100 * 2**20, 5: 200 * 2**20}
+    g = m.growth(3, 5)
+    assert g["growth_bytes"] == 100 * 2**20 and g["ratio"] == pytest.approx(2.0)
+    assert bench.memory_grew(g) is True
+    assert m.growth(3, 7) is None and bench.memory_grew(None) is None
+    flat = {"growth_bytes": 2 * 2**20, "rss_from_bytes": 100 * 2**20}
+    assert bench.memory_grew(flat) is False
+    assert set(m.to_json()) == {"rss_bytes_at_frames", "peak_rss_bytes"}
+
+
+# ------------------------------------------------------------------------------------------- video
+def test_looped_frames_replays_the_clip_in_order_and_in_grey(video):
+    frames = list(bench.looped_frames({"cam0": video}, 25, fps=100.0))
+    assert [f.frame for f in frames] == list(range(25))
+    assert frames[24].t_s == pytest.approx(0.24)  # time keeps running across loops
+    for f in frames:
+        img = f.images["cam0"]
+        assert img.shape == (48, 64) and img.dtype == np.uint8
+        assert int(img[0, 0]) == 10 * (f.frame % 10)  # FFV1 is lossless: the value written
+        assert f.decode_s > 0
+
+
+def test_looped_frames_keeps_cameras_in_step(tmp_path):
+    a = write_video(tmp_path / "cam0.mkv", [0, 50, 100])
+    b = write_video(tmp_path / "cam1.mkv", [200, 150, 100])
+    got = [(int(f.images["cam0"][0, 0]), int(f.images["cam1"][0, 0]))
+           for f in bench.looped_frames({"cam0": a, "cam1": b}, 4)]
+    assert got == [(0, 200), (50, 150), (100, 100), (0, 200)]
+
+
+def test_decode_only_counts_frames(video):
+    r = bench.decode_only({"cam0": video}, 15)
+    assert r["frames"] == 15 and r["per_frame"]["n"] == 15 and r["fps"] > 0
+
+
+def test_missing_video_is_a_source_error(tmp_path):
+    with pytest.raises(SourceError, match="cannot open"):
+        list(bench.looped_frames({"cam0": tmp_path / "nope.mkv"}, 1))
+
+
+def test_read_timestamps(tmp_path):
+    p = tmp_path / "cam0.timestamps.txt"
+    p.write_text("0 0.0\n1 0.0333\n# comment\n3 0.1\n")
+    np.testing.assert_allclose(bench.read_timestamps(p), [0.0, 0.0333, 0.1])
+    assert bench.read_timestamps(tmp_path / "absent.txt") is None
+
+
+# ------------------------------------------------------------------------------ pinning subprocess
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity is Linux-only")
+def test_worker_pins_to_one_core_in_a_subprocess(video):
+    r = bench.run_task({"kind": "decode", "videos": {"cam0": str(video)}, "frames": 5}, 1)
+    assert "error" not in r, r
+    p = r["pinning"]
+    assert len(p["affinity"]) == 1 and p["cv2_threads"] == 1
+    assert all(v == "1" for v in p["env"].values())
+    assert r["frames"] == 5
+    free = bench.run_task({"kind": "decode", "videos": {"cam0": str(video)}, "frames": 5}, None)
+    assert len(free["pinning"]["affinity"]) == len(os.sched_getaffinity(0))
+
+
+def test_worker_errors_come_back_as_data(video):
+    r = bench.run_task({"kind": "no-such-task"}, 1)
+    assert "unknown task kind" in r["error"]
+
+
+# ------------------------------------------------------------------------------------ render cache
+def test_cached_render_renders_once_and_redoes_an_unfinished_one(tmp_path):
+    calls = []
+
+    def fake_render(scn: Path, out: Path) -> None:
+        calls.append(scn)
+        assert scn.is_file()
+        write_video(out / "cam0.mkv", [1, 2])
+
+    scn = {"name": "s", "obstacles": [{"id": 1, "kind": "sphere", "radius_m": 1.0}]}
+    d1 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render)
+    d2 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render)
+    assert d1 == d2 and len(calls) == 1
+    assert list(bench.render_videos(d1)) == ["cam0"]
+    d3 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=3, render=fake_render)
+    assert d3 != d1 and len(calls) == 2
+    (d3 / ".complete").unlink()  # as if killed mid-render
+    bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=3, render=fake_render)
+    assert len(calls) == 3
+
+
+# ------------------------------------------------------------------------------------------ report
+def test_row_ratios():
+    r = bench.Row("t", "fps", 50.0, "fps", "decode-only", 200.0, inverse=True)
+    assert r.ratio == pytest.approx(4.0)  # takes 4x the decode time per frame
+    r = bench.Row("t", "latency", 0.02, "s", "frame interval", 0.01)
+    assert r.ratio == pytest.approx(2.0)
+    assert bench.Row("t", "x", None, "s", "b", 1.0).ratio is None
+
+
+def test_table_and_json_report(tmp_path):
+    rows = [
+        bench.Row("throughput", "640x480 mono, 1 core", 120.0, "fps", "decode-only", 480.0,
+                  target=">= 100 fps", met=True, inverse=True),
+        bench.Row("throughput", "1920x1080 mono, 1 core", 12.0, "fps", target=">= 30 fps", met=False),
+        bench.Row("detectors", "kornia on CUDA", None, "fps", note="no GPU"),
+    ]
+    text = bench.format_table(rows)
+    assert "met" in text and "MISSED" in text and "x4.00 time of decode-only" in text
+    assert "no GPU" in text and "## detectors" in text
+    sections = bench.sanitize({"decode": {"fps": float("nan"), "frames": 3}})
+    doc = bench.write_report(tmp_path / "bench.json", rows, sections, {"quick": True})
+    back = json.loads((tmp_path / "bench.json").read_text())
+    assert back == json.loads(json.dumps(doc))
+    assert back["schema"] == bench.SCHEMA and back["sections"]["decode"] == {"fps": None, "frames": 3}
+    assert back["rows"][0]["ratio"] == pytest.approx(4.0) and back["rows"][1]["met"] is False
+    assert bench.sanitize({"a": [1.0, float("inf")], "b": float("nan")}) == {"a": [1.0, None], "b": None}
+
+
+def test_machine_info_names_the_software():
+    info = bench.machine_info()
+    assert info["opencv"] == cv2.__version__ and info["python"] == sys.version.split()[0]
