@@ -18,7 +18,7 @@ import typer
 
 from estimators.errors import FisheyeDesError
 
-COMMANDS: tuple[str, ...] = ()
+COMMANDS: tuple[str, ...] = ("thesis",)
 
 app = typer.Typer(
     name="fisheye-des",
