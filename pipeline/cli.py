@@ -18,7 +18,7 @@ import typer
 
 from estimators.errors import FisheyeDesError
 
-COMMANDS: tuple[str, ...] = ("thesis",)
+COMMANDS: tuple[str, ...] = ("thesis", "simulate")
 
 app = typer.Typer(
     name="fisheye-des",
