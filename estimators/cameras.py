@@ -80,6 +80,18 @@ def make_camera_model(name: str, **params) -> CameraModel:
         raise CalibrationError(f"camera model {name!r}: {e}; expected: {', '.join(fields)}") from e
 
 
+def _float(model, field: str) -> float:
+    """A model field as a finite Python float, else a CalibrationError naming the model and field."""
+    v = getattr(model, field)
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise CalibrationError(f"{model.name}: expected {field} a number, got {v!r}") from None
+    if not np.isfinite(f):
+        raise CalibrationError(f"{model.name}: expected {field} finite, got {f}")
+    return f
+
+
 def _tangent_basis(b: np.ndarray) -> np.ndarray:
     """Orthonormal tangent basis of the unit sphere at unit bearings ``b`` (N,3) -> (N,3,2)."""
     a = np.zeros_like(b)
@@ -306,10 +318,7 @@ class CameraModel(ABC):
     def _check_common(self) -> None:
         """Validate and normalise the shared fields (fx, fy, cx, cy, width, height)."""
         for k in ("fx", "fy", "cx", "cy"):
-            v = float(getattr(self, k))
-            if not np.isfinite(v):
-                raise CalibrationError(f"{self.name}: {k} must be finite, got {v}")
-            object.__setattr__(self, k, v)
+            object.__setattr__(self, k, _float(self, k))
         if self.fx <= 0 or self.fy <= 0:  # type: ignore[attr-defined]
             raise CalibrationError(
                 f"{self.name}: expected focal lengths fx, fy > 0 px, "
@@ -317,7 +326,11 @@ class CameraModel(ABC):
             )
         for k in ("width", "height"):
             v = getattr(self, k)
-            if isinstance(v, bool) or int(v) != v or int(v) <= 0:
+            try:
+                ok = not isinstance(v, bool | str) and int(v) == v and int(v) > 0
+            except (TypeError, ValueError, OverflowError):
+                ok = False
+            if not ok:
                 raise CalibrationError(f"{self.name}: expected {k} a positive integer (px), got {v!r}")
             object.__setattr__(self, k, int(v))
 
@@ -326,9 +339,9 @@ class CameraModel(ABC):
         user = self.max_angle_rad
         eff = min(float(natural_rad), MAX_ANGLE_CAP_RAD)
         if user is not None:
-            u = float(user)
-            if not np.isfinite(u) or u <= 0:
-                raise CalibrationError(f"{self.name}: expected max_angle_rad > 0, got {user!r}")
+            u = _float(self, "max_angle_rad")
+            if u <= 0:
+                raise CalibrationError(f"{self.name}: expected max_angle_rad > 0, got {u}")
             eff = min(eff, u)
         object.__setattr__(self, "max_angle_rad", eff)
 
@@ -489,10 +502,7 @@ class KannalaBrandt(_ThetaModel):
     def __post_init__(self) -> None:
         self._check_common()
         for k in ("k1", "k2", "k3", "k4"):
-            v = float(getattr(self, k))
-            if not np.isfinite(v):
-                raise CalibrationError(f"kannala_brandt: {k} must be finite, got {v}")
-            object.__setattr__(self, k, v)
+            object.__setattr__(self, k, _float(self, k))
         self._finish_theta_model(self._monotonic_limit())
 
     def _monotonic_limit(self) -> float:
@@ -572,11 +582,11 @@ class DoubleSphere(CameraModel):
 
     def __post_init__(self) -> None:
         self._check_common()
-        xi, al = float(self.xi), float(self.alpha)
-        if not (np.isfinite(xi) and -1.0 <= xi <= 1.0):
-            raise CalibrationError(f"double_sphere: expected xi in [-1, 1], got {self.xi!r}")
-        if not (np.isfinite(al) and 0.0 <= al <= 1.0):
-            raise CalibrationError(f"double_sphere: expected alpha in [0, 1], got {self.alpha!r}")
+        xi, al = _float(self, "xi"), _float(self, "alpha")
+        if not -1.0 <= xi <= 1.0:
+            raise CalibrationError(f"double_sphere: expected xi in [-1, 1], got {xi}")
+        if not 0.0 <= al <= 1.0:
+            raise CalibrationError(f"double_sphere: expected alpha in [0, 1], got {al}")
         object.__setattr__(self, "xi", xi)
         object.__setattr__(self, "alpha", al)
         w1 = al / (1 - al) if al <= 0.5 else (1 - al) / al
@@ -666,11 +676,11 @@ class Eucm(CameraModel):
 
     def __post_init__(self) -> None:
         self._check_common()
-        al, be = float(self.alpha), float(self.beta)
-        if not (np.isfinite(al) and 0.0 <= al <= 1.0):
-            raise CalibrationError(f"eucm: expected alpha in [0, 1], got {self.alpha!r}")
-        if not (np.isfinite(be) and be > 0.0):
-            raise CalibrationError(f"eucm: expected beta > 0, got {self.beta!r}")
+        al, be = _float(self, "alpha"), _float(self, "beta")
+        if not 0.0 <= al <= 1.0:
+            raise CalibrationError(f"eucm: expected alpha in [0, 1], got {al}")
+        if not be > 0.0:
+            raise CalibrationError(f"eucm: expected beta > 0, got {be}")
         object.__setattr__(self, "alpha", al)
         object.__setattr__(self, "beta", be)
         w = al / (1 - al) if al <= 0.5 else (1 - al) / al
