@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from estimators.errors import ConfigError, InputError, SourceError
+from estimators.errors import ConfigError, FisheyeDesError, InputError, SourceError
 
 SCHEMA = "fisheye-des-bench/1"
 
@@ -429,11 +429,20 @@ def run_task(task: Mapping[str, Any], n_threads: int | None, timeout_s: float = 
     lines = [ln for ln in r.stdout.splitlines() if ln.strip()]
     if r.returncode != 0 or not lines:
         tail = (r.stderr or r.stdout).strip().splitlines()[-6:]
-        return {"error": f"worker exit {r.returncode}: " + " | ".join(tail)}
+        return {"error": one_line(f"worker exit {r.returncode}: " + " | ".join(tail))}
     try:
-        return json.loads(lines[-1])
+        out = json.loads(lines[-1])
     except json.JSONDecodeError:
         return {"error": f"worker printed no JSON: {lines[-1][:200]}"}
+    if "error" in out:
+        out["error"] = one_line(out["error"])
+    return out
+
+
+def one_line(text: str, limit: int = 300) -> str:
+    """``text`` on one line (whitespace runs collapsed), cut to ``limit`` characters."""
+    s = " ".join(str(text).split())
+    return s if len(s) <= limit else s[: limit - 3] + "..."
 
 
 def _task_decode(task: Mapping[str, Any]) -> dict[str, Any]:
@@ -450,10 +459,152 @@ def _task_memory_probe(task: Mapping[str, Any]) -> dict[str, Any]:
     return sampler.to_json()
 
 
-#: Worker task kinds -> function(task) -> JSON result. The pipeline tasks are registered below.
+class _SourceInfo:
+    """What ``pipeline.run.run`` reads of each camera source (``frame_count``, ``fps``, ``path``)."""
+
+    def __init__(self, camera: str, path: str, fps: float) -> None:
+        self.camera, self.path, self.fps, self.frame_count = camera, path, fps, None
+        self.error = None
+
+
+class LoopingSource:
+    """A ``SyncedSource`` stand-in for ``pipeline.run.run``: the clip replayed for ``n_frames`` frame
+    sets (BGR, as ``VideoSource`` yields them), with RSS sampled and the steady-state clock read.
+
+    Args:
+        videos: camera name -> video path, in the rig's order. n_frames: frame sets to yield.
+        fps: frame rate (Hz) for ``t_s = frame / fps``. checkpoints: frame counts at which RSS is
+        sampled (the sample for "after k frames" is taken when set k+1 is requested, i.e. after the
+        run loop has finished frame k). warmup: frame sets before the steady-state clock starts.
+    """
+
+    def __init__(self, videos: Mapping[str, str | Path], n_frames: int, fps: float,
+                 checkpoints: Sequence[int] = (), warmup: int = 0) -> None:
+        self.videos = {k: str(v) for k, v in videos.items()}
+        self.n_frames, self.fps, self.warmup = int(n_frames), float(fps), int(warmup)
+        self.sources = [_SourceInfo(k, v, self.fps) for k, v in self.videos.items()]
+        self.dropped = {k: 0 for k in self.videos}
+        self.error: str | None = None
+        self.memory = MemorySampler(checkpoints)
+        self.t_warm: float | None = None
+        self.t_end: float | None = None
+        self.sets = 0
+
+    def __iter__(self):
+        from pipeline.sources import Frame, FrameSet
+
+        for k, f in enumerate(looped_frames(self.videos, self.n_frames, self.fps, grey=False)):
+            self.memory.after_frame(k)
+            if k == self.warmup:
+                self.t_warm = time.perf_counter()
+            self.sets = k + 1
+            yield FrameSet(f.frame, f.t_s, {c: Frame(f.frame, f.t_s, c, im) for c, im in f.images.items()})
+        self.memory.after_frame(self.sets)
+        self.t_end = time.perf_counter()
+
+    def steady_fps(self) -> float | None:
+        """Frame sets per second after the warm-up (None when the run was shorter)."""
+        if self.t_warm is None or self.t_end is None or self.t_end <= self.t_warm:
+            return None
+        return (self.sets - self.warmup) / (self.t_end - self.t_warm)
+
+    def close(self) -> None:
+        pass
+
+
+class _CountingFrontEnd:
+    """Forwards to the real front end and counts obstacles and their features per frame."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.observations: list[int] = []
+        self.features: list[int] = []
+        self.tracked: list[int] = []
+
+    @property
+    def timings(self) -> dict[str, float]:
+        return self.inner.timings
+
+    def process(self, images, frame, t_s):
+        obs = self.inner.process(images, frame, t_s)
+        self.observations.append(len(obs))
+        self.features.append(sum(len(v.feature_ids) for o in obs for v in o.views))
+        last = getattr(self.inner, "last_features", None) or {}
+        self.tracked.append(sum(len(getattr(f, "ids", ())) for f in last.values()))
+        return obs
+
+
+def _egomotion(task: Mapping[str, Any]):
+    """Ego-motion for a task: the render's TUM trajectory while the clip is not looped, else the
+    scenario's straight level flight as a constant velocity (identical for ``straight`` observers),
+    because a looped clip runs past the trajectory's end."""
+    from estimators.egomotion import ConstantVelocity, TumTrajectory
+    from estimators.se3 import Pose, rot_z
+
+    if not task.get("looped") and task.get("trajectory"):
+        return TumTrajectory.load(task["trajectory"])
+    obs = task["observer"]
+    start = obs.get("start", {})
+    p0 = np.asarray(start.get("position_m", (0.0, 0.0, 2.0)), dtype=float)
+    R0 = rot_z(math.radians(float(start.get("yaw_deg", 0.0))))
+    return ConstantVelocity(float(obs.get("speed_mps", 0.0)), start=Pose(R0, p0))
+
+
+def pipeline_config(task: Mapping[str, Any]):
+    """The ``PipelineConfig`` of a pipeline task (calibration, detector, tracker, fusion; no extras)."""
+    from pipeline.config import PipelineConfig
+
+    return PipelineConfig.model_validate({
+        "rig": {"calibration": task["calibration"]},
+        "ego_motion": ({"trajectory": task["trajectory"]} if task.get("trajectory") else {"speed_mps": 0.0}),
+        "detector": {"name": task.get("detector", "orb"),
+                     "options": dict(task.get("detector_options") or {})},
+        "tracker": {"options": dict(task.get("frontend_options") or {})},
+        "fusion": {"settings": dict(task.get("fusion_settings") or {})},
+        "inputs": {"videos": list(task["videos"].values())},
+        "outputs": {"progress": False},
+    })
+
+
+def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
+    """The full pipeline through the project's own run loop (``pipeline.run.run``): decode -> front
+    end -> fusion -> tracks.jsonl, fed by a :class:`LoopingSource` over the clip.
+
+    Task keys: ``videos`` (camera -> path), ``calibration`` (camchain.yaml), ``trajectory``,
+    ``observer`` (scenario observer mapping), ``frames``, ``fps``, ``looped``, ``detector``,
+    ``detector_options``, ``frontend_options``, ``fusion_settings``, ``out`` (run folder),
+    ``checkpoints`` (RSS sample points), ``warmup`` (frames left out of the steady-state rate).
+    """
+    from pipeline import run as run_mod
+
+    cfg = pipeline_config(task)
+    rig = run_mod.build_rig(cfg)
+    ego = _egomotion(task)
+    front = _CountingFrontEnd(run_mod.build_frontend(cfg, rig))
+    fusion = run_mod.build_fusion(cfg, rig, ego)
+    n = int(task["frames"])
+    warm = int(task.get("warmup", min(10, n // 10)))
+    src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
+                        task.get("checkpoints") or [], warm)
+    res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
+                      progress=False)
+    sm = res.summary
+    return {
+        "frames": res.frames, "wall_s": res.wall_s, "fps_all": res.frames_per_s,
+        "fps": src.steady_fps() or res.frames_per_s, "warmup_frames": warm,
+        "stages": sm.get("timings", {}), "per_frame": sm.get("per_frame", {}),
+        "observations_mean": float(np.mean(front.observations)) if front.observations else 0.0,
+        "grouped_features_mean": float(np.mean(front.features)) if front.features else 0.0,
+        "tracked_features_mean": float(np.mean(front.tracked)) if front.tracked else 0.0,
+        "tracks": res.tracks, "memory": src.memory.to_json(), "out": str(res.out_dir),
+    }
+
+
+#: Worker task kinds -> function(task) -> JSON result.
 TASKS: dict[str, Callable[[Mapping[str, Any]], dict[str, Any]]] = {
     "decode": _task_decode,
     "memory_probe": _task_memory_probe,
+    "pipeline": _task_pipeline,
 }
 
 
@@ -528,7 +679,7 @@ def format_table(rows: Sequence[Row]) -> str:
         kind = "time " if r.inverse else ""
         base = "" if r.ratio is None else f"x{r.ratio:.2f} {kind}of {r.baseline_name}"
         met = "" if r.met is None else ("met" if r.met else "MISSED")
-        name = r.name + (f"  ({r.note})" if r.note and r.value is None else "")
+        name = r.name + (f"  ({one_line(r.note, 70)})" if r.note and r.value is None else "")
         body.append(("  " + name, _fmt(r.value, r.unit), base, r.target or "", met))
     widths = [max(len(x[i]) for x in [head, *body]) for i in range(len(head))]
     line = "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True)).rstrip()
@@ -608,6 +759,426 @@ def sanitize(o: Any) -> Any:
     if isinstance(o, list | tuple):
         return [sanitize(v) for v in o]
     return o
+
+
+# ------------------------------------------------------------------------------------ the bench run
+@dataclass(frozen=True)
+class BenchPlan:
+    """What ``fisheye-des bench`` measures and how long (frames per measurement).
+
+    ``resolutions`` (width, height) pixels; ``render_frames`` per clip (longer runs loop the clip);
+    ``measure_frames`` per throughput measurement; ``threads``: 1 (pinned) and None (all cores).
+    """
+
+    quick: bool
+    resolutions: tuple[tuple[int, int], ...]
+    rigs: tuple[str, ...] = ("mono", "stereo")
+    threads: tuple[int | None, ...] = (1, None)
+    render_frames: int = 150
+    measure_frames: int = 300
+    live_frames: int = 300
+    scaling_resolution: tuple[int, int] = (1280, 720)
+    obstacle_counts: tuple[int, ...] = (1, 10, 50)
+    feature_counts: tuple[int, ...] = (100, 500, 2000)
+    scaling_frames: int = 200
+    memory_resolution: tuple[int, int] = (640, 480)
+    memory_frames: int = 10_000
+    memory_checkpoints: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000)
+    detector_frames: int = 100
+    base_obstacles: int = 8
+
+
+def make_plan(quick: bool) -> BenchPlan:
+    """The full plan (three camera resolutions, 10,000-frame memory run) or the quick smoke test."""
+    if not quick:
+        return BenchPlan(quick=False, resolutions=((640, 480), (1280, 720), (1920, 1080)))
+    small = (160, 120)
+    return BenchPlan(quick=True, resolutions=(small,), render_frames=12, measure_frames=24, live_frames=24,
+                     scaling_resolution=small, scaling_frames=12, memory_resolution=small, memory_frames=300,
+                     memory_checkpoints=(100, 300), detector_frames=8, threads=(1,))
+
+
+def camera_rate_hz(resolution: tuple[int, int]) -> float:
+    """The thesis camera's frame rate at ``resolution`` (Table 4.1); 100 Hz for sizes below 640x480."""
+    if tuple(resolution) in CAMERA_RATE_HZ:
+        return CAMERA_RATE_HZ[tuple(resolution)]
+    return 100.0 if resolution[0] * resolution[1] <= 640 * 480 else 30.0
+
+
+#: Throughput targets on one core (frames/s), by (resolution, rig kind).
+THROUGHPUT_TARGETS: dict[tuple[tuple[int, int], str], float] = {
+    ((1920, 1080), "mono"): 30.0, ((1280, 720), "mono"): 60.0, ((640, 480), "mono"): 100.0,
+    ((1280, 720), "stereo"): 30.0,
+}
+#: Pipeline time per frame over decode-only time per frame, at most (1280x720).
+DECODE_RATIO_TARGET = 2.0
+
+
+def bench_scenario(name: str, resolution: tuple[int, int], rig: str, fps: float, frames: int,
+                   n_obstacles: int, seed: int = 0) -> dict[str, Any]:
+    """A straight flight (3 m/s, 2 m up) past ``n_obstacles`` textured obstacles, all in the forward
+    half-space and out of the flight corridor (|y| >= 2.5 m), as a scenario mapping for the simulator.
+
+    Obstacles are spheres, poles and boxes at 12-60 m ahead, |y| 2.5-15 m, deterministic in ``seed``;
+    every fifth one moves sideways at 1-3 m/s (a second drone)."""
+    rng = np.random.default_rng(seed)
+    obstacles: list[dict[str, Any]] = []
+    for i in range(int(n_obstacles)):
+        side = 1.0 if i % 2 == 0 else -1.0
+        x = float(rng.uniform(12.0, 60.0))
+        y = side * float(rng.uniform(2.5, 15.0))
+        kind = ("sphere", "pole", "box")[i % 3]
+        o: dict[str, Any] = {"id": i + 1, "kind": kind}
+        if kind == "sphere":
+            o.update(radius_m=round(float(rng.uniform(0.4, 1.2)), 3),
+                     position_m=[x, y, float(rng.uniform(1, 5))])
+        elif kind == "pole":
+            o.update(radius_m=0.2, height_m=round(float(rng.uniform(3, 8)), 3), position_m=[x, y, 0.0])
+        else:
+            sz = round(float(rng.uniform(0.8, 2.5)), 3)
+            o.update(size_m=[sz, sz, sz], position_m=[x, y, float(rng.uniform(1, 5))])
+        if i % 5 == 4:
+            vy = -side * float(rng.uniform(1, 3))
+            o["motion"] = {"kind": "constant_velocity", "velocity_mps": [0.0, vy, 0.0]}
+        obstacles.append(o)
+    return {
+        "name": name,
+        "description": f"fisheye-des bench: {rig} {resolution[0]}x{resolution[1]}, {n_obstacles} obstacles",
+        "seed": int(seed),
+        "duration_s": (frames + 0.5) / fps,
+        "fps": float(fps),
+        "rig": {"kind": rig, "resolution": [int(resolution[0]), int(resolution[1])]},
+        "observer": {"kind": "straight", "speed_mps": 3.0, "start": {"position_m": [0.0, 0.0, 2.0]}},
+        "obstacles": obstacles,
+    }
+
+
+def simulate_render(scn_path: Path, out: Path, resolution: tuple[int, int], frames: int) -> None:
+    """Render with the simulator's Python API (``pipeline.sim.writer.simulate``), no progress bar."""
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.writer import simulate
+
+    simulate(load_scenario(scn_path), out, frames=int(frames), resolution=tuple(resolution), progress=False)
+
+
+@dataclass
+class Clip:
+    """A rendered clip: its folder, videos by camera, scenario mapping, resolution and rate."""
+
+    dir: Path
+    videos: dict[str, Path]
+    scenario: dict[str, Any]
+    resolution: tuple[int, int]
+    fps: float
+    frames: int
+
+    def task(self, kind: str, frames: int, **extra: Any) -> dict[str, Any]:
+        """A worker task over this clip (looped when ``frames`` exceeds the clip)."""
+        t = {"kind": kind, "videos": {k: str(v) for k, v in self.videos.items()},
+             "calibration": str(self.dir / "camchain.yaml"), "trajectory": str(self.dir / "trajectory.tum"),
+             "observer": self.scenario["observer"], "frames": int(frames), "fps": self.fps,
+             "looped": frames > self.frames}
+        t.update(extra)
+        return t
+
+
+def get_clip(cache_dir: Path, resolution: tuple[int, int], rig: str, frames: int, n_obstacles: int,
+             render: Callable[[Path, Path], None] | None = None) -> Clip:
+    """The cached (or freshly rendered) clip of :func:`bench_scenario`."""
+    fps = camera_rate_hz(resolution)
+    scn = bench_scenario(f"bench_{rig}_{n_obstacles}obs", resolution, rig, fps, frames, n_obstacles)
+    if render is None:
+        def render(p: Path, out: Path) -> None:
+            simulate_render(p, out, resolution, frames)
+    d = cached_render(scn, cache_dir, resolution=resolution, frames=frames, render=render)
+    return Clip(d, render_videos(d), scn, tuple(resolution), fps, frames)
+
+
+def _ms(seconds: float | None) -> float | None:
+    return None if seconds is None else 1000.0 * float(seconds)
+
+
+def _res(r: tuple[int, int]) -> str:
+    return f"{r[0]}x{r[1]}"
+
+
+def _threads_label(n: int | None) -> str:
+    return "1 core" if n == 1 else "all cores" if n is None else f"{n} cores"
+
+
+class BenchRun:
+    """One ``fisheye-des bench`` run: measurements in subprocesses, rows for the table, raw sections.
+
+    Args:
+        plan: what to measure. out_dir: folder for bench.json and the runs' tracks.jsonl.
+        cache_dir: rendered clips. log: progress messages (to stderr in the CLI).
+        render: injectable renderer ``render(scenario_yaml, out_dir)`` (tests), default the simulator.
+    """
+
+    def __init__(self, plan: BenchPlan, out_dir: Path, cache_dir: Path,
+                 log: Callable[[str], None] = lambda m: None,
+                 render: Callable[..., None] | None = None) -> None:
+        self.plan, self.out, self.cache, self.log = plan, Path(out_dir), Path(cache_dir), log
+        self.render = render
+        self.rows: list[Row] = []
+        self.sections: dict[str, Any] = {}
+        self.notes: list[str] = []
+        self._n_task = 0
+
+    # -------------------------------------------------------------------------------- helpers
+    def clip(self, resolution: tuple[int, int], rig: str, n_obstacles: int | None = None) -> Clip:
+        n = self.plan.base_obstacles if n_obstacles is None else n_obstacles
+        t0 = time.perf_counter()
+        render = None
+        if self.render is not None:
+            def render(p: Path, o: Path) -> None:
+                self.render(p, o, resolution, self.plan.render_frames)
+        c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, render=render)
+        dt = time.perf_counter() - t0
+        self.sections.setdefault("clips", {})[c.dir.name] = {"dir": str(c.dir), "render_or_load_s": dt,
+                                                            "cameras": sorted(c.videos)}
+        return c
+
+    def run(self, task: dict[str, Any], threads: int | None) -> dict[str, Any]:
+        self._n_task += 1
+        if task["kind"] in ("pipeline", "live"):
+            task.setdefault("out", str(self.out / "runs" / f"{self._n_task:02d}_{task['kind']}"))
+        label = f"{task['kind']} {Path(next(iter(task.get('videos', {'': ''}).values()))).parent.name} " \
+                f"{_threads_label(threads)}"
+        self.log(f"[bench] {label} ...")
+        r = run_task(task, threads)
+        if "error" in r:
+            self.log(f"[bench]   failed: {r['error']}")
+            self.notes.append(f"{label}: {r['error']}")
+        return r
+
+    # ----------------------------------------------------------------------------- sections
+    def throughput(self) -> None:
+        """Pipeline and decode-only frames/s for every resolution x rig x thread setting."""
+        p = self.plan
+        res_out: list[dict[str, Any]] = []
+        for res in p.resolutions:
+            for rig in p.rigs:
+                clip = self.clip(res, rig)
+                for th in p.threads:
+                    dec = self.run(clip.task("decode", p.measure_frames), th)
+                    pipe = self.run(clip.task("pipeline", p.measure_frames), th)
+                    res_out.append({"resolution": list(res), "rig": rig, "threads": th,
+                                    "decode": dec, "pipeline": pipe})
+                    name = f"{_res(res)} {rig}, {_threads_label(th)}"
+                    dfps, pfps = dec.get("fps"), pipe.get("fps")
+                    target = THROUGHPUT_TARGETS.get((tuple(res), rig)) if th == 1 else None
+                    self.rows.append(Row("decode-only (read + grey)", name, dfps, "fps",
+                                         "camera rate", camera_rate_hz(res)))
+                    self.rows.append(Row(
+                        "pipeline throughput (decode -> front end -> fusion -> jsonl)", name, pfps, "fps",
+                        "decode-only", dfps, inverse=True,
+                        target=None if target is None else f">= {target:.0f} fps",
+                        met=None if target is None or pfps is None else pfps >= target,
+                        note=pipe.get("error", "")))
+                    if tuple(res) == (1280, 720) and rig == "mono" and th == 1 and dfps and pfps:
+                        ratio = dfps / pfps
+                        self.rows.append(Row(
+                            "pipeline / decode-only", f"{name}: time per frame ratio", ratio, "x",
+                            target=f"<= {DECODE_RATIO_TARGET:.0f}x", met=ratio <= DECODE_RATIO_TARGET))
+        self.sections["throughput"] = res_out
+
+    def stage_table(self) -> str:
+        """Median / p99 per stage (ms) of the one-core runs, and the median as a multiple of decode."""
+        runs = [r for r in self.sections.get("throughput", [])
+                if r["threads"] == 1 and "stages" in r["pipeline"]]
+        if not runs:
+            return "(no per-stage timings: the pipeline did not run)"
+        cols = [f"{_res(r['resolution'])} {r['rig']}" for r in runs]
+        stages = [s for s in STAGES if any(s in r["pipeline"]["stages"] for r in runs)]
+        head = ["stage (ms/frame)"] + [f"{c}: med / p99 / x decode" for c in cols]
+        body = []
+        for s in stages + ["total"]:
+            line = [s]
+            for r in runs:
+                st = r["pipeline"]["stages"]
+                x = r["pipeline"]["per_frame"] if s == "total" else st.get(s)
+                dec = st.get("decode", {}).get("median_s")
+                if not x:
+                    line.append("-")
+                    continue
+                rel = f"x{x['median_s'] / dec:.2f}" if dec else "-"
+                line.append(f"{_ms(x['median_s']):.2f} / {_ms(x['p99_s']):.2f} / {rel}")
+            body.append(line)
+        w = [max(len(row[i]) for row in [head, *body]) for i in range(len(head))]
+        lines = ["  ".join(c.ljust(k) for c, k in zip(head, w, strict=True))]
+        lines.append("-" * len(lines[0]))
+        lines += ["  ".join(c.ljust(k) for c, k in zip(row, w, strict=True)) for row in body]
+        return "\n".join(lines)
+
+    def stage_rows(self) -> None:
+        """Per-stage median and p99 as table rows (JSON) for the one-core runs."""
+        for r in self.sections.get("throughput", []):
+            if r["threads"] != 1 or "stages" not in r["pipeline"]:
+                continue
+            st = r["pipeline"]["stages"]
+            dec = st.get("decode", {}).get("median_s")
+            for s, x in st.items():
+                name = f"{_res(r['resolution'])} {r['rig']}: {s}"
+                self.rows.append(Row("time per stage (1 core), median", name, _ms(x["median_s"]), "ms",
+                                     "decode median", _ms(dec), extra={"p99_ms": _ms(x["p99_s"])}))
+
+    def live(self) -> None:
+        """Latency frame arrival -> tracks.jsonl line with the paced source at the camera's rate."""
+        p = self.plan
+        out = []
+        for res in p.resolutions:
+            clip = self.clip(res, "mono")
+            rate = camera_rate_hz(res)
+            r = self.run(clip.task("live", p.live_frames, rate_hz=rate), 1)
+            out.append({"resolution": list(res), "rate_hz": rate, "result": r})
+            dec = r.get("decode_median_s")
+            interval = 1.0 / rate
+            lat = r.get("latency") or {}
+            budget = interval + dec if dec is not None else None
+            name = f"{_res(res)} mono at {rate:.0f} Hz, 1 core"
+            self.rows.append(Row("live latency (arrival -> tracks.jsonl line)", f"{name}: median",
+                                 _ms(lat.get("median_s")), "ms", "frame interval", _ms(interval),
+                                 note=r.get("error", "")))
+            self.rows.append(Row(
+                "live latency (arrival -> tracks.jsonl line)", f"{name}: p99", _ms(lat.get("p99_s")), "ms",
+                "interval + decode", _ms(budget),
+                target=None if budget is None else f"< {_ms(budget):.1f} ms",
+                met=None if budget is None or lat.get("p99_s") is None else lat["p99_s"] < budget))
+            self.rows.append(Row("live latency (arrival -> tracks.jsonl line)", f"{name}: frames dropped",
+                                 r.get("dropped"), "frames", "frames offered", r.get("offered")))
+        self.sections["live"] = out
+
+    def scaling(self) -> None:
+        """Frames/s against obstacles in view and against features tracked (one core)."""
+        p = self.plan
+        res = p.scaling_resolution
+        obs_out, feat_out = [], []
+        base = None
+        for n in p.obstacle_counts:
+            clip = self.clip(res, "mono", n)
+            r = self.run(clip.task("pipeline", p.scaling_frames), 1)
+            obs_out.append({"obstacles": n, "result": r})
+            fps = r.get("fps")
+            base = base if base is not None else (fps, n)
+            self.rows.append(Row(f"cost vs obstacles in view ({_res(res)} mono, 1 core)",
+                                 f"{n} obstacles (front end reports "
+                                 f"{r.get('observations_mean', 0):.1f}/frame)",
+                                 fps, "fps", f"{base[1]} obstacle(s)", base[0], inverse=True,
+                                 note=r.get("error", "")))
+        clip = self.clip(res, "mono")
+        base = None
+        for m in p.feature_counts:
+            r = self.run(clip.task("pipeline", p.scaling_frames, detector_options={"max_features": m},
+                                   frontend_options={"features": {"max_features": m}}), 1)
+            feat_out.append({"features": m, "result": r})
+            fps = r.get("fps")
+            base = base if base is not None else (fps, m)
+            self.rows.append(Row(f"cost vs features tracked ({_res(res)} mono, 1 core)",
+                                 f"{m} features wanted ({r.get('tracked_features_mean', 0):.0f} tracked, "
+                                 f"{r.get('grouped_features_mean', 0):.0f} in obstacles /frame)",
+                                 fps, "fps", f"{base[1]} features", base[0], inverse=True,
+                                 note=r.get("error", "")))
+        self.sections["scaling"] = {"resolution": list(res), "obstacles": obs_out, "features": feat_out}
+
+    def memory(self) -> None:
+        """RSS over a long (looped) run: at 1k and at the end; growth is a missed target."""
+        p = self.plan
+        clip = self.clip(p.memory_resolution, "mono")
+        cps = list(p.memory_checkpoints)
+        r = self.run(clip.task("pipeline", p.memory_frames, checkpoints=cps, warmup=0), 1)
+        self.sections["memory"] = {"resolution": list(p.memory_resolution), "frames": p.memory_frames,
+                                   "result": r}
+        at = {int(k): v for k, v in (r.get("memory", {}).get("rss_bytes_at_frames") or {}).items()}
+        first, last = cps[0], cps[-1]
+        mib = 1.0 / 2**20
+        sec = f"memory ({_res(p.memory_resolution)} mono, {p.memory_frames} frames, clip looped, 1 core)"
+        for c in cps:
+            self.rows.append(Row(sec, f"RSS after {c} frames", at[c] * mib if c in at else None, "MiB",
+                                 f"RSS at {first}", at[first] * mib if first in at else None,
+                                 note=r.get("error", "")))
+        grow = None
+        if first in at and last in at:
+            grow = memory_grew({"growth_bytes": at[last] - at[first], "rss_from_bytes": at[first]})
+        peak = r.get("memory", {}).get("peak_rss_bytes")
+        self.rows.append(Row(sec, f"growth {first} -> {last} frames",
+                             (at[last] - at[first]) * mib if grow is not None else None, "MiB",
+                             target="no growth (< 16 MiB or 5%)", met=None if grow is None else not grow))
+        self.rows.append(Row(sec, "peak RSS", peak * mib if peak else None, "MiB",
+                             f"RSS at {first}", at[first] * mib if first in at else None))
+
+    def detectors(self) -> None:
+        """kornia on CPU (and CUDA when present) beside ORB, same clip, one core."""
+        p = self.plan
+        res = p.resolutions[0]
+        clip = self.clip(res, "mono")
+        sec = f"detectors ({_res(res)} mono, 1 core)"
+        orb = self.run(clip.task("pipeline", p.detector_frames, detector="orb"), 1)
+        out: dict[str, Any] = {"resolution": list(res), "orb": orb}
+        self.rows.append(Row(sec, "orb", orb.get("fps"), "fps", "orb", orb.get("fps"),
+                             note=orb.get("error", "")))
+        try:
+            import importlib.util
+
+            have_torch = importlib.util.find_spec("torch") is not None and \
+                importlib.util.find_spec("kornia") is not None
+        except (ImportError, ValueError):
+            have_torch = False
+        if not have_torch:
+            self.rows.append(Row(sec, "kornia", None, "fps", note="skipped: torch/kornia not installed "
+                                 "(pip install fisheye-des[kornia])"))
+            self.sections["detectors"] = out
+            return
+        for dev in ("cpu", "cuda"):
+            if dev == "cuda" and not machine_info().get("cuda"):
+                self.rows.append(Row(sec, "kornia on CUDA", None, "fps", note="skipped: no CUDA GPU"))
+                continue
+            task = clip.task("pipeline", p.detector_frames, detector="kornia",
+                             detector_options={"device": dev})
+            r = self.run(task, 1)
+            out[f"kornia_{dev}"] = r
+            det = (r.get("stages") or {}).get("detect", {})
+            self.rows.append(Row(sec, f"kornia on {dev.upper()} (detect median "
+                                 f"{_ms(det.get('median_s')) or 0:.1f} ms)", r.get("fps"), "fps",
+                                 "orb", orb.get("fps"), inverse=True, note=r.get("error", "")))
+        self.sections["detectors"] = out
+
+    # --------------------------------------------------------------------------------- driver
+    def run_all(self, only: Sequence[str] | None = None) -> None:
+        parts = {"throughput": self.throughput, "live": self.live, "scaling": self.scaling,
+                 "memory": self.memory, "detectors": self.detectors}
+        for name in only or parts:
+            if name not in parts:
+                raise ConfigError(f"bench: unknown part {name!r}; expected one of {', '.join(parts)}")
+        t0 = time.perf_counter()
+        for name, fn in parts.items():
+            if only and name not in only:
+                continue
+            t = time.perf_counter()
+            try:
+                fn()
+            except FisheyeDesError as e:  # a part that cannot run (e.g. no simulator): say so, go on
+                self.notes.append(f"{name}: {e}")
+                self.log(f"[bench] {name} failed: {e}")
+            self.sections.setdefault("part_wall_s", {})[name] = time.perf_counter() - t
+        self.stage_rows()
+        self.sections["wall_s"] = time.perf_counter() - t0
+
+    def report(self) -> tuple[str, dict[str, Any]]:
+        """(printed text, bench.json document) -- also writes ``out/bench.json``."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        main_rows = [r for r in self.rows if not r.section.startswith("time per stage")]
+        meta = {"quick": self.plan.quick, "plan": asdict(self.plan), "machine": machine_info(),
+                "notes": self.notes, "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "pinning": "one core: a fresh subprocess with OMP/MKL/OPENBLAS/NUMEXPR_NUM_THREADS=1 set "
+                           "before any import, os.sched_setaffinity to one CPU, cv2.setNumThreads(1), "
+                           "torch.set_num_threads(1); all cores: the same subprocess without limits"}
+        doc = write_report(self.out / "bench.json", self.rows, sanitize(self.sections), sanitize(meta))
+        text = [format_table(main_rows), "", self.stage_table()]
+        if self.notes:
+            text += ["", "notes:"] + [f"  - {n}" for n in self.notes]
+        text += ["", f"pinning: {meta['pinning']}", f"written: {self.out / 'bench.json'}"]
+        return "\n".join(text), doc
 
 
 if __name__ == "__main__":  # the measurement child: JSON task on stdin, JSON result on stdout
