@@ -1,0 +1,515 @@
+"""Accuracy harness of the fusion filter: the issue's "Numbers to reach", measured on simulated scenes.
+
+Two modes:
+
+* ``bearings``: the filter fed with the true bearings of every obstacle's reference point (the
+  centre of its bounding sphere, as ``gt.jsonl``'s ``p_W``) from the simulator's scene model and
+  trajectory, plus Gaussian pixel noise (``pixel_sigma_px``) mapped through the camera model
+  (bearing -> pixel + noise -> bearing). No rendering, no tracker: this isolates the filter.
+  A view is given for each camera whose ``visible`` truth flag is set (inside the image, not occluded).
+* ``pipeline``: render -> front end -> fusion -> evaluate, through ``pipeline.run`` (when present).
+
+Scenes: the presets of ``configs/scenarios`` that fit each metric plus random scenes (seeded):
+mono straight flights past stationary spheres 3-25 m away, stereo (0.30 m) flights past obstacles at
+1-9 m, mono and stereo flights among obstacles moving no faster than the max speed.
+
+Metrics (one sample per track report per frame; ``in_view_s`` = time since the obstacle became
+continuously visible):
+
+* mono: stationary obstacles, true range 3-20 m, bearing >= 10 deg off the flight direction,
+  ``in_view_s >= 1``: median and p90 of |r - r_true| / r_true (and the share of samples with a range).
+* stereo (two cameras see it): median relative range error for true range <= 3 m and <= 8 m.
+* moving obstacles no faster than the max speed: share of bounded reports with
+  range_min <= r_true <= range_max; stereo tracks with ``in_view_s >= 1``: speed error
+  |s - s_true| / s_true and heading error (horizontal, degrees) of the velocity.
+* consistency: position NEES (3 dof; P from the filter) on tracks whose motion hypothesis holds
+  (stationary obstacles, stereo-fed tracks), its mean against the 95 % interval of the mean of
+  ``n_tracks`` chi-square(3) variables (each track counted once: the samples of a track are
+  correlated in time); share of samples with |r - r_true| <= range_sigma (1-sigma band, ~68 %).
+* thesis baseline: two frames, law of sines (eq. 3.8, ``estimators.thesis.eq_3_8_mono_Y``) on the
+  same noisy bearings, ``thesis_interval_s`` apart for mono; the two cameras of one frame for stereo;
+  speed from two stereo fixes ``thesis_interval_s`` apart (eq. 3.3-3.6, generalised).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections import defaultdict, deque
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from estimators.fusion import FusionSettings, ObstacleFusion
+from estimators.fusion_stats import nees_interval
+from estimators.records import CameraView, ObstacleObservation
+from estimators.thesis import eq_3_8_mono_Y
+
+__all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", "run_bearings",
+           "summarize", "format_table", "run_accuracy", "TARGETS"]
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenarios"
+
+# The issue's numbers to reach: metric -> (comparison, value)
+TARGETS: dict[str, tuple[str, float]] = {
+    "mono_median_rel": ("<=", 0.02),
+    "mono_p90_rel": ("<=", 0.05),
+    "stereo_3m_median_rel": ("<=", 0.015),
+    "stereo_8m_median_rel": ("<=", 0.04),
+    "bounds_coverage": (">=", 0.99),
+    "stereo_speed_median_rel": ("<=", 0.10),
+    "stereo_heading_median_deg": ("<=", 10.0),
+    "one_sigma_share": ("~", 0.68),
+}
+
+
+@dataclass(frozen=True)
+class AccuracyOptions:
+    """Harness settings. pixel_sigma_px: pixel noise (px, 1-sigma per axis); seed: noise and random
+    scenes; n_random: random scenes per family; quick: fewer, shorter scenes (CI smoke, < 1 min);
+    thesis_interval_s: the thesis method's frame interval (s)."""
+
+    mode: str = "bearings"
+    quick: bool = False
+    pixel_sigma_px: float = 0.5
+    seed: int = 0
+    n_random: int | None = None
+    thesis_interval_s: float = 0.5
+    settings: FusionSettings = field(default_factory=FusionSettings)
+
+
+@dataclass
+class Sample:
+    """One track report compared with the truth (all SI; None = not available)."""
+
+    scene: str
+    rig: str
+    track: int
+    t_s: float
+    in_view_s: float
+    moving: bool
+    speed_true: float
+    max_speed: float
+    off_axis_deg: float
+    range_true: float
+    n_views: int
+    range_m: float | None
+    range_sigma_m: float | None
+    range_min_m: float | None
+    range_max_m: float | None
+    source: str
+    speed_mps: float | None = None
+    heading_err_deg: float | None = None
+    nees3: float | None = None
+    stereo_fed: bool = False
+    thesis_range_m: float | None = None
+    thesis_speed_mps: float | None = None
+
+
+# ------------------------------------------------------------------------------------- scenes
+def preset_scenarios(quick: bool):
+    """The presets of configs/scenarios used by the harness (renderable, so pipeline mode too)."""
+    from pipeline.sim.scene import load_scenario
+
+    names = ["mono_straight", "stereo_flying", "moving_crossing"] if quick else [
+        "mono_straight", "thesis_speed_15mps", "turning", "stereo_flying", "stereo_hover",
+        "moving_crossing", "moving_headon", "wide_angle_beyond90",
+    ]
+    out = []
+    for n in names:
+        p = SCENARIO_DIR / f"{n}.yaml"
+        if p.is_file():
+            out.append(load_scenario(p))
+    return out
+
+
+def _sphere(i: int, p, v=None, r: float = 0.4) -> dict:
+    d = {"id": i, "kind": "sphere", "radius_m": r, "position_m": [float(x) for x in p]}
+    if v is not None:
+        d["motion"] = {"kind": "constant_velocity", "velocity_mps": [float(x) for x in v]}
+    return d
+
+
+def _place(rng, o_W, heading, r_lo, r_hi, off_lo_deg, off_hi_deg, el_hi_deg=20.0):
+    """A point at range [r_lo, r_hi] from o_W, azimuth off the heading in +-[off_lo, off_hi] deg."""
+    r = rng.uniform(r_lo, r_hi)
+    az = math.radians(rng.uniform(off_lo_deg, off_hi_deg)) * rng.choice([-1.0, 1.0]) + heading
+    el = math.radians(rng.uniform(-el_hi_deg, el_hi_deg))
+    return o_W + r * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+
+
+def random_scenarios(quick: bool, seed: int, n: int | None = None):
+    """Seeded random scenes: mono stationary, stereo 1-9 m, mono and stereo with moving obstacles."""
+    from pipeline.sim.scene import scenario_from_dict
+
+    rng = np.random.default_rng(seed + 1000)
+    n = n if n is not None else (1 if quick else 6)
+    dur = 2.0 if quick else 3.0
+    o = np.array([0.0, 0.0, 5.0])
+    out = []
+    for k in range(n):
+        v = float(rng.uniform(3.0, 8.0))
+        obs = [_sphere(i + 1, _place(rng, o + [v * 1.0, 0, 0], 0.0, 4.0, 22.0, 10.0, 75.0))
+               for i in range(8)]
+        out.append(scenario_from_dict({
+            "name": f"rand_mono_{k}", "seed": k, "duration_s": dur, "fps": 30,
+            "rig": {"kind": "mono", "resolution": [1280, 720]},
+            "observer": {"kind": "straight", "speed_mps": v, "start": {"position_m": o.tolist()}},
+            "ground": {"enabled": False}, "obstacles": obs}))
+    for k in range(n):
+        v = float(rng.uniform(0.5, 3.0))
+        obs = []
+        for i in range(8):
+            p = _place(rng, o + [v * 0.5, 0, 0], 0.0, 1.5, 9.0, 0.0, 60.0)
+            mv = rng.uniform() < 0.4
+            vel = None
+            if mv:  # moving no faster than the drone (the default max speed)
+                a = rng.uniform(0, 2 * math.pi)
+                vel = rng.uniform(0.5, 1.0) * v * np.array([math.cos(a), math.sin(a), 0.0])
+            obs.append(_sphere(i + 1, p, vel, r=0.25))
+        out.append(scenario_from_dict({
+            "name": f"rand_stereo_{k}", "seed": 100 + k, "duration_s": dur, "fps": 30,
+            "rig": {"kind": "stereo", "baseline_m": 0.30, "resolution": [1280, 720]},
+            "observer": {"kind": "straight", "speed_mps": v, "start": {"position_m": o.tolist()}},
+            "ground": {"enabled": False}, "obstacles": obs}))
+    for k in range(n):
+        v = float(rng.uniform(3.0, 8.0))
+        obs = []
+        for i in range(8):
+            p = _place(rng, o + [v * 1.0, 0, 0], 0.0, 5.0, 25.0, 0.0, 80.0)
+            d = rng.normal(size=3)
+            d[2] *= 0.3
+            vel = rng.uniform(0.0, 1.0) * v * d / np.linalg.norm(d)
+            obs.append(_sphere(i + 1, p, vel))
+        out.append(scenario_from_dict({
+            "name": f"rand_moving_{k}", "seed": 200 + k, "duration_s": dur, "fps": 30,
+            "rig": {"kind": "mono", "resolution": [1280, 720]},
+            "observer": {"kind": "straight", "speed_mps": v, "start": {"position_m": o.tolist()}},
+            "ground": {"enabled": False}, "obstacles": obs}))
+    return out
+
+
+# --------------------------------------------------------------------------------- bearings mode
+def _noisy_bearing(model, p_C: np.ndarray, sigma_px: float, rng) -> tuple[np.ndarray, float] | None:
+    """True point p_C (3,) in C -> noisy unit bearing and its isotropic sigma (rad), or None."""
+    uv, ok = model.bearing_to_pixel(p_C[None])
+    if not ok[0]:
+        return None
+    uv_n = uv + rng.normal(scale=sigma_px, size=uv.shape) if sigma_px > 0 else uv
+    b, ok2 = model.pixel_to_bearing(uv_n)
+    if not ok2[0]:
+        return None
+    J = model.pixel_to_bearing_jacobian(uv)[0]  # (3, 2) d b / d uv
+    # isotropic sigma: RMS of the two singular values of J times the pixel sigma
+    sig = max(sigma_px, 1e-3) * math.sqrt(0.5 * float(np.sum(J * J)))
+    return b[0], sig
+
+
+def run_bearings(scn, opts: AccuracyOptions, rng) -> list[Sample]:
+    """Run the filter on one scene's noisy true bearings; one Sample per report."""
+    from pipeline.sim.groundtruth import body_velocity_W, obstacle_truth
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.trajectory import observer_trajectory
+    from pipeline.sim.world import World
+
+    world = World(scn)
+    rig = build_rig(scn.rig)
+    n = scn.n_frames
+    traj = observer_trajectory(scn.observer, max((n - 1) / scn.fps, 1.0 / scn.fps))
+    fus = ObstacleFusion(rig, traj, opts.settings)
+    first_seen: dict[int, float] = {}
+    hist: dict[int, deque] = defaultdict(lambda: deque(maxlen=600))  # thesis: (t, views in W)
+    out: list[Sample] = []
+    for k in range(n):
+        t = k / scn.fps
+        T_W_B = traj.pose_at(t)
+        v_B_W = body_velocity_W(traj, t)
+        truth = obstacle_truth(world, rig, T_W_B, v_B_W, t)
+        tmap = {g["id"]: g for g in truth}
+        observations = []
+        views_W: dict[int, list] = {}
+        for g in truth:
+            p_W = np.asarray(g["p_W"])
+            views = []
+            vw = []
+            for cam in rig:
+                if not g["visible"][cam.name]:
+                    continue
+                T_C_W = cam.T_C_B @ T_W_B.inverse()
+                nb = _noisy_bearing(cam.model, T_C_W.apply(p_W), opts.pixel_sigma_px, rng)
+                if nb is None:
+                    continue
+                b_C, sig = nb
+                views.append(CameraView(cam.name, b_C, np.zeros(2), sig))
+                T_W_C = T_C_W.inverse()
+                vw.append((T_W_C.t, T_W_C.R @ b_C))
+            if not views:
+                first_seen.pop(g["id"], None)
+                continue
+            first_seen.setdefault(g["id"], t)
+            observations.append(
+                ObstacleObservation(g["id"], k, t, "confirmed", tuple(views), label="truth"))
+            views_W[g["id"]] = vw
+            hist[g["id"]].append((t, vw))
+        reports = fus.step(observations, k, t)
+        v_drone = float(np.linalg.norm(v_B_W))
+        vmax = opts.settings.max_speed_mps if opts.settings.max_speed_mps is not None else v_drone
+        fwd = v_B_W / v_drone if v_drone > 1e-6 else T_W_B.R[:, 0]
+        for rep in reports:
+            if rep.status == "lost" or rep.id not in tmap:
+                continue
+            g = tmap[rep.id]
+            p_W = np.asarray(g["p_W"])
+            v_W = np.asarray(g["v_W"])
+            r_W = p_W - T_W_B.t
+            off = math.degrees(math.acos(float(np.clip(fwd @ r_W / np.linalg.norm(r_W), -1, 1))))
+            s = Sample(
+                scene=scn.name, rig=rig.kind, track=rep.id, t_s=t, in_view_s=t - first_seen[rep.id],
+                moving=bool(np.linalg.norm(v_W) > 1e-6), speed_true=float(np.linalg.norm(v_W)),
+                max_speed=float(vmax), off_axis_deg=off, range_true=float(g["range_m"]),
+                n_views=len(views_W[rep.id]), range_m=rep.range_m, range_sigma_m=rep.range_sigma_m,
+                range_min_m=rep.range_min_m, range_max_m=rep.range_max_m, source=rep.source,
+                speed_mps=rep.speed_mps, stereo_fed="stereo" in rep.source,
+            )
+            if rep.velocity_world_mps is not None and s.speed_true > 1e-6:
+                ve = np.asarray(rep.velocity_world_mps)
+                dh = math.atan2(ve[1], ve[0]) - math.atan2(v_W[1], v_W[0])
+                s.heading_err_deg = abs(math.degrees(math.atan2(math.sin(dh), math.cos(dh))))
+            st = fus.state(rep.id)
+            if st is not None:
+                x, P, _ = st
+                e = x[:3] - p_W
+                s.nees3 = float(e @ np.linalg.solve(P[:3, :3], e))
+            _thesis(s, hist[rep.id], views_W[rep.id], T_W_B.t, opts.thesis_interval_s, scn.fps)
+            out.append(s)
+    return out
+
+
+def _law_of_sines(c_a, b_a, c_b, b_b, o_W) -> float | None:
+    """The thesis's two-ray range (eq. 3.8, law of sines in the plane of the baseline and ray b),
+    measured from o_W: theta1 at A between A->B and b_a, theta2 at B between B->A and b_b."""
+    ab = c_b - c_a
+    d = float(np.linalg.norm(ab))
+    if d < 1e-9:
+        return None
+    u = ab / d
+    th1 = math.degrees(math.acos(float(np.clip(u @ b_a, -1, 1))))
+    th2 = math.degrees(math.acos(float(np.clip(-u @ b_b, -1, 1))))
+    if th1 + th2 >= 180.0 or th1 <= 0 or th2 <= 0:
+        return None
+    cb = eq_3_8_mono_Y(d, th1, th2)  # |BC| = d sin th1 / cos(th1 + th2 - 90)
+    if not (cb > 0 and math.isfinite(cb)):
+        return None
+    return float(np.linalg.norm(c_b + cb * b_b - o_W))
+
+
+def _thesis(s: Sample, hist: deque, views_now: list, o_W: np.ndarray, interval_s: float, fps: float) -> None:
+    if len(views_now) >= 2:  # DES-BFLC: the two cameras of this frame
+        (c_a, b_a), (c_b, b_b) = views_now[0], views_now[1]
+        s.thesis_range_m = _law_of_sines(c_a, b_a, c_b, b_b, o_W)
+        # speed from two stereo fixes interval_s apart
+        old = [h for h in hist if abs(h[0] - (s.t_s - interval_s)) < 0.5 / fps and len(h[1]) >= 2]
+        if old and s.thesis_range_m is not None:
+            (ca0, ba0), (cb0, bb0) = old[0][1][0], old[0][1][1]
+            p0 = _point(ca0, ba0, cb0, bb0)
+            p1 = _point(c_a, b_a, c_b, b_b)
+            if p0 is not None and p1 is not None:
+                s.thesis_speed_mps = float(np.linalg.norm(p1 - p0) / interval_s)
+        return
+    old = [h for h in hist if abs(h[0] - (s.t_s - interval_s)) < 0.5 / fps]
+    if not old:
+        return
+    c_a, b_a = old[0][1][0]
+    c_b, b_b = views_now[0]
+    s.thesis_range_m = _law_of_sines(c_a, b_a, c_b, b_b, o_W)
+
+
+def _point(c_a, b_a, c_b, b_b) -> np.ndarray | None:
+    ab = c_b - c_a
+    d = float(np.linalg.norm(ab))
+    u = ab / d
+    th1 = math.degrees(math.acos(float(np.clip(u @ b_a, -1, 1))))
+    th2 = math.degrees(math.acos(float(np.clip(-u @ b_b, -1, 1))))
+    if th1 + th2 >= 180.0:
+        return None
+    cb = eq_3_8_mono_Y(d, th1, th2)
+    return c_b + cb * b_b if cb > 0 else None
+
+
+# ------------------------------------------------------------------------------------ summary
+def _q(a: list[float], q: float) -> float | None:
+    return float(np.quantile(np.asarray(a), q)) if a else None
+
+
+def summarize(samples: list[Sample]) -> dict:
+    """The metrics of the module docstring from the samples (JSON-ready)."""
+    m: dict = {}
+
+    def rel(s: Sample, r: float | None) -> float | None:
+        return None if r is None else abs(r - s.range_true) / s.range_true
+
+    mono = [s for s in samples if s.n_views == 1 and not s.moving and 3.0 <= s.range_true <= 20.0
+            and s.off_axis_deg >= 10.0 and s.in_view_s >= 1.0]
+    e = [rel(s, s.range_m) for s in mono if s.range_m is not None]
+    th = [rel(s, s.thesis_range_m) for s in mono if s.thesis_range_m is not None]
+    m["mono_n"] = len(mono)
+    m["mono_ranged_share"] = len(e) / len(mono) if mono else None
+    m["mono_median_rel"], m["mono_p90_rel"] = _q(e, 0.5), _q(e, 0.9)
+    m["thesis_mono_median_rel"], m["thesis_mono_p90_rel"] = _q(th, 0.5), _q(th, 0.9)
+    for lim in (3, 8):
+        st = [s for s in samples if s.n_views >= 2 and s.range_true <= lim and s.rig == "stereo"]
+        e = [rel(s, s.range_m) for s in st if s.range_m is not None]
+        th = [rel(s, s.thesis_range_m) for s in st if s.thesis_range_m is not None]
+        m[f"stereo_{lim}m_n"] = len(st)
+        m[f"stereo_{lim}m_median_rel"] = _q(e, 0.5)
+        m[f"thesis_stereo_{lim}m_median_rel"] = _q(th, 0.5)
+    mv = [s for s in samples if s.moving and s.speed_true <= s.max_speed + 1e-9]
+    bounded = [s for s in mv if s.range_min_m is not None]
+    inside = [s for s in bounded if s.range_min_m - 1e-9 <= s.range_true
+              and (s.range_max_m is None or s.range_true <= s.range_max_m + 1e-9)]
+    m["bounds_n"] = len(bounded)
+    m["bounds_coverage"] = len(inside) / len(bounded) if bounded else None
+    m["bounds_upper_share"] = (sum(s.range_max_m is not None for s in bounded) / len(bounded)
+                               if bounded else None)
+    allb = [s for s in samples if s.range_min_m is not None and s.speed_true <= s.max_speed + 1e-9]
+    ins = [s for s in allb if s.range_min_m - 1e-9 <= s.range_true
+           and (s.range_max_m is None or s.range_true <= s.range_max_m + 1e-9)]
+    m["bounds_coverage_all"] = len(ins) / len(allb) if allb else None
+    sv = [s for s in samples
+          if s.rig == "stereo" and s.moving and s.speed_true >= 0.5 and s.in_view_s >= 1.0]
+    sp = [abs(s.speed_mps - s.speed_true) / s.speed_true for s in sv if s.speed_mps is not None]
+    hd = [s.heading_err_deg for s in sv if s.heading_err_deg is not None]
+    tsp = [abs(s.thesis_speed_mps - s.speed_true) / s.speed_true
+           for s in sv if s.thesis_speed_mps is not None]
+    m["stereo_vel_n"] = len(sv)
+    m["stereo_vel_share"] = len(sp) / len(sv) if sv else None
+    m["stereo_speed_median_rel"] = _q(sp, 0.5)
+    m["stereo_heading_median_deg"] = _q(hd, 0.5)
+    m["thesis_stereo_speed_median_rel"] = _q(tsp, 0.5)
+    # consistency: hypothesis holds (stationary obstacles, or stereo-fed tracks)
+    cons = [s for s in samples if s.nees3 is not None and (not s.moving or s.stereo_fed)]
+    tracks = defaultdict(list)
+    for s in cons:
+        tracks[(s.scene, s.track)].append(s.nees3)
+    m["nees_n_samples"] = len(cons)
+    m["nees_n_tracks"] = len(tracks)
+    m["nees_mean"] = float(np.mean([s.nees3 for s in cons])) if cons else None
+    if tracks:
+        lo, hi = nees_interval(3, len(tracks), 0.95)
+        m["nees_interval95"] = [lo, hi]
+    z = [abs(s.range_m - s.range_true) <= s.range_sigma_m for s in cons
+         if s.range_m is not None and s.range_sigma_m is not None]
+    m["one_sigma_share"] = float(np.mean(z)) if z else None
+    m["n_samples"] = len(samples)
+    return m
+
+
+def _fmt(v, pct: bool = False) -> str:
+    if v is None:
+        return "n/a"
+    return f"{100 * v:.2f} %" if pct else f"{v:.3f}"
+
+
+def format_table(m: dict, title: str = "") -> str:
+    """A human-readable table: metric, ours, thesis method, target, pass/fail."""
+    rows = [
+        ("mono 3-20 m, >=10 deg off, >=1 s: median rel err", "mono_median_rel", "thesis_mono_median_rel",
+         True),
+        ("mono 3-20 m, >=10 deg off, >=1 s: p90 rel err", "mono_p90_rel", "thesis_mono_p90_rel", True),
+        ("stereo 0.30 m, <=3 m: median rel err", "stereo_3m_median_rel", "thesis_stereo_3m_median_rel",
+         True),
+        ("stereo 0.30 m, <=8 m: median rel err", "stereo_8m_median_rel", "thesis_stereo_8m_median_rel",
+         True),
+        ("moving <= max speed: bounds coverage", "bounds_coverage", None, True),
+        ("stereo moving, >=1 s: median speed err", "stereo_speed_median_rel",
+         "thesis_stereo_speed_median_rel", True),
+        ("stereo moving, >=1 s: median heading err (deg)", "stereo_heading_median_deg", None, False),
+        ("1-sigma band share (range)", "one_sigma_share", None, True),
+    ]
+    lines = [title] if title else []
+    lines.append(f"{'metric':52s} {'ours':>10s} {'thesis':>10s} {'target':>10s}  verdict")
+    for label, key, tkey, pct in rows:
+        v = m.get(key)
+        tgt = TARGETS.get(key)
+        if tgt is None:
+            ts, verdict = "", ""
+        else:
+            op, val = tgt
+            ts = f"{op}{100 * val:.1f} %" if pct else f"{op}{val:g}"
+            if v is None:
+                verdict = "n/a"
+            elif op == "<=":
+                verdict = "PASS" if v <= val else "FAIL"
+            elif op == ">=":
+                verdict = "PASS" if v >= val else "FAIL"
+            else:
+                verdict = "ok" if abs(v - val) <= 0.1 else "off"
+        tv = _fmt(m.get(tkey), pct) if tkey else ""
+        lines.append(f"{label:52s} {_fmt(v, pct):>10s} {tv:>10s} {ts:>10s}  {verdict}")
+    iv = m.get("nees_interval95")
+    nees = m.get("nees_mean")
+    verdict = "n/a" if iv is None or nees is None else ("PASS" if iv[0] <= nees <= iv[1] else "FAIL")
+    ivs = f"[{iv[0]:.2f}, {iv[1]:.2f}]" if iv else "n/a"
+    lines.append(f"{'position NEES mean (3 dof), 95% interval ' + ivs:52s} {_fmt(nees):>10s} "
+                 f"{'':>10s} {'in int.':>10s}  {verdict}")
+    lines.append(
+        f"samples: {m.get('n_samples')}  mono {m.get('mono_n')} "
+        f"(ranged {_fmt(m.get('mono_ranged_share'), True)})  stereo<=3m {m.get('stereo_3m_n')}  "
+        f"stereo<=8m {m.get('stereo_8m_n')}  bounded moving {m.get('bounds_n')}"
+        f" (upper bound in {_fmt(m.get('bounds_upper_share'), True)}; all obstacles "
+        f"{_fmt(m.get('bounds_coverage_all'), True)})  stereo moving {m.get('stereo_vel_n')} (with velocity "
+        f"{_fmt(m.get('stereo_vel_share'), True)})  NEES tracks {m.get('nees_n_tracks')}"
+    )
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------- run
+def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progress=None) -> dict:
+    """Run the harness; returns {"metrics", "per_scene", "table", "options", "elapsed_s"} and writes
+    ``accuracy.json`` and ``accuracy.txt`` into ``out_dir`` when given."""
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(opts.seed)
+    if opts.mode == "bearings":
+        scenes = preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
+        samples: list[Sample] = []
+        per_scene = {}
+        for scn in scenes:
+            if opts.quick:
+                scn = scn.model_copy(update={"duration_s": min(scn.duration_s, 2.0)})
+            ss = run_bearings(scn, opts, rng)
+            per_scene[scn.name] = summarize(ss)
+            samples.extend(ss)
+            if progress:
+                progress(f"{scn.name}: {len(ss)} reports")
+    elif opts.mode == "pipeline":
+        samples, per_scene = _run_pipeline(opts, out_dir, progress)
+    else:
+        from estimators.errors import ConfigError
+
+        raise ConfigError(f"accuracy: unknown mode {opts.mode!r}; expected 'bearings' or 'pipeline'")
+    metrics = summarize(samples)
+    title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
+             f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
+    table = format_table(metrics, title)
+    res = {
+        "metrics": metrics,
+        "per_scene": per_scene,
+        "table": table,
+        "options": {k: v for k, v in asdict(opts).items() if k != "settings"}
+        | {"settings": asdict(opts.settings)},
+        "elapsed_s": time.perf_counter() - t0,
+    }
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "accuracy.json").write_text(json.dumps(res, indent=2, default=float))
+        (out / "accuracy.txt").write_text(table + "\n")
+    return res
+
+
+def _run_pipeline(opts: AccuracyOptions, out_dir, progress):
+    from estimators.errors import ConfigError
+
+    raise ConfigError("accuracy --mode pipeline: not available yet (needs pipeline.run and the front end)")

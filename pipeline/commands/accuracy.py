@@ -1,0 +1,61 @@
+"""``fisheye-des accuracy``: measure the fusion filter against the issue's numbers on simulated scenes.
+
+Prints one table (ours, the thesis's two-frame law-of-sines method, the target, a verdict) and, with
+``--out DIR``, writes ``DIR/accuracy.json`` (every metric, per scene) and ``DIR/accuracy.txt``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``accuracy`` sub-command to ``app``."""
+
+    @app.command("accuracy")
+    def accuracy_cmd(
+        quick: Annotated[
+            bool, typer.Option("--quick", help="Few short scenes (CI smoke test, < 1 min).")
+        ] = False,
+        mode: Annotated[
+            str,
+            typer.Option("--mode", help="bearings (true bearings + noise) or pipeline (render, track)."),
+        ] = "bearings",
+        out: Annotated[
+            Path | None, typer.Option("--out", help="Write accuracy.json / accuracy.txt here.")
+        ] = None,
+        pixel_sigma: Annotated[
+            float, typer.Option("--pixel-sigma", help="Pixel noise (px, 1-sigma) of bearings mode.")
+        ] = 0.5,
+        seed: Annotated[int, typer.Option("--seed", help="Seed of the noise and of the random scenes.")] = 0,
+        n_random: Annotated[
+            int | None, typer.Option("--n-random", help="Random scenes per family (default 1 quick, 6 full).")
+        ] = None,
+        thesis_interval: Annotated[
+            float,
+            typer.Option("--thesis-interval", help="Frame interval (s) of the thesis's two-frame method."),
+        ] = 0.5,
+        max_speed: Annotated[
+            float | None,
+            typer.Option(
+                "--max-speed", help="Max obstacle speed (m/s) for the bounds; default: the drone's speed."
+            ),
+        ] = None,
+    ) -> None:
+        """Measure range, bounds, velocity and consistency of the fusion filter (and the thesis's method)."""
+        from estimators.errors import ConfigError
+        from estimators.fusion import FusionSettings
+        from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+        if mode not in ("bearings", "pipeline"):
+            raise ConfigError(f"accuracy --mode: expected 'bearings' or 'pipeline', got {mode!r}")
+        opts = AccuracyOptions(
+            mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
+            thesis_interval_s=thesis_interval, settings=FusionSettings(max_speed_mps=max_speed),
+        )
+        res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
+        typer.echo(res["table"])
+        typer.echo(f"elapsed {res['elapsed_s']:.1f} s" + (f"; wrote {out}/accuracy.json" if out else ""))
