@@ -1,0 +1,680 @@
+"""Run configuration: pydantic models for every key, YAML loading with line numbers, ``--set`` overrides.
+
+A config is a YAML file with the sections below (all optional; every key has a default or is filled
+in from the command line). Unknown keys and wrong types are ``ConfigError``s that name the file, the
+line and the closest valid key. Relative paths are relative to the config file (paths given on the
+command line or through ``--set`` are relative to the current directory). The config as run, with
+every default filled in and every path absolute, is written beside the outputs as
+``config.resolved.yaml`` (:func:`write_resolved`).
+
+Example (``configs/mono_forward.yaml``)::
+
+    rig: {calibration: calib/mono_camchain.yaml}
+    ego_motion: {speed_mps: 5.0}
+    detector: {name: orb, options: {n_features: 800}}
+    inputs: {videos: [flight.mkv]}
+    outputs: {annotated_video: true, plots: true}
+
+Units: SI everywhere (metres, seconds, m/s, m/s^2); degrees only where the key says ``_deg``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import os
+import types
+import typing
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import yaml
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    model_validator,
+)
+
+from estimators.errors import ConfigError
+
+__all__ = [
+    "PipelineConfig",
+    "RigConfig",
+    "CameraConfig",
+    "EgoMotionConfig",
+    "DetectorConfig",
+    "TrackerConfig",
+    "FusionConfig",
+    "InputsConfig",
+    "LiveConfig",
+    "OutputsConfig",
+    "load_config",
+    "write_resolved",
+    "describe_config",
+    "RESOLVED_NAME",
+]
+
+RESOLVED_NAME = "config.resolved.yaml"
+
+
+def _is_url(s: str) -> bool:
+    return "://" in s
+
+
+def _resolve_path(v: Path | str | None, info: ValidationInfo) -> Any:
+    """Make a relative path absolute against ``context['base_dir']`` (the config file's folder)."""
+    if v is None:
+        return None
+    if isinstance(v, str) and _is_url(v):
+        return v
+    p = Path(os.path.expanduser(str(v)))
+    if not p.is_absolute():
+        base = (info.context or {}).get("base_dir") or Path.cwd()
+        p = Path(base) / p
+    p = Path(os.path.normpath(p))
+    return p if not isinstance(v, str) else str(p)
+
+
+# A path relative to the config file.
+RelPath = Annotated[Path, AfterValidator(_resolve_path)]
+# A video: a path relative to the config file, or a URL (``rtsp://...``, ``http://...``) kept as is.
+VideoRef = Annotated[str, AfterValidator(_resolve_path)]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=False)
+
+
+# ----------------------------------------------------------------------------------------------- rig
+class CameraConfig(_Section):
+    """One camera given inline (instead of a calibration file)."""
+
+    name: str = Field(description="str: camera name in the rig, e.g. 'cam0'; also the name of its video.")
+    model: str = Field(
+        description="str: camera model registry name: 'equidistant', 'kannala_brandt', 'double_sphere', "
+        "'eucm'."
+    )
+    params: dict[str, Any] = Field(
+        default_factory=dict,
+        description="dict: the model's fields as estimators.cameras.make_camera_model takes them, e.g. "
+        "fx, fy (px/rad), cx, cy (px), width, height (px), k1..k4 for kannala_brandt.",
+    )
+    mount: Literal["forward", "up", "down"] = Field(
+        "forward",
+        description="str: standard mount of estimators.rig: 'forward' (optical axis = body +x, image x = "
+        "body -y), 'up' (+z, image top towards the nose), 'down' (-z, image top towards the nose).",
+    )
+    position_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="[x, y, z] metres: the camera centre in the body frame B."
+    )
+
+
+class RigConfig(_Section):
+    """The cameras: a calibration file (Kalibr, OpenCV, ROS camera_info) or inline cameras."""
+
+    calibration: RelPath | None = Field(
+        None,
+        description="path: calibration file (Kalibr camchain.yaml, OpenCV FileStorage YAML/JSON, ROS "
+        "camera_info YAML); one camera -> monocular, two -> stereo. Relative to the config file.",
+    )
+    cameras: list[CameraConfig] | None = Field(
+        None, description="list: cameras given inline instead of `calibration` (see CameraConfig)."
+    )
+
+    @model_validator(mode="after")
+    def _one_of(self) -> RigConfig:
+        if self.calibration is not None and self.cameras:
+            raise ValueError("give either 'calibration' or 'cameras', not both")
+        return self
+
+
+# ---------------------------------------------------------------------------------------- ego-motion
+class EgoMotionConfig(_Section):
+    """How the body moves: a constant forward speed (the thesis's case) or a TUM trajectory T_W_B."""
+
+    speed_mps: float | None = Field(
+        None,
+        description="float, m/s: constant speed along the body's x axis (forward), level flight. "
+        "Mutually exclusive with `trajectory`.",
+    )
+    trajectory: RelPath | None = Field(
+        None,
+        description="path: TUM trajectory file ('timestamp tx ty tz qx qy qz qw', pose T_W_B, seconds and "
+        "metres) interpolated to frame times. Relative to the config file.",
+    )
+    t0_s: float = Field(
+        0.0, description="float, s: time at which the constant-velocity body is at the origin."
+    )
+
+    @model_validator(mode="after")
+    def _one_of(self) -> EgoMotionConfig:
+        if self.speed_mps is not None and self.trajectory is not None:
+            raise ValueError("give either 'speed_mps' or 'trajectory', not both")
+        return self
+
+
+# ---------------------------------------------------------------------------------- detector/tracker
+class DetectorConfig(_Section):
+    """Which obstacle/feature detector the front end uses."""
+
+    name: str = Field(
+        "orb",
+        description="str: detector registry name: 'orb', 'navlights', 'kornia', 'torch' or a plug-in's name "
+        "(entry-point group fisheye_des.detectors).",
+    )
+    options: dict[str, Any] = Field(
+        default_factory=dict, description="dict: keyword options passed to the detector's constructor."
+    )
+
+
+class TrackerConfig(_Section):
+    """Front-end settings (feature tracking, obstacle grouping, cross-camera association), passed to
+    ``trackers.frontend.FrontEnd(rig, detector, **options)``; a key the front end does not take is an
+    error at start-up naming it."""
+
+    features: dict[str, Any] = Field(
+        default_factory=dict,
+        description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int), "
+        "grid ([cols, rows]), "
+        "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
+        "min_distance_px (px), history (frames).",
+    )
+    grouping: dict[str, Any] = Field(
+        default_factory=dict,
+        description="dict: trackers.grouping.ObstacleGrouper keywords, e.g. link_rad (rad), "
+        "max_radius_rad (rad), "
+        "flow_abs_rad_s (rad/s), min_features (int), confirm_frames (frames), max_missed (frames).",
+    )
+    boxes: dict[str, Any] = Field(
+        default_factory=dict,
+        description="dict: BoxTracker keywords (detectors that give boxes: navlights, torch).",
+    )
+    association: dict[str, Any] = Field(
+        default_factory=dict,
+        description="dict: cross-camera association: every (frames, default 3), epipolar_deg (deg, 1.0), "
+        "max_hamming (int, 64), min_votes (int, 3).",
+    )
+
+    def frontend_options(self) -> dict[str, Any]:
+        """The non-empty groups as FrontEnd keyword arguments."""
+        return {k: dict(v) for k, v in self.model_dump().items() if v}
+
+
+class FusionConfig(_Section):
+    """Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` (SI units, radians).
+
+    A key left out takes FusionSettings' own default."""
+
+    max_speed_mps: float | None = Field(
+        None,
+        description="float, m/s: largest obstacle speed the moving-obstacle bounds allow; null = the "
+        "drone's own speed at the two sightings (the thesis's assumption, sec. 3.3.2).",
+    )
+    max_accel_mps2: float | None = Field(
+        None,
+        description="float, m/s^2: largest obstacle acceleration (process noise of moving, stereo-fed "
+        "tracks; FusionSettings default 3.0).",
+    )
+    static_accel_mps2: float | None = Field(
+        None,
+        description="float, m/s^2: process noise of the stationary hypothesis of mono-only tracks (0.02).",
+    )
+    static_velocity_sigma_mps: float | None = Field(
+        None, description="float, m/s: velocity prior sigma of a mono-initialised track (0.02)."
+    )
+    velocity_prior_sigma_mps: float | None = Field(
+        None,
+        description="float, m/s: velocity prior sigma of a stereo-initialised track (default: the max "
+        "speed, or the drone's speed, at least 1 m/s).",
+    )
+    bearing_sigma_floor_rad: float | None = Field(
+        None, description="float, rad: smallest bearing sigma used, whatever the front end says (5e-4)."
+    )
+    gate_probability: float | None = Field(
+        None, description="float, probability in (0, 1): chi-square gate of bearing / stereo updates (0.999)."
+    )
+    min_parallax_rad: float | None = Field(
+        None, description="float, rad: parallax needed to initialise a mono track (1 degree = 0.01745)."
+    )
+    stereo_max_rel_sigma: float | None = Field(
+        None,
+        description="float, ratio: a stereo triangulation is used only when range_sigma / range is at most "
+        "this (0.3).",
+    )
+    baseline_max_age_s: float | None = Field(
+        None, description="float, s: oldest sighting a mono baseline / bound may use (1.0)."
+    )
+    bounds_noise_sigmas: float | None = Field(
+        None, description="float, sigmas: bearing-noise margin of the moving-obstacle bounds (4.0)."
+    )
+    bounds_pseudo_sigma_frac: float | None = Field(
+        None,
+        description="float, fraction: sigma of the bound pseudo-measurement relative to the bound (0.01).",
+    )
+    lost_after_s: float | None = Field(
+        None,
+        description="float, s: a track not observed for this long is ended, reported once as lost (0.5).",
+    )
+    reinit_after_gated: int | None = Field(
+        None, description="int: consecutive gated updates after which a track's filter restarts (5)."
+    )
+    velocity_report_max_sigma_mps: float | None = Field(
+        None,
+        description="float, m/s: velocity is reported only when its largest sigma is at most this (1.0).",
+    )
+
+    def settings_kwargs(self) -> dict[str, Any]:
+        """The keys set in the config (``max_speed_mps`` also when null), as FusionSettings keywords."""
+        d = self.model_dump(exclude_unset=True)
+        return {
+            k: v for k, v in d.items() if v is not None or k in ("max_speed_mps", "velocity_prior_sigma_mps")
+        }
+
+
+# -------------------------------------------------------------------------------------------- inputs
+class InputsConfig(_Section):
+    """Recorded inputs for `fisheye-des run`: one video (or image folder) per camera, in the rig's order."""
+
+    videos: list[VideoRef] = Field(
+        default_factory=list,
+        description="list of paths/URLs: one video per camera, in the rig's camera order (first = cam0). "
+        "Frame times come from '<video stem>.timestamps.txt' beside it when present.",
+    )
+    images: list[RelPath] = Field(
+        default_factory=list,
+        description="list of paths: one image folder per camera (instead of videos), files in sorted order.",
+    )
+    fps: float | None = Field(
+        None,
+        gt=0,
+        description="float, Hz: frame rate of image folders that have no timestamps file "
+        "(also overrides a video's own rate when set).",
+    )
+    sync_tolerance_s: float = Field(
+        0.005,
+        ge=0,
+        description="float, s: frames of different cameras within this time of each other are one stereo "
+        "set; a frame without a partner within it is dropped and counted.",
+    )
+    max_frames: int | None = Field(None, gt=0, description="int: stop after this many frame sets.")
+
+
+class LiveConfig(_Section):
+    """Live camera settings for `fisheye-des live`."""
+
+    cameras: list[int | str] = Field(
+        default_factory=lambda: [0],
+        description="list: per rig camera, a device index (int) or a stream URL (str) OpenCV/FFmpeg opens.",
+    )
+    clock: Literal["run", "unix"] = Field(
+        "run",
+        description="str: t_s of a live frame: 'run' = seconds since the run started, 'unix' = seconds since "
+        "1970 (use it when a trajectory file written by another program is in unix time).",
+    )
+    reconnect_initial_s: float = Field(
+        0.2, gt=0, description="float, s: first wait before reopening a camera that stopped delivering."
+    )
+    reconnect_max_s: float = Field(
+        5.0, gt=0, description="float, s: longest wait between reopen attempts (the wait doubles each try)."
+    )
+    stall_timeout_s: float = Field(
+        2.0, gt=0, description="float, s: a camera with no new frame for this long is treated as stopped."
+    )
+    duration_s: float | None = Field(
+        None, gt=0, description="float, s: stop after this long (None: until Ctrl-C)."
+    )
+    trajectory_wait_s: float = Field(
+        0.2,
+        ge=0,
+        description="float, s: how long to wait for a growing trajectory file to reach a frame's t_s before "
+        "the frame is skipped (counted).",
+    )
+    preview: Literal["none", "file", "mjpeg"] = Field(
+        "none",
+        description="str: annotated preview: 'file' (preview.mp4 in the output folder), 'mjpeg' (HTTP).",
+    )
+    preview_port: int = Field(
+        8080,
+        ge=0,
+        le=65535,
+        description="int: TCP port of the MJPEG preview on 127.0.0.1 (0 = any free port).",
+    )
+    paced: bool = Field(
+        True,
+        description="bool: when a camera entry is a video file, replay it at its real frame rate "
+        "(testing without a camera).",
+    )
+
+
+# ------------------------------------------------------------------------------------------- outputs
+class OutputsConfig(_Section):
+    """What a run writes besides tracks.jsonl, summary.json and config.resolved.yaml."""
+
+    dir: RelPath | None = Field(
+        None, description="path: output folder (created). Relative to the config file; --out overrides."
+    )
+    annotated_video: bool = Field(
+        False,
+        description="bool: write annotated.mp4 (raw fisheye frames with track id, range, bounds, velocity "
+        "arrow and the lens circle).",
+    )
+    plots: bool = Field(
+        False, description="bool: write PNG plots (range over time per track; polar map around the drone)."
+    )
+    every_n: int = Field(
+        1, ge=1, description="int: annotate every n-th frame only (annotated video/preview)."
+    )
+    max_plot_tracks: int = Field(12, ge=1, description="int: the longest this many tracks get a range plot.")
+    progress: bool = Field(True, description="bool: show a progress bar on stderr.")
+
+
+class PipelineConfig(_Section):
+    """The whole configuration of a run (``fisheye-des run`` / ``live`` / ``demo``)."""
+
+    rig: RigConfig = Field(default_factory=RigConfig, description="section: the cameras.")
+    ego_motion: EgoMotionConfig = Field(default_factory=EgoMotionConfig, description="section: body motion.")
+    detector: DetectorConfig = Field(default_factory=DetectorConfig, description="section: the detector.")
+    tracker: TrackerConfig = Field(default_factory=TrackerConfig, description="section: front-end settings.")
+    fusion: FusionConfig = Field(default_factory=FusionConfig, description="section: filter settings.")
+    inputs: InputsConfig = Field(default_factory=InputsConfig, description="section: recorded inputs.")
+    live: LiveConfig = Field(default_factory=LiveConfig, description="section: live cameras.")
+    outputs: OutputsConfig = Field(default_factory=OutputsConfig, description="section: outputs.")
+
+
+# ------------------------------------------------------------------------------ model introspection
+def _unwrap(annotation: Any) -> list[Any]:
+    """The concrete types inside Optional / Union / Annotated / list / dict / tuple annotations."""
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _unwrap(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType):
+        out: list[Any] = []
+        for a in typing.get_args(annotation):
+            out += _unwrap(a)
+        return out
+    return [annotation]
+
+
+def _sub_model(annotation: Any, step: str | int) -> tuple[type[BaseModel] | None, bool]:
+    """Follow one location step from a field annotation: (model class there or None, step consumed)."""
+    for a in _unwrap(annotation):
+        origin = typing.get_origin(a)
+        if isinstance(a, type) and issubclass(a, BaseModel):
+            return a, False
+        if origin in (list, tuple) and isinstance(step, int):
+            for inner in typing.get_args(a):
+                for t in _unwrap(inner):
+                    if isinstance(t, type) and issubclass(t, BaseModel):
+                        return t, True
+            return None, True
+    return None, False
+
+
+def _descend(loc: tuple[str | int, ...]) -> type[BaseModel] | None:
+    """The model class reached by following ``loc`` from the top (None when it leads out of the models)."""
+    model: type[BaseModel] | None = PipelineConfig
+    i = 0
+    while i < len(loc):
+        key = loc[i]
+        if model is None or not isinstance(key, str) or key not in model.model_fields:
+            return None
+        ann = model.model_fields[key].annotation
+        i += 1
+        nxt = loc[i] if i < len(loc) else ""
+        sub, consumed = _sub_model(ann, nxt)
+        if consumed:
+            i += 1
+        model = sub
+    return model
+
+
+def _model_at(loc: tuple[str | int, ...]) -> type[BaseModel] | None:
+    """The model class that owns the last string key of ``loc``."""
+    keys = [i for i, p in enumerate(loc) if isinstance(p, str)]
+    if not keys:
+        return None
+    last = keys[-1]
+    owner = _descend(loc[:last])
+    if owner is None or loc[last] not in owner.model_fields:
+        return None
+    return owner
+
+
+def _field_annotation(loc: tuple[str | int, ...]) -> Any:
+    owner = _model_at(loc)
+    if owner is None or not loc or not isinstance(loc[-1], str) or loc[-1] not in owner.model_fields:
+        return None
+    return owner.model_fields[loc[-1]].annotation
+
+
+def _is_path_field(loc: tuple[str | int, ...]) -> bool:
+    ann = _field_annotation(loc)
+    if ann is None:
+        return False
+    text = repr(ann)
+    return "_resolve_path" in text
+
+
+def _suggest(key: str, valid: list[str]) -> str:
+    close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
+    hint = f"; did you mean '{close[0]}'?" if close else ""
+    return f"{hint} Valid keys: {', '.join(valid)}"
+
+
+# ------------------------------------------------------------------------------------ YAML handling
+def _line_map(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
+    """Map every key path of a composed YAML document to its 1-based line number."""
+    out = {} if out is None else out
+    out.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            key = k.value
+            out[path + (key,)] = k.start_mark.line + 1
+            _line_map(v, path + (key,), out)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, v in enumerate(node.value):
+            out[path + (i,)] = v.start_mark.line + 1
+            _line_map(v, path + (i,), out)
+    return out
+
+
+def _read_yaml(path: Path) -> tuple[dict, dict[tuple, int]]:
+    if not path.is_file():
+        raise ConfigError(f"{path}: config file not found")
+    text = path.read_text()
+    try:
+        loader = yaml.SafeLoader(text)
+        try:
+            node = loader.get_single_node()
+            data = loader.construct_document(node) if node is not None else None
+        finally:
+            loader.dispose()
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f":{mark.line + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise ConfigError(f"{path}{where}: not valid YAML ({problem})") from None
+    if data is None:
+        return {}, {}
+    if not isinstance(data, dict):
+        raise ConfigError(
+            f"{path}: expected a mapping of sections (rig, ego_motion, ...), got {type(data).__name__}"
+        )
+    return data, _line_map(node)
+
+
+def _parse_override(item: str) -> tuple[tuple[str, ...], Any]:
+    if "=" not in item:
+        raise ConfigError(f"--set {item!r}: expected section.key=value")
+    key, raw = item.split("=", 1)
+    parts = tuple(p for p in key.strip().split(".") if p)
+    if not parts:
+        raise ConfigError(f"--set {item!r}: expected section.key=value")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else None
+    except yaml.YAMLError:
+        value = raw
+    return parts, value
+
+
+def _set_in(data: dict, parts: tuple[str, ...], value: Any, origin: str) -> None:
+    cur = data
+    for i, p in enumerate(parts[:-1]):
+        nxt = cur.get(p)
+        if nxt is None:
+            nxt = cur[p] = {}
+        if not isinstance(nxt, dict):
+            raise ConfigError(f"{origin}: '{'.'.join(parts[: i + 1])}' is not a section")
+        cur = nxt
+    cur[parts[-1]] = value
+
+
+def _check_override_key(parts: tuple[str, ...], origin: str) -> None:
+    """An override of an unknown key: error with the closest valid key (dict-valued keys accept anything)."""
+    model: type[BaseModel] | None = PipelineConfig
+    for i, p in enumerate(parts):
+        if model is None:
+            return  # inside a free-form dict (options/settings)
+        if p not in model.model_fields:
+            where = ".".join(parts[:i]) or "top level"
+            raise ConfigError(
+                f"{origin}: unknown key '{p}' in {where}" + _suggest(p, list(model.model_fields))
+            )
+        ann = model.model_fields[p].annotation
+        nxt = None
+        for a in _unwrap(ann):
+            if isinstance(a, type) and issubclass(a, BaseModel):
+                nxt = a
+        if nxt is None and i < len(parts) - 1:
+            if not any(typing.get_origin(a) is dict for a in _unwrap(ann)):
+                raise ConfigError(f"{origin}: '{'.'.join(parts[: i + 1])}' is a value, not a section")
+        model = nxt
+
+
+def _absolutize(value: Any) -> Any:
+    """Command-line paths are relative to the current directory."""
+    if isinstance(value, list):
+        return [_absolutize(v) for v in value]
+    if isinstance(value, (str, Path)) and not _is_url(str(value)):
+        p = Path(os.path.expanduser(str(value)))
+        return str(p if p.is_absolute() else Path.cwd() / p)
+    return value
+
+
+def load_config(
+    path: str | Path | None = None,
+    overrides: list[str] | tuple[str, ...] = (),
+    cli: dict[str, Any] | None = None,
+) -> PipelineConfig:
+    """Load and validate a config.
+
+    Args:
+        path: YAML file, or None for the defaults.
+        overrides: ``section.key=value`` strings (``--set``); values are parsed as YAML scalars/lists and
+            typed by the model; relative paths in them are relative to the current directory.
+        cli: dotted keys set by dedicated command-line flags (e.g. ``{"inputs.videos": [...]}``), applied
+            after ``overrides``; relative paths relative to the current directory.
+
+    Raises:
+        ConfigError: naming the file and line (or the ``--set`` item) and the closest valid key.
+    """
+    cfg_path = Path(path).expanduser().resolve() if path is not None else None
+    if cfg_path is not None:
+        data, lines = _read_yaml(cfg_path)
+        base_dir = cfg_path.parent
+    else:
+        data, lines, base_dir = {}, {}, Path.cwd()
+    origins: dict[tuple, str] = {}
+    items: list[tuple[str, tuple[str, ...], Any]] = []
+    for item in overrides:
+        parts, value = _parse_override(item)
+        items.append((f"--set {item}", parts, value))
+    for key, value in (cli or {}).items():
+        items.append((f"--{key.split('.')[-1]}", tuple(key.split(".")), value))
+    for origin, parts, value in items:
+        _check_override_key(parts, origin)
+        if _is_path_field(parts):
+            value = _absolutize(value)
+        _set_in(data, parts, value, origin)
+        origins[parts] = origin
+    try:
+        return PipelineConfig.model_validate(data, context={"base_dir": base_dir})
+    except ValidationError as e:
+        raise ConfigError(_format_error(e, cfg_path, lines, origins)) from None
+
+
+def _format_error(e: ValidationError, path: Path | None, lines: dict, origins: dict) -> str:
+    errors = sorted(e.errors(), key=lambda x: x["type"] != "extra_forbidden")  # a typo explains 'missing'
+    err = errors[0]
+    loc = tuple(err["loc"])
+    # where: the --set item, or file:line of the longest known prefix of loc
+    where = None
+    for n in range(len(loc), 0, -1):
+        if loc[:n] in origins:
+            where = origins[loc[:n]]
+            break
+    if where is None:
+        line = None
+        for n in range(len(loc), -1, -1):
+            if loc[:n] in lines:
+                line = lines[loc[:n]]
+                break
+        name = str(path) if path is not None else "config"
+        where = f"{name}:{line}" if line is not None else name
+    dotted = ".".join(str(p) for p in loc) or "(top level)"
+    more = f" (and {len(errors) - 1} more error{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    if err["type"] == "extra_forbidden":
+        owner = _descend(loc[:-1])
+        valid = list(owner.model_fields) if owner is not None else []
+        parent = ".".join(str(p) for p in loc[:-1]) or "top level"
+        return f"{where}: unknown key '{loc[-1]}' in {parent}" + _suggest(str(loc[-1]), valid) + more
+    # wrong type / value: say what is expected from the field's description
+    owner = _model_at(loc)
+    desc = ""
+    key = next(
+        (p for p in reversed(loc) if isinstance(p, str) and owner is not None and p in owner.model_fields),
+        None,
+    )
+    if owner is not None and key is not None:
+        desc = owner.model_fields[key].description or ""
+        desc = f"; expected {desc.split(':', 1)[0]}" if desc else ""
+    got = err.get("input")
+    got_txt = "" if isinstance(got, dict) else f" (got {got!r})"
+    msg = err["msg"].replace("Value error, ", "")
+    return f"{where}: {dotted}: {msg}{got_txt}{desc}{more}"
+
+
+def write_resolved(
+    cfg: PipelineConfig,
+    out_dir: str | Path,
+    source: str | Path | None = None,
+    overrides: list[str] | tuple[str, ...] = (),
+) -> Path:
+    """Write the config as run (defaults filled in, absolute paths) to ``out_dir/config.resolved.yaml``."""
+    out = Path(out_dir) / RESOLVED_NAME
+    out.parent.mkdir(parents=True, exist_ok=True)
+    header = "# fisheye-des: the configuration as run (defaults filled in, paths absolute)\n"
+    if source is not None:
+        header += f"# from: {source}\n"
+    for o in overrides:
+        header += f"# --set {o}\n"
+    body = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
+    out.write_text(header + body)
+    return out
+
+
+def describe_config(model: type[BaseModel] = PipelineConfig, prefix: str = "") -> str:
+    """A reference of every key: ``section.key  description`` lines (for docs and ``--help``)."""
+    rows = []
+    for name, f in model.model_fields.items():
+        key = f"{prefix}{name}"
+        subs = [a for a in _unwrap(f.annotation) if isinstance(a, type) and issubclass(a, BaseModel)]
+        if subs:
+            rows.append(f"{key}: {f.description}")
+            rows.append(describe_config(subs[0], prefix=key + "."))
+        else:
+            rows.append(f"  {key}: {f.description}")
+    return "\n".join(r for r in rows if r)

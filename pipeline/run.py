@@ -1,0 +1,485 @@
+"""The run loop of ``fisheye-des run``: sources -> front end -> fusion -> sinks, streaming.
+
+Per frame set: decode (the sources), ``FrontEnd.process`` (detect, track, group, associate),
+``ObstacleFusion.step`` (estimate, fuse), then one flushed ``tracks.jsonl`` line (write). Nothing
+is kept per frame, so memory stays flat over a long video; per-stage timings are running
+statistics over a bounded reservoir. Ctrl-C (KeyboardInterrupt) and a video that breaks halfway
+both leave every output written so far: ``tracks.jsonl`` up to the last frame, ``summary.json``,
+``config.resolved.yaml``, and the annotated video / plots when asked for.
+
+Batch: :func:`run_batch` runs several recordings in parallel worker processes, one folder each.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import sys
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators.errors import ConfigError, FisheyeDesError, SourceError
+from pipeline.config import PipelineConfig, write_resolved
+from pipeline.sinks import (
+    SUMMARY_NAME,
+    TRACKS_NAME,
+    Annotator,
+    TracksWriter,
+    VideoWriter,
+    make_plots,
+    write_json,
+)
+from pipeline.sources import ImageFolderSource, Source, SyncedSource, VideoSource
+
+__all__ = [
+    "RunningStats",
+    "StageTimings",
+    "RunResult",
+    "build_rig",
+    "build_egomotion",
+    "build_frontend",
+    "build_fusion",
+    "open_inputs",
+    "run",
+    "run_batch",
+    "find_recording",
+    "VIDEO_SUFFIXES",
+]
+
+VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".ts")
+
+
+# ------------------------------------------------------------------------------------- statistics
+class RunningStats:
+    """Count, mean, max, total of a stream of durations, and median/p99 over a bounded reservoir.
+
+    Memory is O(``reservoir``) however long the run (Vitter's algorithm R: the k-th sample replaces a
+    random slot with probability ``reservoir / k``, so the reservoir is a uniform sample of all).
+    """
+
+    def __init__(self, reservoir: int = 2048, seed: int = 0):
+        self.capacity = int(reservoir)
+        self._samples: list[float] = []
+        self._rng = random.Random(seed)
+        self.n = 0
+        self.total = 0.0
+        self.max = -math.inf
+
+    def add(self, x: float) -> None:
+        x = float(x)
+        self.n += 1
+        self.total += x
+        self.max = max(self.max, x)
+        if len(self._samples) < self.capacity:
+            self._samples.append(x)
+        else:
+            j = self._rng.randrange(self.n)
+            if j < self.capacity:
+                self._samples[j] = x
+
+    def summary(self) -> dict[str, float | int]:
+        """``{"n", "median_s", "p99_s", "mean_s", "max_s", "total_s"}`` (the bench's Stats keys)."""
+        if self.n == 0:
+            return {"n": 0}
+        a = np.asarray(self._samples)
+        return {
+            "n": self.n,
+            "median_s": float(np.percentile(a, 50)),
+            "p99_s": float(np.percentile(a, 99)),
+            "mean_s": self.total / self.n,
+            "max_s": self.max,
+            "total_s": self.total,
+        }
+
+
+class StageTimings:
+    """Running statistics per named stage (seconds per frame)."""
+
+    def __init__(self, reservoir: int = 2048):
+        self.reservoir = reservoir
+        self.stages: dict[str, RunningStats] = {}
+
+    def add(self, stage: str, seconds: float) -> None:
+        st = self.stages.get(stage)
+        if st is None:
+            st = self.stages[stage] = RunningStats(self.reservoir, seed=len(self.stages))
+        st.add(seconds)
+
+    def add_all(self, timings: Mapping[str, float] | None) -> None:
+        for k, v in (timings or {}).items():
+            if v is not None and math.isfinite(float(v)):
+                self.add(k, float(v))
+
+    def summary(self) -> dict[str, dict[str, float | int]]:
+        return {k: v.summary() for k, v in self.stages.items()}
+
+
+# -------------------------------------------------------------------------------------- factories
+def build_rig(cfg: PipelineConfig) -> Any:
+    """The ``estimators.rig.Rig`` of the config: from the calibration file, or the inline cameras."""
+    if cfg.rig.calibration is not None:
+        from estimators.calibration import load_rig
+
+        return load_rig(cfg.rig.calibration)
+    if cfg.rig.cameras:
+        from estimators.cameras import make_camera_model
+        from estimators.rig import Camera, Rig, down_T_C_B, forward_T_C_B, up_T_C_B
+
+        mounts = {"forward": forward_T_C_B, "up": up_T_C_B, "down": down_T_C_B}
+        cams = []
+        for c in cfg.rig.cameras:
+            model = make_camera_model(c.model, **c.params)
+            cams.append(Camera(c.name, model, mounts[c.mount](c.position_m)))
+        return Rig(tuple(cams))
+    raise ConfigError(
+        "no cameras: give a calibration file (--calibration PATH or rig.calibration in the config) "
+        "or rig.cameras"
+    )
+
+
+def build_egomotion(cfg: PipelineConfig) -> Any:
+    """``TumTrajectory`` from ``ego_motion.trajectory`` or ``ConstantVelocity`` from ``speed_mps``."""
+    from estimators.egomotion import ConstantVelocity, TumTrajectory
+
+    em = cfg.ego_motion
+    if em.trajectory is not None:
+        return TumTrajectory.load(em.trajectory)
+    if em.speed_mps is not None:
+        return ConstantVelocity(speed_mps=em.speed_mps, t0_s=em.t0_s)
+    raise ConfigError(
+        "no ego-motion: give a trajectory (--trajectory PATH, TUM T_W_B) or a constant speed "
+        "(--set ego_motion.speed_mps=5.0, m/s along body x)"
+    )
+
+
+def build_frontend(cfg: PipelineConfig, rig: Any) -> Any:
+    """``trackers.frontend.FrontEnd(rig, detector=name, detector_options=..., features=..., ...)``."""
+    from trackers.frontend import FrontEnd
+
+    opts = cfg.tracker.frontend_options()
+    if cfg.detector.options:
+        opts["detector_options"] = dict(cfg.detector.options)
+    try:
+        return FrontEnd(rig, detector=cfg.detector.name, **opts)
+    except TypeError as e:
+        raise ConfigError(f"detector.options / tracker: {e}") from None
+
+
+def build_fusion(cfg: PipelineConfig, rig: Any, egomotion: Any) -> Any:
+    """``estimators.fusion.ObstacleFusion(rig, egomotion, FusionSettings(**fusion))``."""
+    from estimators.fusion import FusionSettings, ObstacleFusion
+
+    return ObstacleFusion(rig, egomotion, FusionSettings(**cfg.fusion.settings_kwargs()))
+
+
+def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
+    """One source per rig camera (videos or image folders, in the rig's order), kept in step by t_s."""
+    names = list(rig.names)
+    inp = cfg.inputs
+    if inp.videos and inp.images:
+        raise ConfigError("inputs: give videos or image folders, not both")
+    refs = list(inp.videos or inp.images)
+    if not refs:
+        raise ConfigError("no input: give --video PATH (one per camera, cam0 first) or inputs.videos")
+    if len(refs) != len(names):
+        raise ConfigError(
+            f"{len(refs)} input(s) for a rig of {len(names)} camera(s) ({', '.join(names)}); "
+            "expected one video or image folder per camera, in that order"
+        )
+    sources: list[Source] = []
+    try:
+        for name, ref in zip(names, refs, strict=True):
+            model = rig[name].model
+            size = (int(model.width), int(model.height))
+            if inp.images:
+                sources.append(ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps))
+            else:
+                sources.append(VideoSource(ref, camera=name, expected_size=size, fps=inp.fps))
+    except BaseException:
+        for s in sources:
+            s.close()
+        raise
+    return SyncedSource(sources, tolerance_s=inp.sync_tolerance_s)
+
+
+# ------------------------------------------------------------------------------------------- run
+@dataclass
+class RunResult:
+    """What a run did: output folder, frame sets processed, distinct tracks, wall time, frames/s, and
+    the error (a video that broke) or interruption that ended it early."""
+
+    out_dir: Path
+    frames: int
+    tracks: int
+    wall_s: float
+    frames_per_s: float
+    error: str | None = None
+    interrupted: bool = False
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def _progress(total: int | None, enabled: bool, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total,
+        unit="frame",
+        desc=desc,
+        file=sys.stderr,
+        disable=not enabled,
+        dynamic_ncols=True,
+        smoothing=0.1,
+    )
+
+
+def run(
+    cfg: PipelineConfig,
+    out_dir: str | Path | None = None,
+    *,
+    rig: Any = None,
+    egomotion: Any = None,
+    source: SyncedSource | None = None,
+    frontend: Any = None,
+    fusion: Any = None,
+    progress: bool | None = None,
+    config_source: str | Path | None = None,
+    overrides: tuple[str, ...] | list[str] = (),
+    raise_on_source_error: bool = True,
+) -> RunResult:
+    """Run the pipeline over recorded inputs and write the outputs into ``out_dir``.
+
+    Args:
+        cfg: the validated config; out_dir: output folder (default ``cfg.outputs.dir``, else ``runs/run``).
+        rig, egomotion, source, frontend, fusion: injected stages (tests, demo); built from ``cfg`` when None.
+        progress: show a tqdm bar on stderr (default ``cfg.outputs.progress``).
+        config_source, overrides: recorded in the resolved config's header.
+        raise_on_source_error: after writing everything, raise the SourceError of a video that broke
+            halfway (the CLI then exits non-zero); otherwise it is only in the result and summary.
+
+    Raises:
+        KeyboardInterrupt: re-raised after every output so far has been written.
+    """
+    out = Path(out_dir) if out_dir is not None else (cfg.outputs.dir or Path("runs") / "run")
+    out.mkdir(parents=True, exist_ok=True)
+    write_resolved(cfg, out, source=config_source, overrides=overrides)
+    rig = rig if rig is not None else build_rig(cfg)
+    egomotion = egomotion if egomotion is not None else build_egomotion(cfg)
+    frontend = frontend if frontend is not None else build_frontend(cfg, rig)
+    fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
+    source = source if source is not None else open_inputs(cfg, rig)
+    show = cfg.outputs.progress if progress is None else progress
+
+    total = None
+    counts = [getattr(s, "frame_count", None) for s in source.sources]
+    if counts and all(c for c in counts):
+        total = min(counts)
+    if cfg.inputs.max_frames:
+        total = min(total, cfg.inputs.max_frames) if total else cfg.inputs.max_frames
+    fps_in = next((s.fps for s in source.sources if getattr(s, "fps", None)), None)
+
+    timings = StageTimings()
+    per_frame = RunningStats()
+    writer = TracksWriter(out / TRACKS_NAME)
+    video = VideoWriter(out / "annotated.mp4", fps_in or 30.0) if cfg.outputs.annotated_video else None
+    annotator = Annotator(rig, egomotion) if video is not None else None
+    statuses: dict[str, int] = {}
+    frames = 0
+    interrupted = False
+    first_t = last_t = None
+    t_start = time.perf_counter()
+    bar = _progress(total, show, out.name)
+    it = iter(source)
+    try:
+        while True:
+            t0 = time.perf_counter()
+            fs = next(it, None)
+            t1 = time.perf_counter()
+            if fs is None:
+                break
+            timings.add("decode", t1 - t0)
+            obs = frontend.process(fs.images, fs.frame, fs.t_s)
+            timings.add_all(getattr(frontend, "timings", None))
+            reports = fusion.step(obs, fs.frame, fs.t_s)
+            timings.add_all(getattr(fusion, "timings", None))
+            t2 = time.perf_counter()
+            items = writer.write(fs.frame, fs.t_s, reports)
+            timings.add("write", time.perf_counter() - t2)
+            for t in items:
+                statuses[t["status"]] = statuses.get(t["status"], 0) + 1
+            if video is not None and frames % cfg.outputs.every_n == 0:
+                t3 = time.perf_counter()
+                video.write(annotator.draw(fs.images, items, fs.t_s, fs.frame))
+                timings.add("annotate", time.perf_counter() - t3)
+            per_frame.add(time.perf_counter() - t0)
+            first_t = fs.t_s if first_t is None else first_t
+            last_t = fs.t_s
+            frames += 1
+            bar.update(1)
+            if cfg.inputs.max_frames and frames >= cfg.inputs.max_frames:
+                break
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+        writer.close()
+        source.close()
+        if video is not None:
+            video.close()
+        wall = time.perf_counter() - t_start
+        error = source.error
+        summary = {
+            "frames": frames,
+            "tracks": len(writer.track_ids),
+            "track_reports_by_status": statuses,
+            "wall_s": wall,
+            "frames_per_s": frames / wall if wall > 0 else None,
+            "t_s_first": first_t,
+            "t_s_last": last_t,
+            "interrupted": interrupted,
+            "error": error,
+            "dropped_unpaired_frames": dict(source.dropped),
+            "rig": {"kind": getattr(rig, "kind", None), "cameras": list(getattr(rig, "names", []))},
+            "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
+            "timings": timings.summary(),
+            "per_frame": per_frame.summary(),
+            "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},
+            "parameters": cfg.model_dump(mode="json"),
+            "pid": os.getpid(),
+        }
+        if video is not None and video.frames:
+            summary["outputs"]["annotated_video"] = video.path.name
+        if cfg.outputs.plots and frames and not interrupted:
+            try:
+                summary["outputs"]["plots"] = [
+                    p.name for p in make_plots(out / TRACKS_NAME, out, cfg.outputs.max_plot_tracks)
+                ]
+            except FisheyeDesError as e:  # a plot is never worth losing the summary over
+                summary["outputs"]["plots_error"] = str(e)
+        write_json(out / SUMMARY_NAME, summary)
+    if interrupted:
+        raise KeyboardInterrupt
+    result = RunResult(
+        out, frames, len(writer.track_ids), wall, summary["frames_per_s"] or 0.0, error, interrupted, summary
+    )
+    if error and raise_on_source_error:
+        raise SourceError(f"{error} (outputs up to frame set {frames} are in {out})")
+    return result
+
+
+# ------------------------------------------------------------------------------------------ batch
+def find_recording(folder: Path, names: list[str]) -> list[Path] | None:
+    """The videos of camera ``names`` in a recording folder (``<name>.<ext>``), or None when absent."""
+    found = []
+    for n in names:
+        cands = [folder / f"{n}{ext}" for ext in VIDEO_SUFFIXES if (folder / f"{n}{ext}").is_file()]
+        if not cands:
+            return None
+        found.append(cands[0])
+    return found
+
+
+def _batch_worker(args: tuple[dict, str, str | None]) -> dict:
+    cfg_dict, out_dir, config_source = args
+    try:
+        cfg = PipelineConfig.model_validate(cfg_dict)
+        r = run(cfg, out_dir, progress=False, config_source=config_source, raise_on_source_error=False)
+        return {
+            "out_dir": out_dir,
+            "frames": r.frames,
+            "tracks": r.tracks,
+            "frames_per_s": r.frames_per_s,
+            "error": r.error,
+        }
+    except FisheyeDesError as e:
+        return {"out_dir": out_dir, "frames": 0, "error": str(e)}
+
+
+def run_batch(
+    cfg: PipelineConfig,
+    items: list[Path],
+    out_root: Path,
+    workers: int | None = None,
+    camera_names: list[str] | None = None,
+    config_source: str | Path | None = None,
+    on_done: Callable[[dict], None] | None = None,
+) -> list[dict]:
+    """Run several recordings in parallel worker processes, one result folder each.
+
+    Args:
+        items: video files (one mono run each) and folders; a folder holding ``<cam>.<ext>`` videos for
+            every camera name is one recording (its ``camchain.yaml`` / ``trajectory.tum`` are used when the
+            config has none), otherwise each video file directly inside it is one mono run.
+        out_root: results go to ``out_root/<video or folder stem>/``.
+        workers: process count (default: CPU count, at most the number of runs).
+        camera_names: rig camera names used to recognise recording folders (default ``["cam0"]``, or
+            ``["cam0", "cam1"]`` for a two-camera calibration).
+
+    Returns one dict per run (out_dir, frames, tracks, frames_per_s, error), in input order.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    names = camera_names or ["cam0"]
+    jobs: list[tuple[dict, str, str | None]] = []
+    used: set[str] = set()
+
+    def add(videos: list[Path], stem: str, folder: Path | None) -> None:
+        d = cfg.model_dump(mode="python")
+        d["inputs"]["videos"] = [str(v) for v in videos]
+        d["inputs"]["images"] = []
+        if folder is not None:
+            if (
+                d["rig"]["calibration"] is None
+                and not d["rig"]["cameras"]
+                and (folder / "camchain.yaml").is_file()
+            ):
+                d["rig"]["calibration"] = folder / "camchain.yaml"
+            em = d["ego_motion"]
+            if em["trajectory"] is None and em["speed_mps"] is None and (folder / "trajectory.tum").is_file():
+                em["trajectory"] = folder / "trajectory.tum"
+        name = stem
+        k = 1
+        while name in used:
+            k += 1
+            name = f"{stem}_{k}"
+        used.add(name)
+        jobs.append((d, str(out_root / name), str(config_source) if config_source else None))
+
+    for item in items:
+        item = Path(item)
+        if item.is_dir():
+            rec = find_recording(item, names)
+            if rec is not None:
+                add(rec, item.name, item)
+                continue
+            vids = sorted(p for p in item.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
+            if not vids:
+                raise SourceError(f"{item}: no videos ({', '.join(VIDEO_SUFFIXES)}) in the folder")
+            for v in vids:
+                add([v], v.stem, None)
+        elif item.is_file():
+            add([item], item.stem, item.parent if len(names) == 1 else None)
+        else:
+            raise SourceError(f"{item}: not found")
+    out_root.mkdir(parents=True, exist_ok=True)
+    n = workers or min(len(jobs), os.cpu_count() or 1)
+    results: list[dict] = []
+    if n <= 1 or len(jobs) == 1:
+        for j in jobs:
+            r = _batch_worker(j)
+            results.append(r)
+            if on_done:
+                on_done(r)
+        return results
+    with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as ex:
+        for r in ex.map(_batch_worker, jobs):
+            results.append(r)
+            if on_done:
+                on_done(r)
+    return results

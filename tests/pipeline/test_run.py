@@ -1,0 +1,225 @@
+"""The run loop and `fisheye-des run`: outputs, a video that breaks halfway, Ctrl-C, batch, CLI errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
+
+from estimators.egomotion import ConstantVelocity
+from estimators.errors import ConfigError, SourceError
+from pipeline import run as run_mod
+from pipeline.config import load_config
+from pipeline.run import RunningStats, run
+
+
+def _lines(path):
+    return [json.loads(x) for x in path.read_text().splitlines()]
+
+
+def _run(tmp_path, videos, rig=None, front=None, **kw):
+    cfg = load_config(
+        None,
+        ["ego_motion.speed_mps=5", "outputs.progress=false"],
+        cli={"inputs.videos": [str(v) for v in videos]},
+    )
+    rig = rig or mono_rig()
+    return run(
+        cfg,
+        tmp_path / "out",
+        rig=rig,
+        egomotion=ConstantVelocity(5.0),
+        frontend=front or FakeFrontEnd(rig),
+        fusion=FakeFusion(),
+        **kw,
+    )
+
+
+def test_run_writes_tracks_summary_and_resolved_config(tmp_path):
+    times = [0.0, 0.1, 0.2, 0.35, 0.4]
+    v = write_video(tmp_path / "cam0.mkv", 5, times=times)
+    r = _run(tmp_path, [v])
+    out = tmp_path / "out"
+    recs = _lines(out / "tracks.jsonl")
+    assert [x["frame"] for x in recs] == [0, 1, 2, 3, 4]
+    assert [x["t_s"] for x in recs] == pytest.approx(times)  # sidecar times, not frame/fps
+    assert [x["tracks"][0]["range_m"] for x in recs] == pytest.approx([20 - 5 * t for t in times])
+    assert all(x["tracks"][1]["range_m"] is None for x in recs)  # NaN became null
+    s = json.loads((out / "summary.json").read_text())
+    assert s["frames"] == 5 and s["tracks"] == 2 and s["error"] is None and not s["interrupted"]
+    assert s["frames_per_s"] > 0
+    for stage in ("decode", "detect", "track", "group", "associate", "estimate", "fuse", "write"):
+        assert (
+            s["timings"][stage]["n"] == 5 and s["timings"][stage]["p99_s"] >= s["timings"][stage]["median_s"]
+        )
+    assert s["parameters"]["ego_motion"]["speed_mps"] == 5.0
+    resolved = yaml.safe_load((out / "config.resolved.yaml").read_text())
+    assert resolved["inputs"]["videos"] == [str(v)]
+    assert r.frames == 5 and r.tracks == 2
+
+
+def test_stereo_run_pairs_by_time_and_counts_drops(tmp_path):
+    a = write_video(tmp_path / "cam0.mkv", 4, times=[0.0, 0.1, 0.2, 0.3])
+    b = write_video(tmp_path / "cam1.mkv", 3, times=[0.0, 0.2, 0.3])
+    rig = stereo_rig()
+    front = FakeFrontEnd(rig)
+    r = _run(tmp_path, [a, b], rig=rig, front=front)
+    assert r.frames == 3
+    assert [c[2] for c in front.calls] == [
+        {"cam0": 0, "cam1": 0},
+        {"cam0": 8, "cam1": 4},
+        {"cam0": 12, "cam1": 8},
+    ]
+    assert r.summary["dropped_unpaired_frames"] == {"cam0": 1, "cam1": 0}
+
+
+def test_video_that_breaks_halfway_keeps_earlier_lines(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 30, times=[k / 30 for k in range(30)])
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(v.read_bytes()[: v.stat().st_size // 2])
+    (tmp_path / "cut.timestamps.txt").write_text((tmp_path / "cam0.timestamps.txt").read_text())
+    with pytest.raises(SourceError, match=r"cut\.mkv: decoding stopped after (\d+) of 30") as e:
+        _run(tmp_path, [cut])
+    recs = _lines(tmp_path / "out" / "tracks.jsonl")
+    n = int(str(e.value).split("after ")[1].split(" ")[0])
+    assert len(recs) == n > 0
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["frames"] == n and "cut.mkv" in s["error"]
+
+
+def test_ctrl_c_keeps_outputs(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
+    rig = mono_rig()
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, [v], rig=rig, front=FakeFrontEnd(rig, interrupt_at=4))
+    recs = _lines(tmp_path / "out" / "tracks.jsonl")
+    assert [x["frame"] for x in recs] == [0, 1, 2, 3]
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["interrupted"] is True and s["frames"] == 4
+    assert (tmp_path / "out" / "config.resolved.yaml").is_file()
+
+
+def test_frame_size_mismatch_is_an_error_before_anything_runs(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 3, size=(80, 60))
+    with pytest.raises(SourceError, match=rf"frames are 80x60 pixels but the calibration expects {W}x{H}"):
+        _run(tmp_path, [v])
+
+
+def test_wrong_number_of_videos(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 3)
+    with pytest.raises(ConfigError, match=r"1 input\(s\) for a rig of 2 camera\(s\)"):
+        _run(tmp_path, [v], rig=stereo_rig())
+
+
+def test_annotated_video_and_plots(tmp_path):
+    import cv2
+
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 10 for k in range(6)])
+    cfg = load_config(
+        None,
+        [
+            "ego_motion.speed_mps=5",
+            "outputs.progress=false",
+            "outputs.annotated_video=true",
+            "outputs.plots=true",
+            "outputs.every_n=2",
+        ],
+        cli={"inputs.videos": [str(v)]},
+    )
+    rig = mono_rig()
+    run(
+        cfg,
+        tmp_path / "out",
+        rig=rig,
+        egomotion=ConstantVelocity(5.0),
+        frontend=FakeFrontEnd(rig),
+        fusion=FakeFusion(),
+    )
+    cap = cv2.VideoCapture(str(tmp_path / "out" / "annotated.mp4"))
+    n = 0
+    while cap.read()[0]:
+        n += 1
+    assert n == 3  # every 2nd of 6 frames
+    assert (tmp_path / "out" / "range_over_time.png").is_file() and (
+        tmp_path / "out" / "polar_map.png"
+    ).is_file()
+
+
+def test_running_stats_reservoir_is_bounded_and_exact_when_small():
+    st = RunningStats(reservoir=100)
+    for k in range(101):
+        st.add(k / 100)
+    s = st.summary()
+    assert s["n"] == 101 and s["max_s"] == 1.0 and s["mean_s"] == pytest.approx(0.5)
+    assert len(st._samples) == 100
+    exact = RunningStats(reservoir=1000)
+    for k in range(101):
+        exact.add(k / 100)
+    assert exact.summary()["median_s"] == pytest.approx(0.5) and exact.summary()["p99_s"] == pytest.approx(
+        0.99
+    )
+
+
+def _fake_stages(monkeypatch, rig_fn=mono_rig):
+    monkeypatch.setattr(run_mod, "build_rig", lambda cfg: rig_fn())
+    monkeypatch.setattr(run_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig))
+    monkeypatch.setattr(run_mod, "build_fusion", lambda cfg, rig, ego: FakeFusion())
+
+
+def test_cli_run_with_stub_stages(tmp_path, monkeypatch, capsys):
+    from pipeline.cli import main
+
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 4, times=[0, 0.1, 0.2, 0.3])
+    rc = main(
+        [
+            "run",
+            "--video",
+            str(v),
+            "--calibration",
+            str(tmp_path / "cam.yaml"),
+            "--speed-mps",
+            "3",
+            "--out",
+            str(tmp_path / "o"),
+            "--set",
+            "outputs.progress=false",
+        ]
+    )
+    assert rc == 0
+    assert len(_lines(tmp_path / "o" / "tracks.jsonl")) == 4
+    resolved = yaml.safe_load((tmp_path / "o" / "config.resolved.yaml").read_text())
+    assert resolved["ego_motion"]["speed_mps"] == 3.0 and resolved["rig"]["calibration"] == str(
+        tmp_path / "cam.yaml"
+    )
+
+
+def test_cli_errors_are_one_line_and_nonzero(tmp_path, monkeypatch, capsys):
+    from pipeline.cli import main
+
+    _fake_stages(monkeypatch)
+    rc = main(
+        ["run", "--video", str(tmp_path / "missing.mkv"), "--speed-mps", "3", "--out", str(tmp_path / "o")]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and err == [f"fisheye-des: error: {tmp_path / 'missing.mkv'}: video file not found"]
+    rc = main(["run", "--set", "ego_motion.sped=3"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "did you mean 'speed_mps'" in err[0]
+
+
+def test_batch_runs_each_video_in_its_own_folder(tmp_path, monkeypatch):
+    from pipeline.run import run_batch
+
+    vids = tmp_path / "vids"
+    for name, n in (("a", 3), ("b", 5)):
+        write_video(vids / f"{name}.mkv", n, times=[k / 10 for k in range(n)])
+    cfg = load_config(None, ["ego_motion.speed_mps=5"])
+    # workers=1 runs in this process, where the stub stages are patched in
+    _fake_stages(monkeypatch)
+    res = run_batch(cfg, [vids], tmp_path / "out", workers=1)
+    assert [r["frames"] for r in res] == [3, 5] and all(r["error"] is None for r in res)
+    assert len(_lines(tmp_path / "out" / "a" / "tracks.jsonl")) == 3
+    assert len(_lines(tmp_path / "out" / "b" / "tracks.jsonl")) == 5

@@ -1,0 +1,90 @@
+"""Sinks: tracks.jsonl flushed per frame and NaN-free, summary JSON, annotation, plots."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from test_run_support import H, W, mono_rig
+
+from estimators.records import TrackReport
+from pipeline.sinks import Annotator, TracksWriter, make_plots, read_tracks, to_plain, write_json
+
+
+def _report(i, r):
+    return TrackReport(
+        id=i,
+        status="confirmed",
+        camera="cam0",
+        bearing_body=np.array([1.0, 0.0, 0.0]),
+        range_m=r,
+        range_sigma_m=0.5,
+        range_min_m=float("nan"),
+        range_max_m=float("inf"),
+        position_body_m=np.array([r, 0.0, 0.0]),
+        attributes={"score": float("nan")},
+    )
+
+
+def test_each_line_is_readable_while_the_writer_is_open(tmp_path):
+    w = TracksWriter(tmp_path / "tracks.jsonl")
+    for k in range(3):
+        w.write(k, 0.1 * k, [_report(1, 10.0 - k)])
+        # a second reader sees the line at once: flushed per frame
+        lines = (tmp_path / "tracks.jsonl").read_text().splitlines()
+        assert len(lines) == k + 1
+        rec = json.loads(lines[-1])
+        assert rec["frame"] == k and rec["t_s"] == pytest.approx(0.1 * k)
+        assert rec["tracks"][0]["range_m"] == 10.0 - k
+    w.close()
+
+
+def test_no_nan_or_infinity_in_output(tmp_path):
+    w = TracksWriter(tmp_path / "tracks.jsonl")
+    w.write(0, float("nan"), [_report(1, float("nan"))])
+    w.close()
+    text = (tmp_path / "tracks.jsonl").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    rec = json.loads(text)
+    t = rec["tracks"][0]
+    assert (
+        rec["t_s"] is None and t["range_m"] is None and t["range_min_m"] is None and t["range_max_m"] is None
+    )
+    assert t["attributes"]["score"] is None
+
+
+def test_write_json_is_nan_free_and_plain(tmp_path):
+    p = write_json(tmp_path / "s.json", {"a": np.float32(1.5), "b": np.arange(3), "c": float("nan")})
+    assert json.loads(p.read_text()) == {"a": 1.5, "b": [0, 1, 2], "c": None}
+    assert to_plain({"x": (np.int64(2), np.bool_(True))}) == {"x": [2, True]}
+
+
+def test_read_tracks_skips_a_cut_off_last_line(tmp_path):
+    p = tmp_path / "tracks.jsonl"
+    p.write_text('{"frame": 0, "t_s": 0.0, "tracks": []}\n{"frame": 1, "t_')
+    assert [r["frame"] for r in read_tracks(p)] == [0]
+
+
+def test_annotator_draws_at_the_projected_pixel():
+    rig = mono_rig()
+    img = np.zeros((H, W), np.uint8)
+    t = to_plain(_report(1, 10.0))
+    out = Annotator(rig).draw({"cam0": img}, [t])
+    assert out.shape == (H, W, 3)
+    # straight ahead projects to the principal point; the marker circle (radius 6) surrounds it
+    cx, cy = (W - 1) / 2, (H - 1) / 2
+    ring = out[int(round(cy)) - 8 : int(round(cy)) + 9, int(round(cx)) - 8 : int(round(cx)) + 9]
+    assert ring.any()
+    assert not out[int(round(cy)), int(round(cx))].any()  # the circle is hollow
+
+
+def test_plots_written(tmp_path):
+    w = TracksWriter(tmp_path / "tracks.jsonl")
+    for k in range(10):
+        w.write(k, 0.1 * k, [_report(1, 10.0 - k), _report(2, 20.0)])
+    w.close()
+    files = make_plots(tmp_path / "tracks.jsonl", tmp_path)
+    assert [f.name for f in files] == ["range_over_time.png", "polar_map.png"]
+    for f in files:
+        assert f.stat().st_size > 1000 and f.read_bytes()[:4] == b"\x89PNG"

@@ -1,0 +1,156 @@
+"""Sources: video with timestamps sidecar, image folder, stereo sync, bad inputs, paced replay."""
+
+from __future__ import annotations
+
+import os
+
+import cv2
+import numpy as np
+import pytest
+from test_run_support import H, W, write_video
+
+from estimators.errors import SourceError
+from pipeline.sources import (
+    ImageFolderSource,
+    PacedSource,
+    SyncedSource,
+    VideoSource,
+    open_capture,
+    read_timestamps,
+)
+
+
+def test_video_round_trip_with_timestamps_sidecar(tmp_path):
+    # dropped frames: the sidecar's frame indices skip 2 and 5; its times are authoritative
+    idx = [0, 1, 3, 4, 6, 7]
+    times = [0.0, 0.04, 0.121, 0.16, 0.245, 0.28]
+    p = write_video(tmp_path / "cam0.mkv", 6, times=times, frames=idx)
+    src = VideoSource(p, expected_size=(W, H))
+    got = list(src)
+    assert [f.frame for f in got] == idx
+    assert [f.t_s for f in got] == pytest.approx(times)
+    assert [int(f.image[0, 0, 0]) for f in got] == [4 * k for k in range(6)]  # FFV1 is lossless
+    assert src.error is None and got[0].camera == "cam0"
+
+
+def test_video_without_sidecar_uses_container_times(tmp_path):
+    p = write_video(tmp_path / "v.mkv", 10, fps=25.0)
+    got = list(VideoSource(p))
+    assert len(got) == 10
+    # Matroska stores milliseconds: 1/25 s = 40 ms exactly
+    assert [f.t_s for f in got] == pytest.approx([k / 25.0 for k in range(10)], abs=1e-3)
+
+
+def test_video_fps_option_gives_frame_over_fps(tmp_path):
+    p = write_video(tmp_path / "v.mkv", 4, fps=30.0)
+    assert [f.t_s for f in VideoSource(p, fps=10.0)] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+
+
+def test_image_folder_sorted_with_fps_and_with_timestamps(tmp_path):
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for k in (2, 0, 1):  # written out of order; read sorted by name
+        cv2.imwrite(str(d / f"img_{k:03d}.png"), np.full((H, W), 10 * k, np.uint8))
+    got = list(ImageFolderSource(d, fps=20.0, grey=True))
+    assert [int(f.image[0, 0]) for f in got] == [0, 10, 20]
+    assert [f.t_s for f in got] == pytest.approx([0.0, 0.05, 0.1])
+    (d / "timestamps.txt").write_text("10 1.5\n11 1.6\n13 1.8\n")
+    got = list(ImageFolderSource(d))
+    assert [(f.frame, f.t_s) for f in got] == [(10, 1.5), (11, 1.6), (13, 1.8)]
+
+
+def test_image_folder_without_times_or_images(tmp_path):
+    d = tmp_path / "imgs"
+    d.mkdir()
+    with pytest.raises(SourceError, match="no images"):
+        ImageFolderSource(d, fps=10)
+    cv2.imwrite(str(d / "a.png"), np.zeros((H, W), np.uint8))
+    with pytest.raises(SourceError, match="inputs.fps"):
+        ImageFolderSource(d)
+
+
+def test_stereo_sync_drops_frame_without_partner(tmp_path):
+    t0 = [0.0, 0.1, 0.2, 0.3, 0.4]
+    t1 = [0.0, 0.1, 0.3, 0.4]  # cam1 lost the frame at 0.2
+    a = write_video(tmp_path / "cam0.mkv", 5, times=t0)
+    b = write_video(tmp_path / "cam1.mkv", 4, times=t1)
+    sync = SyncedSource([VideoSource(a, "cam0"), VideoSource(b, "cam1")], tolerance_s=0.01)
+    sets = list(sync)
+    assert [s.t_s for s in sets] == pytest.approx([0.0, 0.1, 0.3, 0.4])
+    assert sync.dropped == {"cam0": 1, "cam1": 0}
+    for s in sets:
+        assert set(s.frames) == {"cam0", "cam1"}
+        assert abs(s.frames["cam0"].t_s - s.frames["cam1"].t_s) <= 0.01
+    # the pair at 0.3 s: cam0's frame 3 (grey 12) with cam1's frame 2 (grey 8)
+    assert int(sets[2].images["cam0"][0, 0, 0]) == 12 and int(sets[2].images["cam1"][0, 0, 0]) == 8
+
+
+def test_missing_empty_and_corrupt_videos(tmp_path):
+    with pytest.raises(SourceError, match=r"nope\.mkv: video file not found"):
+        VideoSource(tmp_path / "nope.mkv")
+    (tmp_path / "empty.mkv").write_bytes(b"")
+    with pytest.raises(SourceError, match=r"empty\.mkv: video file is empty"):
+        VideoSource(tmp_path / "empty.mkv")
+    (tmp_path / "junk.mkv").write_bytes(os.urandom(4096))
+    with pytest.raises(SourceError, match=r"junk\.mkv: cannot be opened"):
+        VideoSource(tmp_path / "junk.mkv")
+
+
+def test_truncated_video_keeps_frames_before_the_break(tmp_path):
+    p = write_video(tmp_path / "cam0.mkv", 30, times=[k / 30 for k in range(30)])
+    data = p.read_bytes()
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(data[: len(data) // 2])
+    (tmp_path / "cut.timestamps.txt").write_text((tmp_path / "cam0.timestamps.txt").read_text())
+    src = VideoSource(cut)
+    got = list(src)
+    assert 0 < len(got) < 30
+    assert [int(f.image[0, 0, 0]) for f in got] == [4 * k for k in range(len(got))]
+    assert src.error is not None and "cut.mkv" in src.error and f"after {len(got)} of 30" in src.error
+
+
+def test_video_cut_in_header_is_an_error(tmp_path):
+    p = write_video(tmp_path / "cam0.mkv", 5)
+    cut = tmp_path / "head.mkv"
+    cut.write_bytes(p.read_bytes()[:200])
+    with pytest.raises(SourceError, match=r"head\.mkv"):
+        VideoSource(cut)
+
+
+def test_frame_size_must_match_calibration(tmp_path):
+    p = write_video(tmp_path / "cam0.mkv", 2)
+    with pytest.raises(
+        SourceError, match=rf"cam0\.mkv: frames are {W}x{H} pixels but the calibration expects 640x480"
+    ):
+        VideoSource(p, expected_size=(640, 480))
+
+
+def test_camera_index_that_does_not_exist():
+    with pytest.raises(SourceError, match="camera index 97: cannot be opened"):
+        open_capture(97)
+
+
+def test_malformed_timestamps_line(tmp_path):
+    f = tmp_path / "t.txt"
+    f.write_text("0 0.0\n1 zero\n")
+    with pytest.raises(SourceError, match=r"t\.txt:2: expected 'frame t_s'"):
+        read_timestamps(f)
+    f.write_text("0 0.5\n1 0.4\n")
+    with pytest.raises(SourceError, match=r"t\.txt:2: times must increase"):
+        read_timestamps(f)
+
+
+def test_paced_source_releases_frames_at_their_times(tmp_path):
+    p = write_video(tmp_path / "cam0.mkv", 4, times=[0.0, 0.5, 1.0, 2.0])
+    now = [100.0]
+    slept = []
+
+    def sleep(dt):
+        slept.append(dt)
+        now[0] += dt
+
+    paced = PacedSource(VideoSource(p), speed=2.0, clock=lambda: now[0], sleep=sleep)
+    arrivals = []
+    for _ in paced:
+        arrivals.append(paced.last_arrival_s)
+    assert arrivals == pytest.approx([100.0, 100.25, 100.5, 101.0])  # real time / speed
