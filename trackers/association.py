@@ -1,0 +1,95 @@
+"""Cross-camera association: one obstacle seen by several cameras becomes one track.
+
+Member features of the cameras' tracks are matched by ORB descriptor (Hamming distance, mutual best,
+Lowe ratio) and a match must satisfy the rig's epipolar constraint on the sphere: with
+``T_C1_C0 = T_C1_B T_C0_B^-1 = (R, t)``, a point seen along b0 from camera 0 and along b1 from
+camera 1 satisfies ``b1 . (t x R b0) = 0`` (coplanarity); we accept
+``|b1 . (t_hat x R b0)| / |t_hat x R b0| < sin(epipolar_rad)`` and ahead-of-both-cameras geometry.
+Two tracks are linked when at least ``min_votes`` such matches join them and each is the other's
+best partner.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
+    """Sine of the angle of b1 out of the epipolar plane of b0.
+
+    Args:
+        b0: (N, 3) unit bearings in camera 0; b1: (N, 3) unit bearings in camera 1 (row-paired).
+        R_C1_C0: (3, 3), t_C1_C0: (3,) metres, with p_C1 = R p_C0 + t.
+    Returns:
+        (N,) ``|b1 . n| / |n|`` with ``n = t_hat x R b0`` the epipolar plane's normal in camera 1
+        (1 where the plane is undefined: b0 along the baseline).
+    """
+    t = np.asarray(t_C1_C0, float)
+    tn = np.linalg.norm(t)
+    if tn == 0:
+        return np.linalg.norm(np.cross(b1, b0 @ np.asarray(R_C1_C0).T), axis=1)  # pure rotation: rays equal
+    n = np.cross(t / tn, b0 @ np.asarray(R_C1_C0).T)
+    nn = np.linalg.norm(n, axis=1)
+    res = np.abs(np.sum(b1 * n, axis=1)) / np.where(nn > 1e-9, nn, 1.0)
+    return np.where(nn > 1e-9, res, 1.0)
+
+
+def hamming(d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
+    """(N0, 32) x (N1, 32) uint8 binary descriptors -> (N0, N1) Hamming distances."""
+    if not len(d0) or not len(d1):
+        return np.zeros((len(d0), len(d1)), np.int64)
+    x = np.bitwise_xor(d0[:, None, :], d1[None, :, :])
+    return np.unpackbits(x, axis=2).sum(axis=2)
+
+
+def match_features(
+    b0: np.ndarray,
+    d0: np.ndarray,
+    b1: np.ndarray,
+    d1: np.ndarray,
+    R_C1_C0: np.ndarray,
+    t_C1_C0: np.ndarray,
+    epipolar_rad: float = np.radians(1.0),
+    max_hamming: int = 64,
+    ratio: float = 0.9,
+) -> np.ndarray:
+    """Descriptor matches between two cameras' features that satisfy the epipolar constraint.
+
+    Args:
+        b0, b1: (N0, 3), (N1, 3) unit bearings in cameras 0 and 1; d0, d1: their (N, 32) ORB descriptors.
+        R_C1_C0, t_C1_C0: camera 0 -> camera 1 transform (p_C1 = R p_C0 + t, metres).
+        epipolar_rad: largest angle of b1 out of b0's epipolar plane.
+        max_hamming: largest descriptor distance (bits of 256); ratio: Lowe's ratio test.
+    Returns:
+        (K, 2) int index pairs (i0, i1), mutual best among the epipolar-consistent candidates.
+    """
+    if not len(b0) or not len(b1):
+        return np.zeros((0, 2), np.intp)
+    H = hamming(d0, d1).astype(float)
+    # epipolar residual of every pair: |b1 . n_i| / |n_i|
+    t = np.asarray(t_C1_C0, float)
+    tn = np.linalg.norm(t)
+    Rb0 = b0 @ np.asarray(R_C1_C0).T
+    if tn > 0:
+        n = np.cross(t / tn, Rb0)
+        nn = np.linalg.norm(n, axis=1)
+        res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
+        # cheirality (for baselines much shorter than the range): both rays ahead of the baseline
+        # the same way, i.e. the ray from camera 1 is not pointing away from camera 0's ray
+        res[nn <= 1e-9] = 1.0
+        ok = (res < np.sin(epipolar_rad)) & ((Rb0 @ b1.T) > 0)
+    else:
+        ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
+    H[~ok] = np.inf
+    H[H > max_hamming] = np.inf
+    if not np.isfinite(H).any():
+        return np.zeros((0, 2), np.intp)
+    j = np.argmin(H, axis=1)
+    i_back = np.argmin(H, axis=0)
+    best = H[np.arange(len(b0)), j]
+    Hs = H.copy()
+    Hs[np.arange(len(b0)), j] = np.inf
+    second = Hs.min(axis=1)
+    good = np.isfinite(best) & (i_back[j] == np.arange(len(b0))) & (best <= ratio * second + 1e-9)
+    i = np.flatnonzero(good)
+    return np.stack([i, j[i]], axis=1)

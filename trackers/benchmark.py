@@ -1,0 +1,289 @@
+"""Benchmark of the front end on a simulated scene: frame rate (with decoding), per-stage timings,
+coverage of the visible obstacles, id switches, features tracked beyond 90 degrees off-axis.
+
+    python -m trackers.benchmark SCENE_DIR [--detector orb] [--threads 1] [--frames N]
+
+``SCENE_DIR`` is the output of ``fisheye-des simulate`` (``<cam>.mkv``, ``<cam>.timestamps.txt``,
+``camchain.yaml``, ``gt.jsonl``, ``scene.yaml``). Reads files only; imports nothing from ``pipeline``.
+
+Mapping tracks to ground truth: a reported track's view in camera c is on obstacle k when the ray
+from the camera centre along the view's bearing passes through obstacle k's shape (sphere, pole as
+a capsule, box/wall, drone as its bounding sphere; shapes from ``scene.yaml``, positions from
+``gt.jsonl``) inflated by ``margin_px`` pixels at that range; the nearest such obstacle along the
+ray wins (occlusion). An obstacle is *covered* in a frame when some reported track is on it; it
+counts from half a second after it first became visible (``visible`` in any camera). The id of an
+obstacle's track is sticky (kept while it stays on the obstacle); a change to another id while the
+obstacle is covered is an id switch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from estimators.errors import SourceError
+from estimators.se3 import Pose, quat_to_rot
+
+
+@dataclass
+class Shape:
+    """An obstacle's shape in W at one frame (kind: sphere | capsule | box)."""
+
+    kind: str
+    c_W: np.ndarray
+    r_m: float = 0.0
+    half_h_m: float = 0.0  # capsule: half length of the vertical axis
+    half_size_m: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    yaw_rad: float = 0.0
+
+
+def ray_hit_distance(o: np.ndarray, d: np.ndarray, s: Shape, margin_m: float) -> float | None:
+    """Distance along the unit ray (o, d) (W, metres) to where it meets the inflated shape, or None."""
+    if s.kind == "sphere" or s.kind == "capsule":
+        if s.kind == "sphere":
+            p = s.c_W
+        else:  # closest point on the vertical axis segment to the ray: sample the axis
+            zs = np.linspace(-s.half_h_m, s.half_h_m, 41)
+            pts = s.c_W + np.outer(zs, [0.0, 0.0, 1.0])
+            t = np.maximum((pts - o) @ d, 0.0)
+            dist = np.linalg.norm(o + t[:, None] * d - pts, axis=1)
+            p = pts[int(np.argmin(dist))]
+        t = float((p - o) @ d)
+        if t <= 0:
+            return None
+        dist = float(np.linalg.norm(o + t * d - p))
+        return t if dist <= s.r_m + margin_m else None
+    # box: slab test in the box frame (yaw about W z)
+    c, sn = np.cos(-s.yaw_rad), np.sin(-s.yaw_rad)
+    R = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1]])
+    ol, dl = R @ (o - s.c_W), R @ d
+    h = s.half_size_m + margin_m
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-h - ol) / dl, (h - ol) / dl
+    tmin = np.nanmax(np.minimum(t1, t2))
+    tmax = np.nanmin(np.maximum(t1, t2))
+    if tmax >= max(tmin, 0.0):
+        return float(max(tmin, 0.0))
+    return None
+
+
+def shapes_for_frame(specs: dict[int, dict], gt_obstacles: list[dict]) -> dict[int, Shape]:
+    """Shapes (W) of the obstacles of one gt.jsonl line, sizes from scene.yaml's obstacle specs."""
+    out = {}
+    for o in gt_obstacles:
+        sp = specs.get(int(o["id"]), {})
+        kind = o.get("kind", sp.get("kind"))
+        c = np.asarray(o["p_W"], float)
+        if kind == "sphere":
+            out[o["id"]] = Shape("sphere", c, r_m=float(sp["radius_m"]))
+        elif kind == "pole":
+            out[o["id"]] = Shape("capsule", c, r_m=float(sp["radius_m"]), half_h_m=float(sp["height_m"]) / 2)
+        elif kind in ("box", "wall"):
+            size = sp.get("size_m") or ([0.2, 6.0, 4.0] if kind == "wall" else [1.0, 1.0, 1.0])
+            out[o["id"]] = Shape(
+                "box",
+                c,
+                half_size_m=np.asarray(size, float) / 2,
+                yaw_rad=float(np.radians(sp.get("yaw_deg", 0.0))),
+            )
+        else:  # drone and anything else: bounding sphere
+            out[o["id"]] = Shape("sphere", c, r_m=float(o.get("radius_m", 0.5)))
+    return out
+
+
+def open_scene(scene_dir: Path):
+    """(rig, captures {cam: VideoCapture}, timestamps {cam: {frame: t_s}}, gt {frame: line}, specs)."""
+    from estimators.calibration import load_kalibr
+
+    scene_dir = Path(scene_dir)
+    rig = load_kalibr(scene_dir / "camchain.yaml")
+    caps, stamps = {}, {}
+    for cam in rig.cameras:
+        p = scene_dir / f"{cam.name}.mkv"
+        cap = cv2.VideoCapture(str(p))
+        if not cap.isOpened():
+            raise SourceError(f"benchmark: cannot open video {p}")
+        caps[cam.name] = cap
+        st = {}
+        for line in (scene_dir / f"{cam.name}.timestamps.txt").read_text().splitlines():
+            if line.strip():
+                f, t = line.split()[:2]
+                st[int(f)] = float(t)
+        stamps[cam.name] = st
+    gt = {}
+    gp = scene_dir / "gt.jsonl"
+    if gp.exists():
+        for line in gp.read_text().splitlines():
+            if line.strip():
+                d = json.loads(line)
+                gt[int(d["frame"])] = d
+    specs = {}
+    sp = scene_dir / "scene.yaml"
+    if sp.exists():
+        for o in (yaml.safe_load(sp.read_text()) or {}).get("obstacles", []) or []:
+            specs[int(o["id"])] = o
+    return rig, caps, stamps, gt, specs
+
+
+def run_benchmark(
+    scene_dir: str | Path,
+    detector: str = "orb",
+    threads: int = 1,
+    max_frames: int | None = None,
+    margin_px: float = 2.0,
+    use_poses: bool = False,
+    **frontend_options: Any,
+) -> dict[str, Any]:
+    """Run the FrontEnd over a simulated scene and measure it (see the module docstring).
+
+    Returns a dict: frames, fps (decode + front end), fps_frontend, ms per stage, coverage per
+    obstacle (and overall), id switches per obstacle and per obstacle-minute, rim features.
+    """
+    from trackers.frontend import FrontEnd
+
+    cv2.setNumThreads(int(threads))
+    rig, caps, stamps, gt, specs = open_scene(Path(scene_dir))
+    fe = FrontEnd(rig, detector=detector, **frontend_options)
+    names = [c.name for c in rig.cameras]
+    frames = sorted(stamps[names[0]])
+    if max_frames:
+        frames = frames[:max_frames]
+    R_B_C = {c.name: c.T_C_B.R.T for c in rig.cameras}
+    c_B = {c.name: c.centre_B for c in rig.cameras}
+    rad_px = {c.name: c.model.max_angle_rad / max(c.model.image_circle()[2], 1.0) for c in rig.cameras}
+    t_decode = t_front = 0.0
+    stage = dict.fromkeys(("detect", "track", "group", "associate"), 0.0)
+    first_seen: dict[int, float] = {}
+    due: dict[int, int] = {}
+    covered: dict[int, int] = {}
+    sticky: dict[int, int] = {}
+    switches: dict[int, int] = {}
+    cov_time: dict[int, float] = {}
+    rim_feats, rim_old = 0, 0
+    n_obs = 0
+    for f in frames:
+        t0 = time.perf_counter()
+        imgs = {}
+        for n in names:
+            ok, img = caps[n].read()
+            if not ok:
+                raise SourceError(f"benchmark: {n}.mkv ended before frame {f}")
+            imgs[n] = img
+        t1 = time.perf_counter()
+        t_s = stamps[names[0]][f]
+        line = gt.get(f)
+        T_W_B = None
+        if line is not None and "T_W_B" in line:
+            v = line["T_W_B"]
+            T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
+        obs = fe.process(imgs, f, t_s, T_W_B=T_W_B if use_poses else None)
+        t2 = time.perf_counter()
+        t_decode += t1 - t0
+        t_front += t2 - t1
+        for k in stage:
+            stage[k] += fe.timings.get(k, 0.0)
+        n_obs += len(obs)
+        for feats in fe.last_features.values():
+            if len(feats):
+                off = np.arccos(np.clip(feats.b_C[:, 2], -1, 1))
+                rim_feats += int(np.sum(off > np.pi / 2))
+                rim_old += int(np.sum((off > np.pi / 2) & (feats.age >= 10)))
+        if line is None or T_W_B is None:
+            continue
+        shapes = shapes_for_frame(specs, line["obstacles"])
+        # which obstacle is each reported track on?
+        on: dict[int, set[int]] = {}
+        for o in obs:
+            if o.status == "lost":
+                continue
+            for v in o.views:
+                oW = T_W_B.apply(c_B[v.camera])
+                dW = T_W_B.rotate(R_B_C[v.camera] @ v.b_C)
+                best, best_t = None, np.inf
+                for oid, s in shapes.items():
+                    rng = float(np.linalg.norm(s.c_W - oW))
+                    hit = ray_hit_distance(oW, dW, s, margin_px * rad_px[v.camera] * rng)
+                    if hit is not None and hit < best_t:
+                        best, best_t = oid, hit
+                if best is not None:
+                    on.setdefault(best, set()).add(o.track_id)
+        for o in line["obstacles"]:
+            oid = int(o["id"])
+            if not any(o.get("visible", {}).values()):
+                continue
+            first_seen.setdefault(oid, t_s)
+            if t_s - first_seen[oid] < 0.5:
+                continue
+            due[oid] = due.get(oid, 0) + 1
+            ids = on.get(oid, set())
+            if ids:
+                covered[oid] = covered.get(oid, 0) + 1
+                cov_time[oid] = cov_time.get(oid, 0.0) + 1.0
+                if oid in sticky and sticky[oid] not in ids:
+                    switches[oid] = switches.get(oid, 0) + 1
+                if oid not in sticky or sticky[oid] not in ids:
+                    sticky[oid] = min(ids)
+    nf = len(frames)
+    fps_dt = (
+        frames and (stamps[names[0]][frames[-1]] - stamps[names[0]][frames[0]]) / max(nf - 1, 1)
+    ) or 1 / 30
+    per = {}
+    for oid in sorted(due):
+        minutes = covered.get(oid, 0) * fps_dt / 60.0
+        per[oid] = {
+            "frames_due": due[oid],
+            "coverage": covered.get(oid, 0) / due[oid],
+            "id_switches": switches.get(oid, 0),
+            "switches_per_min": switches.get(oid, 0) / minutes if minutes > 0 else 0.0,
+        }
+    tot_due = sum(due.values())
+    h, w = rig.cameras[0].model.height, rig.cameras[0].model.width
+    return {
+        "scene": str(scene_dir),
+        "resolution": f"{w}x{h}",
+        "cameras": len(names),
+        "detector": detector,
+        "threads": threads,
+        "frames": nf,
+        "fps": nf / (t_decode + t_front),
+        "fps_frontend": nf / t_front,
+        "ms_per_frame": {
+            "decode": 1e3 * t_decode / nf,
+            "frontend": 1e3 * t_front / nf,
+            **{k: 1e3 * v / nf for k, v in stage.items()},
+        },
+        "coverage": sum(covered.values()) / tot_due if tot_due else None,
+        "min_coverage": min((p["coverage"] for p in per.values()), default=None),
+        "max_switches_per_min": max((p["switches_per_min"] for p in per.values()), default=None),
+        "obstacles": per,
+        "observations_per_frame": n_obs / nf,
+        "rim_features_per_frame": rim_feats / nf,
+        "rim_features_age10_per_frame": rim_old / nf,
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Command-line entry: print the benchmark of one scene as JSON."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene_dir")
+    ap.add_argument("--detector", default="orb")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--frames", type=int, default=None)
+    ap.add_argument("--poses", action="store_true", help="pass the true T_W_B (rotation compensation)")
+    a = ap.parse_args(argv)
+    res = run_benchmark(
+        a.scene_dir, detector=a.detector, threads=a.threads, max_frames=a.frames, use_poses=a.poses
+    )
+    print(json.dumps(res, indent=2))
+
+
+if __name__ == "__main__":
+    main()

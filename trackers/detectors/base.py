@@ -1,0 +1,220 @@
+"""Detector interface, the ``Detections`` record and the registry of detectors by name.
+
+A detector turns one frame into keypoints (to be tracked and grouped into obstacles) and/or boxes
+(each box one obstacle candidate with a label and attributes). Built-ins register themselves with
+``@register_detector("name")``; outside packages add theirs through the entry-point group
+``fisheye_des.detectors`` (``name = "package.module:DetectorClass"``), and ``make_detector(name)``
+finds both. An unknown name is a ConfigError that lists the installed ones.
+"""
+
+from __future__ import annotations
+
+import inspect
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, ClassVar
+
+import numpy as np
+
+from estimators.errors import ConfigError, InputError
+
+ENTRY_POINT_GROUP = "fisheye_des.detectors"
+
+
+def _rows(name: str, a: Any, ncols: int, dtype: Any) -> np.ndarray:
+    a = np.asarray(a, dtype=dtype)
+    if a.size == 0:
+        return a.reshape(0, ncols)
+    if a.ndim != 2 or a.shape[1] != ncols:
+        raise InputError(f"Detections.{name}: expected shape (N, {ncols}), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"Detections.{name}: contains NaN or infinite values")
+    return a
+
+
+@dataclass(frozen=True)
+class Detections:
+    """What a detector found in one frame (supervision-style: one array per field).
+
+    Attributes:
+        keypoints: (N, 2) float32 pixel positions (OpenCV convention: integer = pixel centre).
+        scores: (N,) float32 detector response of each keypoint (larger = stronger).
+        descriptors: (N, D) descriptors of the keypoints (ORB: D = 32 bytes, uint8) or None.
+        boxes: (M, 4) float64 boxes ``[x1, y1, x2, y2]`` in pixels.
+        box_scores: (M,) float64 confidence of each box in [0, 1].
+        labels: (M,) label of each box (e.g. ``"drone"``).
+        attributes: (M,) JSON-serialisable dict per box (e.g. navlights' ``heading``).
+    """
+
+    keypoints: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
+    scores: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+    descriptors: np.ndarray | None = None
+    boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    box_scores: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    labels: tuple[str, ...] = ()
+    attributes: tuple[dict[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        kp = _rows("keypoints", self.keypoints, 2, np.float32)
+        sc = np.asarray(self.scores, dtype=np.float32).reshape(-1)
+        if len(sc) != len(kp):
+            raise InputError(f"Detections: {len(kp)} keypoints but {len(sc)} scores")
+        de = self.descriptors
+        if de is not None:
+            de = np.asarray(de)
+            if de.ndim != 2 or len(de) != len(kp):
+                raise InputError(f"Detections.descriptors: expected shape ({len(kp)}, D), got {de.shape}")
+        bx = _rows("boxes", self.boxes, 4, np.float64)
+        if np.any(bx[:, 2] < bx[:, 0]) or np.any(bx[:, 3] < bx[:, 1]):
+            raise InputError("Detections.boxes: expected x1 <= x2 and y1 <= y2 in every row")
+        bs = np.asarray(self.box_scores, dtype=np.float64).reshape(-1)
+        if len(bs) == 0 and len(bx):
+            bs = np.ones(len(bx))
+        labels = tuple(str(s) for s in self.labels) if len(self.labels) else ("object",) * len(bx)
+        attrs = tuple(dict(a) for a in self.attributes) if len(self.attributes) else ({},) * len(bx)
+        if not (len(bs) == len(labels) == len(attrs) == len(bx)):
+            raise InputError(
+                f"Detections: {len(bx)} boxes but {len(bs)} box_scores, {len(labels)} labels, "
+                f"{len(attrs)} attributes"
+            )
+        object.__setattr__(self, "keypoints", kp)
+        object.__setattr__(self, "scores", sc)
+        object.__setattr__(self, "descriptors", de)
+        object.__setattr__(self, "boxes", bx)
+        object.__setattr__(self, "box_scores", bs)
+        object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "attributes", attrs)
+
+    @staticmethod
+    def empty() -> Detections:
+        """No keypoints, no boxes."""
+        return Detections()
+
+    def __len__(self) -> int:
+        """Number of keypoints (boxes: ``len(d.boxes)``)."""
+        return len(self.keypoints)
+
+    def select(self, keep: np.ndarray) -> Detections:
+        """The keypoints picked by a boolean mask or index array ``keep`` (N,); boxes unchanged."""
+        keep = np.asarray(keep)
+        return Detections(
+            keypoints=self.keypoints[keep],
+            scores=self.scores[keep],
+            descriptors=None if self.descriptors is None else self.descriptors[keep],
+            boxes=self.boxes,
+            box_scores=self.box_scores,
+            labels=self.labels,
+            attributes=self.attributes,
+        )
+
+    @property
+    def box_centres(self) -> np.ndarray:
+        """(M, 2) pixel centres of the boxes."""
+        return (
+            np.stack(
+                [(self.boxes[:, 0] + self.boxes[:, 2]) / 2, (self.boxes[:, 1] + self.boxes[:, 3]) / 2], axis=1
+            )
+            if len(self.boxes)
+            else np.zeros((0, 2))
+        )
+
+
+def to_grey(image: np.ndarray) -> np.ndarray:
+    """(H, W) uint8 grey or (H, W, 3) uint8 BGR -> (H, W) uint8 grey (a view when already grey)."""
+    import cv2
+
+    if image.ndim == 2:
+        return image
+    if image.ndim == 3 and image.shape[2] == 3:
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if image.ndim == 3 and image.shape[2] == 1:
+        return image[:, :, 0]
+    raise InputError(f"image: expected (H, W) grey or (H, W, 3) BGR uint8, got shape {image.shape}")
+
+
+class Detector(ABC):
+    """Turns one frame into keypoints and/or boxes.
+
+    Subclasses set ``name`` (through ``@register_detector``) and say what they produce:
+    ``produces_keypoints`` (tracked by KLT and grouped into obstacles) and/or ``produces_boxes``
+    (each box tracked as one obstacle candidate).
+    """
+
+    name: ClassVar[str] = ""
+    produces_keypoints: ClassVar[bool] = True
+    produces_boxes: ClassVar[bool] = False
+
+    @abstractmethod
+    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """Detect in one frame.
+
+        Args:
+            image: (H, W) uint8 grey or (H, W, 3) uint8 BGR, the raw fisheye frame.
+            mask: (H, W) uint8, non-zero where detections are wanted (the lens circle minus what is
+                already tracked), or None for the whole frame.
+        Returns:
+            Detections with keypoints and/or boxes in pixels of ``image``.
+        """
+
+
+_REGISTRY: dict[str, Callable[..., Detector]] = {}
+
+
+def register_detector(name: str) -> Callable[[type[Detector]], type[Detector]]:
+    """Class decorator: register a Detector subclass under ``name`` (lower-case, unique)."""
+
+    def deco(cls: type[Detector]) -> type[Detector]:
+        if name in _REGISTRY and _REGISTRY[name] is not cls:
+            raise ConfigError(f"detector name {name!r} is already registered by {_REGISTRY[name]!r}")
+        cls.name = name
+        _REGISTRY[name] = cls
+        return cls
+
+    return deco
+
+
+def _entry_points() -> dict[str, metadata.EntryPoint]:
+    return {ep.name: ep for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_detectors() -> list[str]:
+    """Names of the built-in detectors and of the installed plug-ins (entry-point group
+    ``fisheye_des.detectors``), sorted."""
+    return sorted(set(_REGISTRY) | set(_entry_points()))
+
+
+def make_detector(name: str, **options: Any) -> Detector:
+    """Build the detector registered as ``name`` with its keyword ``options``.
+
+    Raises:
+        ConfigError: unknown name (the message lists the installed ones), a plug-in that does not
+            load or is not a Detector, or options the detector does not accept.
+    """
+    factory = _REGISTRY.get(name)
+    if factory is None:
+        ep = _entry_points().get(name)
+        if ep is None:
+            raise ConfigError(
+                f"unknown detector {name!r}; installed detectors: {', '.join(available_detectors())}"
+            )
+        try:
+            factory = ep.load()
+        except Exception as e:  # a broken plug-in must not look like a crash of ours
+            raise ConfigError(f"detector plug-in {name!r} ({ep.value}) failed to load: {e}") from e
+    try:
+        sig = inspect.signature(factory)
+        sig.bind(**options)
+    except TypeError as e:
+        raise ConfigError(f"detector {name!r}: bad options {sorted(options)}: {e}; accepted: {sig}") from e
+    except ValueError:
+        pass  # no signature available (builtin): let the call report
+    det = factory(**options)
+    if not isinstance(det, Detector):
+        raise ConfigError(
+            f"detector {name!r}: {factory!r} returned {type(det).__name__}, expected a Detector"
+        )
+    if not getattr(det, "name", ""):
+        det.name = name
+    return det

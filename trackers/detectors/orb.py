@@ -1,0 +1,102 @@
+"""``orb``: cv2.ORB keypoints with descriptors, spread over the frame by grid bucketing."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from estimators.errors import ConfigError
+from trackers.detectors.base import Detections, Detector, register_detector, to_grey
+
+
+def bucket(
+    uv: np.ndarray, score: np.ndarray, shape_hw: tuple[int, int], grid: tuple[int, int], per_cell: int
+) -> np.ndarray:
+    """Indices of the strongest ``per_cell`` points in each cell of a ``grid`` = (cols, rows) grid.
+
+    Args:
+        uv: (N, 2) pixel positions; score: (N,) responses; shape_hw: image (H, W).
+    Returns:
+        (K,) int indices into uv, round-robin over the cells: every cell's strongest point first,
+        then every cell's second strongest, ... (so truncating the result keeps the spread).
+    """
+    if len(uv) == 0:
+        return np.zeros(0, dtype=np.intp)
+    h, w = shape_hw
+    gx, gy = grid
+    cx = np.clip((uv[:, 0] * gx / w).astype(np.intp), 0, gx - 1)
+    cy = np.clip((uv[:, 1] * gy / h).astype(np.intp), 0, gy - 1)
+    cell = cy * gx + cx
+    order = np.lexsort((-score, cell))  # by cell, then strongest first
+    cs = cell[order]
+    start = np.searchsorted(cs, cs, side="left")  # first index of each point's cell run
+    rank = np.arange(len(cs)) - start
+    ok = rank < per_cell
+    order, rank = order[ok], rank[ok]
+    return order[np.lexsort((-score[order], rank))]
+
+
+@register_detector("orb")
+class OrbDetector(Detector):
+    """ORB (FAST corners + Harris score + rBRIEF descriptors) on the raw fisheye frame.
+
+    ORB is asked for many more corners than wanted, then the strongest ``max_features /
+    (grid cells)`` are kept per cell, so that the rim of the lens circle (compressed and darker)
+    is covered as well as the centre.
+
+    Args:
+        max_features: keypoints wanted per frame (upper bound).
+        grid: (cols, rows) of the bucketing grid.
+        fast_threshold: FAST intensity threshold (grey levels); low values find corners in the
+            low-contrast rim.
+        n_levels, scale_factor: ORB pyramid.
+        descriptors: compute 32-byte ORB descriptors (used to re-acquire and to match cameras).
+    """
+
+    def __init__(
+        self,
+        max_features: int = 600,
+        grid: tuple[int, int] = (16, 9),
+        fast_threshold: int = 10,
+        n_levels: int = 3,
+        scale_factor: float = 1.3,
+        descriptors: bool = True,
+    ) -> None:
+        if max_features < 1 or grid[0] < 1 or grid[1] < 1:
+            raise ConfigError(
+                f"orb: expected max_features >= 1 and grid >= (1, 1), got {max_features}, {grid}"
+            )
+        self.max_features = int(max_features)
+        self.grid = (int(grid[0]), int(grid[1]))
+        self.descriptors = bool(descriptors)
+        self._orb = cv2.ORB_create(
+            nfeatures=4 * self.max_features,
+            scaleFactor=scale_factor,
+            nlevels=n_levels,
+            edgeThreshold=15,
+            patchSize=15,
+            fastThreshold=int(fast_threshold),
+        )
+
+    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8."""
+        grey = to_grey(image)
+        kps = self._orb.detect(grey, mask)
+        if not kps:
+            return Detections.empty()
+        uv = np.array([k.pt for k in kps], dtype=np.float32)
+        sc = np.array([k.response for k in kps], dtype=np.float32)
+        per_cell = max(1, int(np.ceil(self.max_features / (self.grid[0] * self.grid[1]) * 2)))
+        keep = bucket(uv, sc, grey.shape[:2], self.grid, per_cell)
+        keep = keep[: self.max_features]
+        kps = [kps[i] for i in keep]
+        if not self.descriptors:
+            return Detections(keypoints=uv[keep], scores=sc[keep])
+        kps, des = self._orb.compute(grey, kps)
+        if des is None or not kps:
+            return Detections.empty()
+        return Detections(
+            keypoints=np.array([k.pt for k in kps], np.float32),
+            scores=np.array([k.response for k in kps], np.float32),
+            descriptors=des,
+        )

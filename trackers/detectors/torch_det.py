@@ -1,0 +1,146 @@
+"""``torch``: a user's own box detector, a TorchScript (``.pt``/``.pth``/``.ts``) or ONNX (``.onnx``)
+file given by path. Nothing is downloaded.
+
+Model contract: input a float32 tensor (1, 3, H, W), BGR->RGB, values in [0, 1] (``input_size`` =
+(W, H) resizes first); output a tensor (M, 4..6) or (1, M, 4..6) of rows
+``[x1, y1, x2, y2, score?, class?]`` in the input's pixels (scaled back to the frame here). Rows
+below ``min_score`` are dropped; ``class_names`` maps class indices to labels.
+TorchScript needs torch (``pip install fisheye-des[kornia]``); ONNX runs on cv2.dnn.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from estimators.errors import ConfigError, InputError
+from trackers.detectors.base import Detections, Detector, register_detector
+
+
+@register_detector("torch")
+class TorchModelDetector(Detector):
+    """Boxes from a user's TorchScript or ONNX model (see the module docstring for the contract).
+
+    Args:
+        model_path: path of the ``.onnx`` or TorchScript file.
+        input_size: (W, H) the model expects, or None to feed the frame's own size.
+        min_score: drop boxes scored below this.
+        class_names: labels by class index; default ``"object"`` / ``"class<k>"``.
+        device: ``"auto"``, ``"cpu"`` or ``"cuda"`` (TorchScript only).
+    """
+
+    produces_keypoints = False
+    produces_boxes = True
+
+    def __init__(
+        self,
+        model_path: str | Path = "",
+        input_size: tuple[int, int] | None = None,
+        min_score: float = 0.5,
+        class_names: Sequence[str] = (),
+        device: str = "auto",
+    ) -> None:
+        path = Path(model_path) if model_path else None
+        if path is None or not path.is_file():
+            raise ConfigError(
+                f"detector 'torch': model_path {str(model_path)!r} is not a file; expected the path of "
+                "your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (nothing is downloaded)"
+            )
+        self.path = path
+        self.input_size = None if input_size is None else (int(input_size[0]), int(input_size[1]))
+        self.min_score = float(min_score)
+        self.class_names = tuple(class_names)
+        self._net: Any = None
+        self._module: Any = None
+        if path.suffix.lower() == ".onnx":
+            try:
+                self._net = cv2.dnn.readNetFromONNX(str(path))
+            except cv2.error as e:
+                raise ConfigError(f"detector 'torch': cv2.dnn cannot read ONNX model {path}: {e}") from e
+        else:
+            try:
+                import torch
+            except ImportError as e:
+                raise ConfigError(
+                    "detector 'torch' with a TorchScript model needs torch: pip install fisheye-des[kornia]"
+                ) from e
+            self._torch = torch
+            self.device = ("cuda" if torch.cuda.is_available() else "cpu") if device == "auto" else device
+            try:
+                self._module = torch.jit.load(str(path), map_location=self.device).eval()
+            except Exception as e:
+                raise ConfigError(f"detector 'torch': torch.jit.load cannot read {path}: {e}") from e
+
+    def _run(self, rgb01: np.ndarray) -> np.ndarray:
+        if self._net is not None:
+            blob = np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32)
+            self._net.setInput(blob)
+            out = self._net.forward()
+        else:
+            torch = self._torch
+            with torch.no_grad():
+                t = torch.from_numpy(np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32))
+                out = self._module(t.to(self.device))
+                if isinstance(out, (tuple, list)):
+                    out = out[0]
+                out = out.detach().float().cpu().numpy()
+        out = np.asarray(out, dtype=np.float64)
+        if out.ndim == 3 and out.shape[0] == 1:
+            out = out[0]
+        if out.size == 0:
+            return np.zeros((0, 6))
+        if out.ndim != 2 or not 4 <= out.shape[1] <= 6:
+            raise InputError(
+                f"detector 'torch': model {self.path.name} returned shape {out.shape}; "
+                "expected (M, 4..6) rows "
+                "[x1, y1, x2, y2, score?, class?]"
+            )
+        return out
+
+    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """See Detector.detect; boxes whose centre lies outside ``mask`` are dropped."""
+        bgr = image if image.ndim == 3 else cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+        h, w = bgr.shape[:2]
+        inp = (
+            bgr if self.input_size is None else cv2.resize(bgr, self.input_size, interpolation=cv2.INTER_AREA)
+        )
+        rgb01 = cv2.cvtColor(inp, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
+        out = self._run(rgb01)
+        out = out[np.all(np.isfinite(out), axis=1)]
+        sx = w / inp.shape[1]
+        sy = h / inp.shape[0]
+        boxes = out[:, :4] * [sx, sy, sx, sy]
+        boxes = np.stack(
+            [
+                np.minimum(boxes[:, 0], boxes[:, 2]),
+                np.minimum(boxes[:, 1], boxes[:, 3]),
+                np.maximum(boxes[:, 0], boxes[:, 2]),
+                np.maximum(boxes[:, 1], boxes[:, 3]),
+            ],
+            1,
+        )
+        scores = out[:, 4] if out.shape[1] > 4 else np.ones(len(out))
+        cls = out[:, 5].astype(int) if out.shape[1] > 5 else np.full(len(out), -1)
+        keep = scores >= self.min_score
+        if mask is not None and len(boxes):
+            cu = np.clip(((boxes[:, 0] + boxes[:, 2]) / 2).astype(int), 0, w - 1)
+            cv = np.clip(((boxes[:, 1] + boxes[:, 3]) / 2).astype(int), 0, h - 1)
+            keep &= mask[cv, cu] > 0
+        if not np.any(keep):
+            return Detections.empty()
+        labels = tuple(self._label(int(c)) for c in cls[keep])
+        return Detections(
+            boxes=boxes[keep],
+            box_scores=np.clip(scores[keep], 0, 1),
+            labels=labels,
+            attributes=tuple({"class_id": int(c)} for c in cls[keep]),
+        )
+
+    def _label(self, c: int) -> str:
+        if c < 0:
+            return "object"
+        return self.class_names[c] if c < len(self.class_names) else f"class{c}"

@@ -1,0 +1,531 @@
+"""Feature tracking on the raw fisheye frame of one camera: KLT with a forward-backward check,
+re-detection where coverage thins, ORB descriptors to re-acquire features lost for a few frames.
+
+Everything happens in the distorted image (no dewarping), masked to the lens's image circle; each
+feature's pixel position is turned into a unit bearing by the camera model (valid beyond 90 degrees
+off-axis) in the camera frame C and the body frame B. Memory is bounded: at most ``max_features``
+live features plus a pool of recently lost ones, each with a ring buffer of ``history`` samples.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from estimators.errors import ConfigError, InputError
+from trackers.detectors.base import Detector
+from trackers.detectors.orb import bucket
+
+
+@dataclass(frozen=True)
+class Features:
+    """The live features of one camera in one frame.
+
+    Attributes:
+        camera: camera name.
+        ids: (N,) int64 feature ids, stable over each feature's life (unique over all cameras).
+        uv: (N, 2) float32 pixel positions (OpenCV convention).
+        b_C: (N, 3) unit bearings in the camera optical frame C.
+        b_B: (N, 3) unit bearings in the body frame B (rotation only: directions, not positions).
+        age: (N,) int frames each feature has been tracked (1 = detected this frame).
+    """
+
+    camera: str
+    ids: np.ndarray
+    uv: np.ndarray
+    b_C: np.ndarray
+    b_B: np.ndarray
+    age: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True)
+class FeatureHistory:
+    """The recent past of one feature, oldest first (at most the tracker's ``history`` samples).
+
+    Attributes:
+        uv: (K, 2) pixels; b_C: (K, 3) unit bearings in C; b_B: (K, 3) unit bearings in B;
+        t_s: (K,) frame times in seconds; frame: (K,) frame indices.
+    """
+
+    uv: np.ndarray
+    b_C: np.ndarray
+    b_B: np.ndarray
+    t_s: np.ndarray
+    frame: np.ndarray
+
+
+def lens_mask(model, margin_px: float = 3.0) -> np.ndarray:
+    """(H, W) uint8 mask, 255 inside the lens's image circle shrunk by ``margin_px``, else 0.
+
+    ``model`` is an ``estimators.cameras.CameraModel`` (``width``, ``height``, ``image_circle()``).
+    A circle larger than the frame (a cropped / full-frame fisheye) is clipped to the frame.
+    Raises InputError when the circle's centre lies outside the frame or its radius is < 8 px.
+    """
+    w, h = int(model.width), int(model.height)
+    cx, cy, r = model.image_circle()
+    if not (np.isfinite(r) and np.isfinite(cx) and np.isfinite(cy)):
+        raise InputError(f"lens circle: expected a finite (cx, cy, radius), got {(cx, cy, r)}")
+    if not (-0.5 <= cx <= w - 0.5 and -0.5 <= cy <= h - 0.5) or r < 8:
+        raise InputError(
+            f"lens circle (cx={cx:.1f}, cy={cy:.1f}, r={r:.1f} px) does not fit a {w}x{h} frame: "
+            "expected its "
+            "centre inside the frame and a radius of at least 8 px"
+        )
+    m = np.zeros((h, w), np.uint8)
+    rr = max(1.0, r - margin_px)
+    # cv2.circle with 4 fractional bits: centre and radius in 1/16 px.
+    cv2.circle(m, (round(cx * 16), round(cy * 16)), round(rr * 16), 255, -1, cv2.LINE_8, 4)
+    e = int(np.ceil(margin_px))  # keep features away from the frame border too (KLT window)
+    if e > 0:
+        m[:e], m[-e:], m[:, :e], m[:, -e:] = 0, 0, 0, 0
+    return m
+
+
+class FeatureTracker:
+    """KLT + ORB feature tracker of one camera (see the module docstring).
+
+    Args:
+        camera: an ``estimators.rig.Camera`` (name, model, T_C_B).
+        detector: the keypoint Detector used for (re-)detection.
+        ids: shared id counter (an ``itertools.count``) so ids are unique over the cameras.
+        max_features: live features kept at most.
+        grid: (cols, rows) coverage grid; a cell inside the lens with fewer than ``min_per_cell``
+            features triggers re-detection.
+        min_per_cell: see ``grid``.
+        redetect_every: re-detect at least every this many frames (1 = every frame).
+        win_px, levels: KLT window (px) and pyramid levels.
+        fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
+            backward misses its start by more than this (px).
+        min_distance_px: new features keep this far from live ones.
+        reacquire_frames: lost features are remembered this many frames for re-acquisition.
+        reacquire_radius_px: a new keypoint re-acquires a lost feature within this distance of its
+            predicted position and with ``reacquire_max_hamming`` or fewer differing descriptor bits.
+        history: samples kept per feature (ring buffer).
+        margin_px: lens-circle margin (features closer to the circle's edge are dropped).
+    """
+
+    def __init__(
+        self,
+        camera,
+        detector: Detector,
+        ids: Iterator[int] | None = None,
+        max_features: int = 500,
+        grid: tuple[int, int] = (16, 9),
+        min_per_cell: int = 1,
+        redetect_every: int = 4,
+        win_px: int = 11,
+        levels: int = 2,
+        fb_max_px: float = 1.0,
+        min_distance_px: float = 10.0,
+        reacquire_frames: int = 8,
+        reacquire_radius_px: float = 25.0,
+        reacquire_max_hamming: int = 60,
+        history: int = 32,
+        margin_px: float = 4.0,
+    ) -> None:
+        if max_features < 1 or history < 2 or redetect_every < 1 or fb_max_px <= 0:
+            raise ConfigError(
+                "FeatureTracker: expected max_features >= 1, history >= 2, redetect_every >= 1, "
+                "fb_max_px > 0; got "
+                f"{max_features}, {history}, {redetect_every}, {fb_max_px}"
+            )
+        self.camera = camera
+        self.name = camera.name
+        self.model = camera.model
+        self.R_C_B = np.asarray(camera.T_C_B.R, dtype=float)
+        self.detector = detector
+        self._ids = ids if ids is not None else itertools.count(1)
+        self.max_features = int(max_features)
+        self.grid = (int(grid[0]), int(grid[1]))
+        self.min_per_cell = int(min_per_cell)
+        self.redetect_every = int(redetect_every)
+        self.win = (int(win_px), int(win_px))
+        self.levels = int(levels)
+        self.fb_max_px = float(fb_max_px)
+        self.min_distance_px = float(min_distance_px)
+        self.reacquire_frames = int(reacquire_frames)
+        self.reacquire_radius_px = float(reacquire_radius_px)
+        self.reacquire_max_hamming = int(reacquire_max_hamming)
+        self.H = int(history)
+        self.mask = lens_mask(self.model, margin_px)
+        self.shape_hw = self.mask.shape
+        # cells mostly inside the lens: the ones whose coverage is checked
+        gx, gy = self.grid
+        h, w = self.shape_hw
+        cell_frac = cv2.resize((self.mask > 0).astype(np.float32), (gx, gy), interpolation=cv2.INTER_AREA)
+        self._live_cells = (cell_frac > 0.5).reshape(-1)
+        self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
+        # live features
+        self.ids = np.zeros(0, np.int64)
+        self.uv = np.zeros((0, 2), np.float32)
+        self.vel = np.zeros((0, 2), np.float32)  # px per frame, for the KLT initial guess
+        self.desc = np.zeros((0, 32), np.uint8)
+        self.has_desc = np.zeros(0, bool)
+        self.age = np.zeros(0, np.int64)
+        self.slot = np.zeros(0, np.intp)
+        self.b_C = np.zeros((0, 3))
+        # recently lost features (for re-acquisition)
+        self.lost_ids = np.zeros(0, np.int64)
+        self.lost_uv = np.zeros((0, 2), np.float32)
+        self.lost_vel = np.zeros((0, 2), np.float32)
+        self.lost_desc = np.zeros((0, 32), np.uint8)
+        self.lost_age = np.zeros(0, np.int64)
+        self.lost_slot = np.zeros(0, np.intp)
+        self.lost_for = np.zeros(0, np.int64)
+        # history ring buffers, one slot per live or recently lost feature
+        cap = self.max_features * 3 + 64
+        self._free = list(range(cap - 1, -1, -1))
+        self._h_uv = np.zeros((cap, self.H, 2), np.float32)
+        self._h_bC = np.zeros((cap, self.H, 3))
+        self._h_bB = np.zeros((cap, self.H, 3))
+        self._h_t = np.zeros((cap, self.H))
+        self._h_frame = np.zeros((cap, self.H), np.int64)
+        self._h_n = np.zeros(cap, np.int64)  # samples written (ring position = n % H)
+        self._prev_pyr: tuple | None = None
+        self._frames_since_detect = 10**9
+        self.n_frames = 0
+        self.last_stats: dict[str, float] = {}
+
+    # ------------------------------------------------------------------------------ public
+    @property
+    def n_live(self) -> int:
+        return len(self.ids)
+
+    def reset(self) -> None:
+        """Forget every feature (e.g. after a black frame or a cut in the video)."""
+        self._drop(np.arange(len(self.ids)), remember=False)
+        self._forget_lost(np.ones(len(self.lost_ids), bool))
+        self._prev_pyr = None
+
+    def track(
+        self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None, detect: bool = True
+    ) -> tuple[Features, dict[str, float]]:
+        """Track the live features into ``grey`` and top up coverage.
+
+        Args:
+            grey: (H, W) uint8 frame of this camera (the calibration's size).
+            frame, t_s: frame index and time (s).
+            image: the original frame passed to the detector (BGR or grey); default ``grey``.
+            detect: allow (re-)detection this frame.
+        Returns:
+            (the live Features, seconds spent {"track": ..., "detect": ...}).
+        """
+        import time
+
+        t0 = time.perf_counter()
+        # (OpenCV's Python binding takes images, not prebuilt pyramids: LK builds them per call)
+        if self._prev_pyr is not None and len(self.ids):
+            self._klt(self._prev_pyr, grey)
+        self._prev_pyr = grey
+        t1 = time.perf_counter()
+        self._frames_since_detect += 1
+        if detect and self._need_detection():
+            self._detect(image if image is not None else grey)
+            self._frames_since_detect = 0
+        t2 = time.perf_counter()
+        self._bearings_and_history(frame, t_s)
+        self.lost_for += 1
+        self._forget_lost(self.lost_for > self.reacquire_frames)
+        self.n_frames += 1
+        t3 = time.perf_counter()
+        return self.features(), {"track": (t1 - t0) + (t3 - t2), "detect": t2 - t1}
+
+    def features(self) -> Features:
+        """The live features now."""
+        b_B = self.b_C @ self.R_C_B  # b_B = R_B_C b_C = R_C_B^T b_C (rows)
+        return Features(self.name, self.ids.copy(), self.uv.copy(), self.b_C.copy(), b_B, self.age.copy())
+
+    def history(self, feature_id: int) -> FeatureHistory:
+        """The stored past of a live or recently lost feature, oldest first."""
+        hit = np.flatnonzero(self.ids == feature_id)
+        if len(hit):
+            s = int(self.slot[hit[0]])
+        else:
+            hit = np.flatnonzero(self.lost_ids == feature_id)
+            if not len(hit):
+                raise InputError(f"feature {feature_id} is not tracked by camera {self.name!r}")
+            s = int(self.lost_slot[hit[0]])
+        n = int(self._h_n[s])
+        k = min(n, self.H)
+        idx = (np.arange(n - k, n)) % self.H
+        return FeatureHistory(
+            self._h_uv[s, idx].astype(float),
+            self._h_bC[s, idx],
+            self._h_bB[s, idx],
+            self._h_t[s, idx],
+            self._h_frame[s, idx],
+        )
+
+    def bearing_ago(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For every live feature: its b_C and time up to ``k`` frames back.
+
+        Returns:
+            (b_C (N, 3) the oldest sample within the last k+1, t_s (N,) its time,
+             valid (N,) bool: the feature has at least 2 samples).
+        """
+        n = self._h_n[self.slot]
+        back = np.minimum(n - 1, k)
+        idx = (n - 1 - back) % self.H
+        return self._h_bC[self.slot, idx], self._h_t[self.slot, idx], back > 0
+
+    def previous_bearing(self) -> tuple[np.ndarray, np.ndarray]:
+        """(b_C (N,3) one frame back, valid (N,)) for the live features (the sample before the latest)."""
+        n = self._h_n[self.slot]
+        idx = (n - 2) % self.H
+        return self._h_bC[self.slot, idx], n >= 2
+
+    def describe(self, grey: np.ndarray, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """ORB descriptors of live features at their current positions.
+
+        Args:
+            grey: (H, W) uint8 current frame; idx: indices into the live features (default all).
+        Returns:
+            (descriptors (K, 32) uint8, rows (K,) indices into the live features that got one).
+        """
+        idx = np.arange(len(self.ids)) if idx is None else np.asarray(idx)
+        if not len(idx):
+            return np.zeros((0, 32), np.uint8), np.zeros(0, np.intp)
+        if not hasattr(self, "_orb_desc"):
+            self._orb_desc = cv2.ORB_create(edgeThreshold=15, patchSize=15)
+        kps = [
+            cv2.KeyPoint(float(u), float(v), 15.0, -1, 0, 0, int(i))
+            for i, (u, v) in zip(idx, self.uv[idx], strict=True)
+        ]
+        kps, des = self._orb_desc.compute(grey, kps)
+        if des is None or not kps:
+            return np.zeros((0, 32), np.uint8), np.zeros(0, np.intp)
+        return des, np.array([k.class_id for k in kps], np.intp)
+
+    # --------------------------------------------------------------------------- internals
+    def _klt(self, prev, cur) -> None:
+        p0 = self.uv.reshape(-1, 1, 2)
+        # forward, starting from the constant-velocity prediction p0 + v
+        guess = (self.uv + self.vel).reshape(-1, 1, 2).astype(np.float32)
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(
+            prev,
+            cur,
+            p0,
+            guess,
+            winSize=self.win,
+            maxLevel=self.levels,
+            criteria=self._criteria,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        )
+        # backward: track p1 back into the previous frame, starting from p1 - v (the prediction
+        # reversed, not p0 itself); a good track lands within fb_max_px of where it started
+        back_guess = (p1.reshape(-1, 2) - self.vel).reshape(-1, 1, 2).astype(np.float32)
+        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
+            cur,
+            prev,
+            p1,
+            back_guess,
+            winSize=self.win,
+            maxLevel=max(1, self.levels - 1),
+            criteria=self._criteria,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        )
+        p1 = p1.reshape(-1, 2)
+        fb = np.linalg.norm(p0r.reshape(-1, 2) - self.uv, axis=1)
+        ok = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1) & np.isfinite(fb) & (fb <= self.fb_max_px)
+        ok &= np.all(np.isfinite(p1), axis=1)
+        h, w = self.shape_hw
+        ui = np.clip(np.round(p1[:, 0]).astype(np.intp), 0, w - 1)
+        vi = np.clip(np.round(p1[:, 1]).astype(np.intp), 0, h - 1)
+        ok &= self.mask[vi, ui] > 0
+        ok &= (p1[:, 0] >= 0) & (p1[:, 0] <= w - 1) & (p1[:, 1] >= 0) & (p1[:, 1] <= h - 1)
+        self.last_stats = {
+            "klt_in": float(len(ok)),
+            "klt_ok": float(ok.sum()),
+            "fb_rejected": float(((st.reshape(-1) == 1) & ~(fb <= self.fb_max_px)).sum()),
+        }
+        new_vel = (p1 - self.uv).astype(np.float32)
+        self.uv[ok] = p1[ok]
+        self.vel[ok] = 0.5 * self.vel[ok] + 0.5 * new_vel[ok]
+        self.age[ok] += 1
+        self._drop(np.flatnonzero(~ok), remember=True)
+
+    def _cell_counts(self) -> np.ndarray:
+        gx, gy = self.grid
+        h, w = self.shape_hw
+        if not len(self.uv):
+            return np.zeros(gx * gy, np.int64)
+        cx = np.clip((self.uv[:, 0] * gx / w).astype(np.intp), 0, gx - 1)
+        cy = np.clip((self.uv[:, 1] * gy / h).astype(np.intp), 0, gy - 1)
+        return np.bincount(cy * gx + cx, minlength=gx * gy)
+
+    def _need_detection(self) -> bool:
+        if self._frames_since_detect >= self.redetect_every:
+            return True
+        if len(self.ids) < 0.6 * self.max_features:
+            counts = self._cell_counts()
+            return bool(np.any(counts[self._live_cells] < self.min_per_cell))
+        return False
+
+    def _detect(self, image: np.ndarray) -> None:
+        free = self.max_features - len(self.ids)
+        if free <= 0:
+            return
+        m = self.mask.copy()
+        r = max(1, int(round(self.min_distance_px)))
+        for u, v in self.uv:  # keep new keypoints away from live features
+            cv2.circle(m, (int(u), int(v)), r, 0, -1)
+        det = self.detector.detect(image, m)
+        if not len(det):
+            return
+        uv = det.keypoints
+        h, w = self.shape_hw
+        ui = np.clip(np.round(uv[:, 0]).astype(np.intp), 0, w - 1)
+        vi = np.clip(np.round(uv[:, 1]).astype(np.intp), 0, h - 1)
+        inside = m[vi, ui] > 0
+        det = det.select(inside)
+        uv = det.keypoints
+        if not len(uv):
+            return
+        # prefer keypoints in thin cells: round-robin over the grid, strongest first
+        order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
+        # non-maximum spacing among the new ones (min_distance_px) by a coarse occupancy grid
+        cell = max(1.0, self.min_distance_px)
+        occ: set[tuple[int, int]] = set()
+        keep = []
+        for i in order:
+            key = (int(uv[i, 0] // cell), int(uv[i, 1] // cell))
+            if key in occ:
+                continue
+            occ.add(key)
+            keep.append(i)
+            if len(keep) >= free:
+                break
+        keep = np.asarray(keep, np.intp)
+        uv = uv[keep]
+        desc = (
+            det.descriptors[keep]
+            if det.descriptors is not None
+            and det.descriptors.shape[1] == 32
+            and det.descriptors.dtype == np.uint8
+            else None
+        )
+        n = len(uv)
+        new_ids = np.empty(n, np.int64)
+        new_slot = np.empty(n, np.intp)
+        new_age = np.ones(n, np.int64)
+        new_vel = np.zeros((n, 2), np.float32)
+        reacq = np.full(n, -1, np.intp)
+        if desc is not None and len(self.lost_ids):
+            reacq = self._match_lost(uv, desc)
+        used_lost = []
+        for i in range(n):
+            j = reacq[i]
+            if j >= 0:
+                new_ids[i] = self.lost_ids[j]
+                new_slot[i] = self.lost_slot[j]
+                new_age[i] = self.lost_age[j] + 1
+                new_vel[i] = self.lost_vel[j]
+                used_lost.append(j)
+            else:
+                new_ids[i] = next(self._ids)
+                s = self._alloc_slot()
+                if s < 0:
+                    new_ids[i] = -1
+                    continue
+                new_slot[i] = s
+                self._h_n[s] = 0
+        if used_lost:
+            gone = np.zeros(len(self.lost_ids), bool)
+            gone[used_lost] = True
+            self._remove_lost(gone)
+        ok = new_ids >= 0
+        self.ids = np.concatenate([self.ids, new_ids[ok]])
+        self.uv = np.concatenate([self.uv, uv[ok].astype(np.float32)])
+        self.vel = np.concatenate([self.vel, new_vel[ok]])
+        d = desc if desc is not None else np.zeros((n, 32), np.uint8)
+        self.desc = np.concatenate([self.desc, d[ok]])
+        self.has_desc = np.concatenate([self.has_desc, np.full(int(ok.sum()), desc is not None)])
+        self.age = np.concatenate([self.age, new_age[ok]])
+        self.slot = np.concatenate([self.slot, new_slot[ok]])
+        self.b_C = np.concatenate([self.b_C, np.zeros((int(ok.sum()), 3))])
+
+    def _match_lost(self, uv: np.ndarray, desc: np.ndarray) -> np.ndarray:
+        """For each new keypoint, the index of the lost feature it re-acquires, or -1."""
+        pred = self.lost_uv + self.lost_vel * self.lost_for[:, None].astype(np.float32)
+        d2 = ((uv[:, None, :] - pred[None, :, :]) ** 2).sum(-1)  # (n, L) squared px
+        near = d2 <= self.reacquire_radius_px**2
+        out = np.full(len(uv), -1, np.intp)
+        if not near.any():
+            return out
+        # Hamming distances of 32-byte descriptors: popcount of XOR
+        x = np.bitwise_xor(desc[:, None, :], self.lost_desc[None, :, :])
+        ham = np.unpackbits(x, axis=2).sum(axis=2)
+        ham = np.where(near, ham, 10**6)
+        taken: set[int] = set()
+        for i in np.argsort(ham.min(axis=1)):
+            j = int(np.argmin(ham[i]))
+            if ham[i, j] <= self.reacquire_max_hamming and j not in taken:
+                out[i] = j
+                taken.add(j)
+        return out
+
+    def _alloc_slot(self) -> int:
+        return self._free.pop() if self._free else -1
+
+    def _drop(self, idx: np.ndarray, remember: bool) -> None:
+        """Remove live features ``idx``; remember those with descriptors for re-acquisition."""
+        if not len(idx):
+            return
+        keep = np.ones(len(self.ids), bool)
+        keep[idx] = False
+        gone = ~keep
+        if remember:
+            r = gone & self.has_desc
+            self.lost_ids = np.concatenate([self.lost_ids, self.ids[r]])
+            self.lost_uv = np.concatenate([self.lost_uv, self.uv[r]])
+            self.lost_vel = np.concatenate([self.lost_vel, self.vel[r]])
+            self.lost_desc = np.concatenate([self.lost_desc, self.desc[r]])
+            self.lost_age = np.concatenate([self.lost_age, self.age[r]])
+            self.lost_slot = np.concatenate([self.lost_slot, self.slot[r]])
+            self.lost_for = np.concatenate([self.lost_for, np.zeros(int(r.sum()), np.int64)])
+            free = gone & ~self.has_desc
+            excess = len(self.lost_ids) - self.max_features  # bound the pool: forget the oldest
+            if excess > 0:
+                old = np.zeros(len(self.lost_ids), bool)
+                old[np.argsort(-self.lost_for, kind="stable")[:excess]] = True
+                self._forget_lost(old)
+        else:
+            free = gone
+        self._free.extend(int(s) for s in self.slot[free])
+        for name in ("ids", "uv", "vel", "desc", "has_desc", "age", "slot", "b_C"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _remove_lost(self, gone: np.ndarray) -> None:
+        keep = ~gone
+        for name in ("lost_ids", "lost_uv", "lost_vel", "lost_desc", "lost_age", "lost_slot", "lost_for"):
+            setattr(self, name, getattr(self, name)[keep])
+
+    def _forget_lost(self, gone: np.ndarray) -> None:
+        if not np.any(gone):
+            return
+        self._free.extend(int(s) for s in self.lost_slot[gone])
+        self._remove_lost(gone)
+
+    def _bearings_and_history(self, frame: int, t_s: float) -> None:
+        if not len(self.ids):
+            return
+        b, valid = self.model.pixel_to_bearing(self.uv.astype(np.float64))
+        if not np.all(valid):
+            self._drop(np.flatnonzero(~valid), remember=False)
+            b = b[valid]
+        self.b_C = b
+        s = self.slot
+        pos = self._h_n[s] % self.H
+        self._h_uv[s, pos] = self.uv
+        self._h_bC[s, pos] = b
+        self._h_bB[s, pos] = b @ self.R_C_B  # b_B = R_C_B^T b_C
+        self._h_t[s, pos] = t_s
+        self._h_frame[s, pos] = frame
+        self._h_n[s] += 1

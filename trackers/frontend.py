@@ -1,0 +1,384 @@
+"""The front end: frames of every camera in, one ObstacleObservation per obstacle track out.
+
+Per camera: a keypoint detector + KLT FeatureTracker + ObstacleGrouper (``orb``, ``kornia``, plug-ins
+with keypoints), and/or a BoxTracker for detectors that report boxes (``navlights``, ``torch``).
+Several cameras: tracks are linked across cameras by epipolar-constrained descriptor matching
+(trackers/association.py) so one obstacle seen by two cameras is one track with two CameraViews.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections import deque
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from estimators.errors import ConfigError, InputError
+from estimators.records import CameraView, ObstacleObservation
+from trackers.association import match_features
+from trackers.detectors import Detector, make_detector, to_grey
+from trackers.features import FeatureTracker, lens_mask
+from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
+
+STAGES = ("detect", "track", "group", "associate")
+_OPTION_GROUPS = ("detector_options", "features", "grouping", "boxes", "association")
+
+
+def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
+    """Validate one camera's frame against its calibration.
+
+    Args:
+        name: camera name (for messages); width, height: the calibration's image size (px).
+        image: (H, W) uint8 grey or (H, W, 3) uint8 BGR ((H, W, 1) is taken as grey).
+    Returns:
+        the image as an ndarray.
+    Raises:
+        InputError: not an array, empty, wrong dtype, wrong channel count, or a size other than the
+            calibration's (the message gives both).
+    """
+    if not isinstance(image, np.ndarray):
+        raise InputError(f"camera {name!r}: expected a numpy image, got {type(image).__name__}")
+    if image.size == 0:
+        raise InputError(
+            f"camera {name!r}: empty frame (shape {image.shape}); expected {height}x{width} pixels"
+        )
+    if image.dtype != np.uint8:
+        raise InputError(f"camera {name!r}: expected a uint8 image, got dtype {image.dtype}")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if not (image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 3)):
+        raise InputError(
+            f"camera {name!r}: expected (H, W) grey or (H, W, 3) BGR, got shape {image.shape} "
+            f"({image.shape[2] if image.ndim == 3 else image.ndim} channels/dims)"
+        )
+    if image.shape[:2] != (height, width):
+        raise InputError(
+            f"camera {name!r}: frame is {image.shape[1]}x{image.shape[0]} px but the calibration is "
+            f"{width}x{height}; resize the video or scale the calibration (CameraModel.scaled)"
+        )
+    return image
+
+
+class FrontEnd:
+    """Detectors, feature tracking and obstacle grouping for every camera of a rig.
+
+    Args:
+        rig: an ``estimators.rig.Rig``.
+        detector: registered detector name (``orb``, ``navlights``, ``kornia``, ``torch``, a plug-in)
+            or a Detector instance.
+        **options: ``detector_options`` (dict, the detector's keywords), ``features`` (dict,
+            FeatureTracker keywords), ``grouping`` (dict, ObstacleGrouper keywords), ``boxes``
+            (dict, BoxTracker keywords), ``association`` (dict: ``every`` frames (default 3),
+            ``epipolar_deg`` (1.0), ``max_hamming`` (64), ``min_votes`` (3)).
+
+    Attributes:
+        timings: seconds of the last frame per stage (detect, track, group, associate), summed
+            over the cameras.
+    """
+
+    def __init__(self, rig, detector: str | Detector = "orb", **options: Any) -> None:
+        unknown = sorted(set(options) - set(_OPTION_GROUPS))
+        if unknown:
+            raise ConfigError(f"FrontEnd: unknown options {unknown}; expected any of {list(_OPTION_GROUPS)}")
+        self.rig = rig
+        self.detector = (
+            detector
+            if isinstance(detector, Detector)
+            else make_detector(detector, **options.get("detector_options", {}))
+        )
+        self.label = self.detector.name or "detector"
+        self._feature_ids = itertools.count(1)
+        self._track_ids = itertools.count(1)
+        a = dict(options.get("association", {}))
+        bad = sorted(set(a) - {"every", "epipolar_deg", "max_hamming", "min_votes"})
+        if bad:
+            raise ConfigError(f"FrontEnd association: unknown options {bad}")
+        self.assoc_every = int(a.get("every", 3))
+        self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
+        self.max_hamming = int(a.get("max_hamming", 64))
+        self.min_votes = int(a.get("min_votes", 3))
+        self.cams = {c.name: c for c in rig.cameras}
+        self.masks = {
+            c.name: lens_mask(c.model) for c in rig.cameras
+        }  # InputError if the circle does not fit
+        self.trackers: dict[str, FeatureTracker] = {}
+        self.groupers: dict[str, ObstacleGrouper] = {}
+        self.boxers: dict[str, BoxTracker] = {}
+        for c in rig.cameras:
+            if self.detector.produces_keypoints:
+                try:
+                    self.trackers[c.name] = FeatureTracker(
+                        c, self.detector, ids=self._feature_ids, **options.get("features", {})
+                    )
+                    self.groupers[c.name] = ObstacleGrouper(
+                        self._track_ids, label=self.label, **options.get("grouping", {})
+                    )
+                except TypeError as e:
+                    raise ConfigError(f"FrontEnd: bad features/grouping options: {e}") from e
+            if self.detector.produces_boxes:
+                try:
+                    self.boxers[c.name] = BoxTracker(self._track_ids, **options.get("boxes", {}))
+                except TypeError as e:
+                    raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
+        self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
+        self._reported: set[int] = set()  # global ids reported at least once
+        self._R_W_B: deque[np.ndarray] = deque(maxlen=8)
+        self._n = 0
+        self.last_features: dict[str, Any] = {}
+        self.last_tracks: dict[str, list[ObstacleTrack]] = {}
+
+    # --------------------------------------------------------------------------------- api
+    def process(
+        self, images: Mapping[str, np.ndarray], frame: int, t_s: float, T_W_B=None
+    ) -> list[ObstacleObservation]:
+        """Run detection, tracking, grouping and association on one frame set.
+
+        Args:
+            images: camera name -> (H, W) uint8 grey or (H, W, 3) uint8 BGR frame of the calibration's
+                size. A camera left out this frame (dropped frame) coasts.
+            frame: frame index; t_s: frame time (s).
+            T_W_B: optional body pose at t_s (``estimators.se3.Pose``); its rotation compensates the
+                camera's own rotation when comparing feature motions.
+        Returns:
+            one ObstacleObservation per obstacle track seen this frame (tentative or confirmed), plus
+            one ``lost`` observation for each track lost this frame. A black or saturated frame gives
+            no detections (tracks coast).
+        Raises:
+            InputError: an unknown camera, a frame of the wrong size, dtype or channel count.
+        """
+        if not isinstance(images, Mapping):
+            raise InputError(
+                f"FrontEnd.process: expected a mapping camera name -> image, got {type(images).__name__}"
+            )
+        extra = sorted(set(images) - set(self.cams))
+        if extra:
+            raise InputError(f"FrontEnd.process: unknown cameras {extra}; the rig has {list(self.cams)}")
+        if not np.isfinite(t_s):
+            raise InputError(f"FrontEnd.process: expected a finite t_s, got {t_s!r}")
+        checked = {}
+        for name, img in images.items():
+            m = self.cams[name].model
+            checked[name] = check_image(name, img, m.width, m.height)
+        tm = dict.fromkeys(STAGES, 0.0)
+        rot = self._rotations(T_W_B)
+        seen: dict[str, list[ObstacleTrack]] = {}
+        lost: list[ObstacleTrack] = []
+        greys: dict[str, np.ndarray] = {}
+        for name, cam in self.cams.items():
+            img = checked.get(name)
+            grey = None if img is None else to_grey(img)
+            usable = grey is not None and self._has_texture(grey, self.masks[name])
+            s: list[ObstacleTrack] = []
+            if name in self.trackers:
+                ft = self.trackers[name]
+                gr = self.groupers[name]
+                if usable:
+                    greys[name] = grey
+                    feats, t = ft.track(grey, frame, t_s, image=img)
+                    tm["track"] += t["track"]
+                    tm["detect"] += t["detect"]
+                    self.last_features[name] = feats
+                    t0 = time.perf_counter()
+                    R_C = self._camera_rotations(cam, rot)
+                    s1, l1 = gr.update(ft, t_s, R_C)
+                    tm["group"] += time.perf_counter() - t0
+                else:
+                    s1, l1 = [], self._coast(gr.tracks)
+                s += s1
+                lost += l1
+            if name in self.boxers:
+                t0 = time.perf_counter()
+                if usable:
+                    det = self.detector.detect(img, self.masks[name])
+                    tm["detect"] += time.perf_counter() - t0
+                    t0 = time.perf_counter()
+                    s2, l2 = self.boxers[name].update(cam, det)
+                else:
+                    s2, l2 = [], self._coast(self.boxers[name].tracks)
+                tm["group"] += time.perf_counter() - t0
+                s += s2
+                lost += l2
+            seen[name] = s
+        self.last_tracks = seen
+        t0 = time.perf_counter()
+        absorbed: list[int] = []
+        if len(self.cams) > 1 and self._n % self.assoc_every == 0:
+            absorbed = self._associate(seen, greys)
+        tm["associate"] = time.perf_counter() - t0
+        self.timings = tm
+        self._n += 1
+        return self._observations(seen, lost, absorbed, frame, t_s)
+
+    # ------------------------------------------------------------------------------ helpers
+    @staticmethod
+    def _has_texture(grey: np.ndarray, mask: np.ndarray) -> bool:
+        """False for black, saturated or flat frames (std of the lens area below 2 grey levels)."""
+        sub = grey[::8, ::8][mask[::8, ::8] > 0]
+        return bool(sub.size > 16 and float(sub.std()) >= 2.0)
+
+    def _coast(self, tracks: dict[int, ObstacleTrack]) -> list[ObstacleTrack]:
+        lost = []
+        for tid in list(tracks):
+            tr = tracks[tid]
+            tr.seen = False
+            tr.members = np.zeros(0, np.int64)
+            tr.missed += 1
+            mm = (
+                self.groupers[tr.camera].max_missed
+                if tr.camera in self.groupers and tid in self.groupers[tr.camera].tracks
+                else self.boxers[tr.camera].max_missed
+            )
+            if tr.missed > mm:
+                tr.status = "lost"
+                lost.append(tr)
+                del tracks[tid]
+        return lost
+
+    def _rotations(self, T_W_B) -> dict[int, np.ndarray] | None:
+        """{k: R_Bnow_Bk} for the last frames, from the given poses (None without poses)."""
+        if T_W_B is None:
+            self._R_W_B.clear()
+            return None
+        R_now = np.asarray(T_W_B.R, float)
+        self._R_W_B.appendleft(R_now)
+        return {k: R_now.T @ self._R_W_B[k] for k in range(1, len(self._R_W_B))}
+
+    @staticmethod
+    def _camera_rotations(cam, rot: dict[int, np.ndarray] | None) -> dict[int, np.ndarray] | None:
+        if not rot:
+            return None
+        R_C_B = np.asarray(cam.T_C_B.R, float)
+        # R_Cnow_Ck = R_C_B R_Bnow_Bk R_C_B^T
+        return {k: R_C_B @ R @ R_C_B.T for k, R in rot.items()}
+
+    def _global(self, tid: int) -> int:
+        return self._gid.get(tid, tid)
+
+    def _associate(self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]) -> list[int]:
+        """Link tracks of different cameras that share epipolar-consistent descriptor matches.
+
+        Returns the global ids absorbed into another this frame (to be reported lost once)."""
+        names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
+        data = {}
+        for n in names:
+            ft = self.trackers[n]
+            pos = {int(i): k for k, i in enumerate(ft.ids)}
+            rows, owner = [], []
+            for tr in seen[n]:
+                if not tr.label == self.label:
+                    continue
+                for fid in tr.members.tolist():
+                    if fid in pos:
+                        rows.append(pos[fid])
+                        owner.append(tr.id)
+            if not rows:
+                continue
+            des, got = ft.describe(greys[n], np.asarray(rows, np.intp))
+            own = dict(zip(rows, owner, strict=True))
+            data[n] = (ft.b_C[got], des, np.array([own[int(g)] for g in got], np.int64))
+        absorbed: list[int] = []
+        for a, b in itertools.combinations([n for n in names if n in data], 2):
+            T_a, T_b = self.cams[a].T_C_B, self.cams[b].T_C_B
+            T_b_a = T_b @ T_a.inverse()  # T_Cb_Ca = T_Cb_B T_B_Ca
+            ba, da, oa = data[a]
+            bb, db, ob = data[b]
+            m = match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming)
+            if not len(m):
+                continue
+            pairs: dict[tuple[int, int], int] = {}
+            for i, j in m:
+                key = (int(oa[i]), int(ob[j]))
+                pairs[key] = pairs.get(key, 0) + 1
+            best_a: dict[int, tuple[int, int]] = {}
+            best_b: dict[int, tuple[int, int]] = {}
+            for (ta, tb), v in pairs.items():
+                if v > best_a.get(ta, (0, -1))[0]:
+                    best_a[ta] = (v, tb)
+                if v > best_b.get(tb, (0, -1))[0]:
+                    best_b[tb] = (v, ta)
+            for ta, (v, tb) in best_a.items():
+                if v < self.min_votes or best_b[tb][1] != ta:
+                    continue
+                ga, gb = self._global(ta), self._global(tb)
+                if ga == gb:
+                    continue
+                if self._members_of(ga, b) or self._members_of(gb, a):
+                    continue  # already linked to another track in that camera
+                keep, drop = min(ga, gb), max(ga, gb)
+                for lid, g in list(self._gid.items()):
+                    if g == drop:
+                        self._gid[lid] = keep
+                self._gid[ta] = keep
+                self._gid[tb] = keep
+                if drop in self._reported:
+                    absorbed.append(drop)
+        return absorbed
+
+    def _members_of(self, gid: int, camera: str) -> bool:
+        """Whether global track gid already has a live local track in ``camera``."""
+        tracks = dict(self.groupers[camera].tracks) if camera in self.groupers else {}
+        if camera in self.boxers:
+            tracks.update(self.boxers[camera].tracks)
+        return any(self._global(t) == gid for t in tracks)
+
+    def _observations(
+        self,
+        seen: dict[str, list[ObstacleTrack]],
+        lost: list[ObstacleTrack],
+        absorbed: list[int],
+        frame: int,
+        t_s: float,
+    ) -> list[ObstacleObservation]:
+        groups: dict[int, list[ObstacleTrack]] = {}
+        for name in self.cams:
+            for tr in seen.get(name, []):
+                groups.setdefault(self._global(tr.id), []).append(tr)
+        out: list[ObstacleObservation] = []
+        for gid, trs in sorted(groups.items()):
+            views, done = [], set()
+            for tr in trs:
+                if tr.camera in done:
+                    continue
+                done.add(tr.camera)
+                fb = tr.member_b_C if len(tr.member_b_C) == len(tr.members) else np.zeros((0, 3))
+                fi = tr.members if len(fb) == len(tr.members) else np.zeros(0, np.int64)
+                views.append(
+                    CameraView(
+                        camera=tr.camera,
+                        b_C=tr.b_C,
+                        uv=tr.uv,
+                        sigma_rad=tr.sigma_rad,
+                        feature_ids=fi,
+                        feature_b_C=fb,
+                    )
+                )
+            status = "confirmed" if any(t.status == "confirmed" for t in trs) else "tentative"
+            attrs: dict[str, Any] = {}
+            for t in trs:
+                attrs.update(t.attributes)
+            out.append(
+                ObstacleObservation(
+                    gid, frame, t_s, status, tuple(views), label=trs[0].label, attributes=attrs
+                )
+            )
+            self._reported.add(gid)
+        live = set(groups)
+        for name in self.cams:  # global ids with a coasting local track are not lost yet
+            for d in (self.groupers.get(name), self.boxers.get(name)):
+                if d is not None:
+                    live.update(self._global(t) for t in d.tracks)
+        gone = {self._global(tr.id): tr for tr in lost}
+        for tr in lost:
+            self._gid.pop(tr.id, None)
+        for gid in sorted(set(gone) | set(absorbed)):
+            if gid in live and gid not in absorbed:
+                continue
+            if gid in self._reported:
+                lbl = gone[gid].label if gid in gone else self.label
+                out.append(ObstacleObservation(gid, frame, t_s, "lost", (), label=lbl))
+                self._reported.discard(gid)
+        return out

@@ -1,0 +1,469 @@
+"""Features -> obstacle tracks in one camera: proximity on the unit sphere plus consistent motion.
+
+Per frame:
+
+1. Each track keeps its member features that are still alive and still move with it: a member
+   whose rotation-compensated flow differs from the track's median flow by more than
+   ``flow_abs_rad_s + flow_rel * |median|`` leaves, and so does one farther than ``max_radius_rad``
+   from the track's representative bearing.
+2. Unassigned features old enough to have a flow join the track of their nearest member within
+   ``link_rad`` when their flow agrees.
+3. The rest are grouped by connected components of the graph "angular distance < link_rad and flow
+   agrees"; a component wider than ``max_radius_rad`` is cut into pieces of that radius; a piece
+   of at least ``min_features`` features revives a coasting track near it, or starts a tentative
+   track.
+4. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
+   than ``max_missed`` frames -> lost (reported once, then dropped).
+
+The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
+in both frames (so members joining or leaving do not make it jump), pulled gently (gain
+``centre_gain``) towards the normalised mean of the members so that it cannot drift off the object.
+Its sigma is ``sqrt(spread^2 / n + floor^2)``, spread = RMS angle of the members about it, floor =
+``sigma_floor_px`` pixels at that point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators.errors import ConfigError
+from trackers.features import FeatureTracker
+
+
+def _normalise(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between unit vectors a (..., 3) and b (..., 3), stable at 0 and pi:
+    ``atan2(|a x b|, a . b)``."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+@dataclass
+class ObstacleTrack:
+    """One obstacle as one camera tracks it (mutable state of the grouper).
+
+    Attributes:
+        id: track id (unique over all cameras of the front end).
+        camera: camera name.
+        members: (M,) int64 ids of the member features.
+        b_C: (3,) unit representative bearing in C.
+        uv: (2,) its pixel position.
+        sigma_rad: 1-sigma uncertainty of b_C (rad).
+        flow_rad_s: (3,) median rotation-compensated member flow in C (rad/s, tangent vector).
+        status: tentative | confirmed | lost.
+        hits: frames seen; missed: consecutive frames unseen; seen: seen this frame.
+        label / attributes: what made it (``orb`` ... or a box detector's label) and its extras.
+    """
+
+    id: int
+    camera: str
+    members: np.ndarray
+    b_C: np.ndarray
+    uv: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    sigma_rad: float = 0.01
+    flow_rad_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    status: str = "tentative"
+    hits: int = 1
+    missed: int = 0
+    seen: bool = True
+    label: str = "orb"
+    attributes: dict = field(default_factory=dict)
+    member_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+class ObstacleGrouper:
+    """Groups the features of one camera into obstacle tracks (see the module docstring).
+
+    Args:
+        ids: shared id counter for track ids.
+        link_px: largest distance between neighbouring features of one obstacle, in pixels at the
+            lens's mean scale (turned into an angle, ``link_rad``, on the first update).
+        max_radius_px: largest distance of a member from its track's representative point (pixels,
+            turned into ``max_radius_rad`` likewise).
+        flow_abs_rad_s, flow_rel: flows agree when ``|f_i - f_j| < flow_abs + flow_rel * max(|f_i|, |f_j|)``.
+        flow_frames: flow measured over this many frames (less for younger features).
+        min_features: features needed to start a track.
+        min_age: frames a feature must have been tracked before it can join or start a track.
+        confirm_frames: frames with members before a track is confirmed.
+        max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
+        centre_gain: pull of the representative bearing towards the member mean per frame.
+        sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
+        label: label of the tracks (the detector's name).
+    """
+
+    def __init__(
+        self,
+        ids: Iterator[int],
+        link_px: float = 20.0,
+        max_radius_px: float = 50.0,
+        flow_abs_rad_s: float = 0.03,
+        flow_rel: float = 0.35,
+        flow_frames: int = 3,
+        min_features: int = 4,
+        min_age: int = 3,
+        confirm_frames: int = 5,
+        max_missed: int = 10,
+        centre_gain: float = 0.02,
+        sigma_floor_px: float = 0.5,
+        label: str = "orb",
+    ) -> None:
+        if link_px <= 0 or max_radius_px <= 0 or min_features < 1 or confirm_frames < 1 or max_missed < 0:
+            raise ConfigError(
+                "ObstacleGrouper: expected link_px > 0, max_radius_px > 0, min_features >= 1, "
+                "confirm_frames >= 1, max_missed >= 0; got "
+                f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}"
+            )
+        self._ids = ids
+        self.link_px = float(link_px)
+        self.max_radius_px = float(max_radius_px)
+        self.link_rad = self.max_radius_rad = 0.0  # set from the camera's scale on the first update
+        self.flow_abs = float(flow_abs_rad_s)
+        self.flow_rel = float(flow_rel)
+        self.flow_frames = int(flow_frames)
+        self.min_features = int(min_features)
+        self.min_age = int(min_age)
+        self.confirm_frames = int(confirm_frames)
+        self.max_missed = int(max_missed)
+        self.centre_gain = float(centre_gain)
+        self.sigma_floor_px = float(sigma_floor_px)
+        self.label = label
+        self.tracks: dict[int, ObstacleTrack] = {}
+
+    # ---------------------------------------------------------------------------------- api
+    def update(
+        self, ft: FeatureTracker, t_s: float, R_C_Cprev: dict[int, np.ndarray] | None = None
+    ) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
+        """Group the live features of ``ft`` after its ``track()`` call for this frame.
+
+        Args:
+            ft: the camera's FeatureTracker (live features, their bearings and history).
+            t_s: frame time (s).
+            R_C_Cprev: optional rotations ``{k: R (3,3)}`` taking a direction in this camera's frame
+                k frames ago into the frame now (from the ego-motion), for k = 1..flow_frames; flows
+                are then compensated for the camera's own rotation. Missing k: no compensation.
+        Returns:
+            (tracks seen this frame, tracks lost this frame).
+        """
+        ids, b = ft.ids, ft.b_C
+        n = len(ids)
+        rad_px = self._rad_per_px(ft)
+        self.link_rad = self.link_px * rad_px
+        self.max_radius_rad = self.max_radius_px * rad_px
+        flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
+        fvalid &= ft.age >= self.min_age
+        b_prev, pvalid = ft.previous_bearing()
+        order = np.argsort(ids, kind="stable")
+        sids = ids[order]
+        assigned = np.full(n, -1, np.int64)
+        # 1. keep consistent members
+        for tr in self.tracks.values():
+            tr.seen = False
+            rows = self._rows_of(tr.members, sids, order)
+            if len(rows):
+                rows = self._prune(tr, rows, b, flow, fvalid)
+            tr.members = ids[rows]
+            assigned[rows] = tr.id
+        # 2. unassigned features join the track of their nearest member
+        free = np.flatnonzero((assigned < 0) & fvalid)
+        memb = np.flatnonzero(assigned >= 0)
+        if len(free) and len(memb):
+            cosd = b[free] @ b[memb].T
+            j = np.argmax(cosd, axis=1)
+            near = cosd[np.arange(len(free)), j] > np.cos(self.link_rad)
+            for fi, jj, ok in zip(free, j, near, strict=True):
+                if not ok:
+                    continue
+                tr = self.tracks[int(assigned[memb[jj]])]
+                if float(b[fi] @ tr.b_C) < np.cos(self.max_radius_rad):
+                    continue
+                if fvalid[memb[jj]] and not self._agree(flow[fi], tr.flow_rad_s):
+                    continue
+                assigned[fi] = tr.id
+        for tr in self.tracks.values():
+            tr.members = ids[assigned == tr.id]
+        # 3. new groups from the rest
+        free = np.flatnonzero((assigned < 0) & fvalid)
+        fresh: set[int] = set()
+        for rows in self._components(free, b, flow):
+            if len(rows) < self.min_features:
+                continue
+            tr = self._revive(b[rows], flow[rows])
+            if tr is None:
+                tid = next(self._ids)
+                tr = ObstacleTrack(
+                    tid, ft.name, ids[rows], _normalise(b[rows].mean(0)), hits=0, label=self.label
+                )
+                self.tracks[tid] = tr
+            else:
+                tr.members = ids[rows]
+                tr.b_C = _normalise(b[rows].mean(0))
+            assigned[rows] = tr.id
+            fresh.add(tr.id)
+        # 4. representative bearing, sigma, life cycle
+        seen, lost = [], []
+        for tid in list(self.tracks):
+            tr = self.tracks[tid]
+            rows = np.flatnonzero(assigned == tid)
+            if len(rows) >= max(2, self.min_features // 2):
+                tr.members = ids[rows]
+                self._update_rep(tr, rows, b, b_prev, pvalid & (tid not in fresh), flow, fvalid, rad_px)
+                tr.hits += 1
+                tr.missed = 0
+                tr.seen = True
+                if tr.status == "tentative" and tr.hits >= self.confirm_frames:
+                    tr.status = "confirmed"
+                seen.append(tr)
+            else:
+                tr.members = np.zeros(0, np.int64)
+                tr.missed += 1
+                if tr.missed > self.max_missed:
+                    tr.status = "lost"
+                    lost.append(tr)
+                    del self.tracks[tid]
+        if seen:
+            uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
+            for t, u, o in zip(seen, uv, ok, strict=True):
+                if o:
+                    t.uv = u
+        return seen, lost
+
+    # ----------------------------------------------------------------------------- helpers
+    def _flows(
+        self, ft: FeatureTracker, t_s: float, R: dict[int, np.ndarray] | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per feature: flow (N,3) in rad/s = (b_now - R b_then) / dt over up to flow_frames frames."""
+        n = len(ft.ids)
+        if not n:
+            return np.zeros((0, 3)), np.zeros(0, bool)
+        b_then, t_then, valid = ft.bearing_ago(self.flow_frames)
+        if R:
+            n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)
+            for k, Rk in R.items():
+                sel = n_back == k
+                if np.any(sel):
+                    b_then = b_then.copy()
+                    b_then[sel] = b_then[sel] @ np.asarray(Rk).T
+        dt = t_s - t_then
+        valid &= dt > 0
+        flow = np.zeros((n, 3))
+        flow[valid] = (ft.b_C[valid] - b_then[valid]) / dt[valid, None]
+        return flow, valid
+
+    @staticmethod
+    def _rows_of(member_ids: np.ndarray, sids: np.ndarray, order: np.ndarray) -> np.ndarray:
+        """Rows (into the live features) of the given feature ids that are still alive."""
+        if not len(member_ids) or not len(sids):
+            return np.zeros(0, np.intp)
+        k = np.minimum(np.searchsorted(sids, member_ids), len(sids) - 1)
+        return order[k[sids[k] == member_ids]]
+
+    def _agree(self, f1: np.ndarray, f2: np.ndarray) -> bool:
+        d = float(np.linalg.norm(f1 - f2))
+        return d < self.flow_abs + self.flow_rel * max(float(np.linalg.norm(f1)), float(np.linalg.norm(f2)))
+
+    def _prune(
+        self, tr: ObstacleTrack, rows: np.ndarray, b: np.ndarray, flow: np.ndarray, fvalid: np.ndarray
+    ) -> np.ndarray:
+        rows = rows[np.sum(b[rows] * tr.b_C, axis=1) > np.cos(self.max_radius_rad)]
+        fv = rows[fvalid[rows]]
+        if len(fv) >= 3:
+            med = np.median(flow[fv], axis=0)
+            tr.flow_rad_s = med
+            d = np.linalg.norm(flow[rows] - med, axis=1)
+            thr = self.flow_abs + self.flow_rel * np.maximum(
+                np.linalg.norm(flow[rows], axis=1), np.linalg.norm(med)
+            )
+            rows = rows[~fvalid[rows] | (d < thr)]
+        return rows
+
+    def _components(self, free: np.ndarray, b: np.ndarray, flow: np.ndarray) -> list[np.ndarray]:
+        """Connected components (union-find) of the free features, cut to max_radius_rad pieces."""
+        m = len(free)
+        if m == 0:
+            return []
+        bf, ff = b[free], flow[free]
+        close = (bf @ bf.T) > np.cos(self.link_rad)
+        fn = np.linalg.norm(ff, axis=1)
+        d = np.linalg.norm(ff[:, None, :] - ff[None, :, :], axis=2)
+        agree = d < self.flow_abs + self.flow_rel * np.maximum(fn[:, None], fn[None, :])
+        adj = close & agree
+        parent = np.arange(m)
+
+        def find(i: int) -> int:
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        ii, jj = np.nonzero(np.triu(adj, 1))
+        for i, j in zip(ii.tolist(), jj.tolist(), strict=True):
+            ri, rj = find(i), find(j)
+            if ri != rj:
+                parent[rj] = ri
+        roots = np.array([find(i) for i in range(m)])
+        out: list[np.ndarray] = []
+        cos_r = np.cos(self.max_radius_rad)
+        for r in np.unique(roots):
+            comp = np.flatnonzero(roots == r)
+            if len(comp) < self.min_features:
+                continue
+            while len(comp):
+                c = _normalise(bf[comp].mean(0))
+                if np.all(bf[comp] @ c > cos_r):
+                    out.append(free[comp])
+                    break
+                # cut: a piece around the member farthest from the centre, so the rest stays compact
+                far = comp[np.argmin(bf[comp] @ c)]
+                piece = comp[bf[comp] @ bf[far] > np.cos(self.max_radius_rad)]
+                c2 = _normalise(bf[piece].mean(0))
+                piece = comp[bf[comp] @ c2 > cos_r]
+                if not len(piece):
+                    piece = np.array([far])
+                out.append(free[piece])
+                comp = np.setdiff1d(comp, piece)
+        return out
+
+    def _revive(self, bs: np.ndarray, fs: np.ndarray) -> ObstacleTrack | None:
+        """A coasting track (unseen lately) whose predicted bearing is near this group, or None."""
+        c = _normalise(bs.mean(0))
+        best, best_a = None, self.max_radius_rad
+        for tr in self.tracks.values():
+            if tr.seen or tr.missed == 0 or len(tr.members):
+                continue
+            a = float(angle_between(c, tr.b_C))
+            if a < best_a:
+                best, best_a = tr, a
+        return best
+
+    def _rad_per_px(self, ft: FeatureTracker) -> float:
+        cx, cy, r = ft.model.image_circle()
+        return float(ft.model.max_angle_rad / max(r, 1.0))
+
+    def _update_rep(
+        self,
+        tr: ObstacleTrack,
+        rows: np.ndarray,
+        b: np.ndarray,
+        b_prev: np.ndarray,
+        pvalid: np.ndarray,
+        flow: np.ndarray,
+        fvalid: np.ndarray,
+        rad_px: float,
+    ) -> None:
+        mean_c = _normalise(b[rows].mean(0))
+        persist = rows[pvalid[rows]]
+        if len(persist):
+            # move with the members present in both frames: b_rep += mean(b_now - b_prev)
+            delta = (b[persist] - b_prev[persist]).mean(0)
+            rep = _normalise(tr.b_C + delta)
+            rep = _normalise(rep + self.centre_gain * (mean_c - rep))
+        else:
+            rep = mean_c
+        if np.dot(rep, mean_c) < np.cos(self.max_radius_rad):
+            rep = mean_c
+        tr.b_C = rep
+        fv = rows[fvalid[rows]]
+        if len(fv):
+            tr.flow_rad_s = np.median(flow[fv], axis=0)
+        ang = np.arccos(np.clip(b[rows] @ rep, -1.0, 1.0))
+        spread2 = float(ang @ ang) / len(rows)
+        # sigma^2 = spread^2 / n + floor^2
+        tr.sigma_rad = float(np.sqrt(spread2 / len(rows) + (self.sigma_floor_px * rad_px) ** 2))
+        tr.member_b_C = b[rows]
+
+
+class BoxTracker:
+    """Tracks box detections (navlights, torch models, plug-ins) of one camera as obstacles.
+
+    A box's representative bearing is its centre's bearing; boxes are matched to tracks of the same
+    label greedily by angle, within ``gate_rad`` plus the box's own angular half-size. Life cycle as
+    ObstacleGrouper's. sigma_rad = half the box's angular diagonal / 3, floored at ``sigma_floor_rad``.
+    """
+
+    def __init__(
+        self,
+        ids: Iterator[int],
+        gate_rad: float = np.radians(3.0),
+        confirm_frames: int = 3,
+        max_missed: int = 10,
+        sigma_floor_rad: float = np.radians(0.2),
+    ) -> None:
+        self._ids = ids
+        self.gate_rad = float(gate_rad)
+        self.confirm_frames = int(confirm_frames)
+        self.max_missed = int(max_missed)
+        self.sigma_floor_rad = float(sigma_floor_rad)
+        self.tracks: dict[int, ObstacleTrack] = {}
+
+    def update(self, camera, det) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
+        """Match this frame's boxes (``det``: Detections) of ``camera`` (an ``estimators.rig.Camera``).
+
+        Returns:
+            (tracks seen this frame, tracks lost this frame).
+        """
+        model = camera.model
+        seen: list[ObstacleTrack] = []
+        for tr in self.tracks.values():
+            tr.seen = False
+        if len(det.boxes):
+            c = det.box_centres
+            corners = np.concatenate([det.boxes[:, :2], det.boxes[:, 2:]])
+            bc, okc = model.pixel_to_bearing(c)
+            bk, okk = model.pixel_to_bearing(corners)
+            m = len(c)
+            half = np.where(okk[:m] & okk[m:], angle_between(bk[:m], bk[m:]) / 2, 0.0)
+            cand = []
+            for i in range(m):
+                if not okc[i]:
+                    continue
+                for tr in self.tracks.values():
+                    if tr.label != det.labels[i]:
+                        continue
+                    a = float(angle_between(bc[i], tr.b_C))
+                    if a < self.gate_rad + half[i]:
+                        cand.append((a, i, tr.id))
+            cand.sort()
+            used_b: set[int] = set()
+            used_t: set[int] = set()
+            match: dict[int, int] = {}
+            for _a, i, tid in cand:
+                if i in used_b or tid in used_t:
+                    continue
+                used_b.add(i)
+                used_t.add(tid)
+                match[i] = tid
+            for i in range(m):
+                if not okc[i]:
+                    continue
+                if i in match:
+                    tr = self.tracks[match[i]]
+                    tr.hits += 1
+                else:
+                    tid = next(self._ids)
+                    tr = ObstacleTrack(tid, camera.name, np.zeros(0, np.int64), bc[i], label=det.labels[i])
+                    self.tracks[tid] = tr
+                tr.b_C = bc[i]
+                tr.uv = c[i].astype(float)
+                tr.sigma_rad = float(max(half[i] / 3.0, self.sigma_floor_rad))
+                tr.attributes = dict(det.attributes[i])
+                tr.missed = 0
+                tr.seen = True
+                if tr.status == "tentative" and tr.hits >= self.confirm_frames:
+                    tr.status = "confirmed"
+                seen.append(tr)
+        lost = []
+        for tid in list(self.tracks):
+            tr = self.tracks[tid]
+            if not tr.seen:
+                tr.missed += 1
+                if tr.missed > self.max_missed:
+                    tr.status = "lost"
+                    lost.append(tr)
+                    del self.tracks[tid]
+        return seen, lost
