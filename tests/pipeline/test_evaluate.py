@@ -1,0 +1,280 @@
+"""The evaluator proven on tracks made from the ground truth with injected, known errors.
+
+The scene holds spheres only, seen by a camera at the body origin: the ray from the body origin
+along an obstacle's centre bearing then hits its surface at ``range_m - R`` (= the truth's
+``surface_range_m``), a closed form independent of the evaluator.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.evaluate import chi2_quantile, evaluate, format_table, write_outputs
+from pipeline.sim.scene import scenario_from_dict
+from pipeline.sim.writer import simulate
+
+FPS = 20.0
+COPIES = 8  # reports per obstacle per frame in the noise test (more samples, tighter percentiles)
+
+
+@pytest.fixture(scope="module")
+def scen_dir(tmp_path_factory):
+    scn = scenario_from_dict(
+        {
+            "name": "evalscene",
+            "seed": 5,
+            "fps": FPS,
+            "duration_s": 3.0,
+            "rig": {"kind": "mono", "resolution": [64, 48]},
+            "observer": {"kind": "straight", "speed_mps": 3.0, "start": {"position_m": [0, 0, 2.0]}},
+            "obstacles": [
+                {"id": 1, "kind": "sphere", "radius_m": 0.8, "position_m": [12, 2.0, 2.0]},
+                {"id": 2, "kind": "sphere", "radius_m": 0.5, "position_m": [6, -2.5, 2.5]},
+                {
+                    "id": 3,
+                    "kind": "sphere",
+                    "radius_m": 0.6,
+                    "position_m": [20, -6.0, 1.5],
+                    "motion": {"kind": "constant_velocity", "velocity_mps": [0.0, 3.0, 0.0]},
+                },
+            ],
+        }
+    )
+    d = tmp_path_factory.mktemp("scen")
+    simulate(scn, d)
+    return d
+
+
+def _gt(scen_dir):
+    return [json.loads(ln) for ln in (scen_dir / "gt.jsonl").read_text().splitlines()]
+
+
+def _track(tid, o, r, **kw):
+    d = {
+        "id": tid,
+        "status": "confirmed",
+        "camera": "cam0",
+        "bearing_body": o["bearing_body"],
+        "range_m": r,
+        "range_sigma_m": None,
+        "range_min_m": None,
+        "range_max_m": None,
+        "velocity_world_mps": None,
+    }
+    d.update(kw)
+    return d
+
+
+def _write_run(tmp_path, frames):
+    run = tmp_path / "run"
+    run.mkdir(exist_ok=True)
+    with (run / "tracks.jsonl").open("w") as f:
+        for fr in frames:
+            f.write(json.dumps(fr) + "\n")
+    return run
+
+
+def _run(scen_dir, tmp_path, make):
+    """tracks.jsonl with one report per visible obstacle per frame, built by ``make(k, g, o, r_true)``."""
+    frames = []
+    for k, g in enumerate(_gt(scen_dir)):
+        tracks = []
+        for o in g["obstacles"]:
+            if o["visible"]["cam0"]:
+                r_true = o["range_m"] - o["radius_m"]  # along the centre bearing, sphere
+                tracks += make(k, g, o, r_true)
+        frames.append({"frame": g["frame"], "t_s": g["t_s"], "tracks": tracks})
+    return evaluate([(_write_run(tmp_path, frames), scen_dir)]).metrics
+
+
+def test_exact_tracks_score_perfectly(scen_dir, tmp_path):
+    m = _run(
+        scen_dir, tmp_path, lambda k, g, o, r: [_track(100 + o["id"], o, r, velocity_world_mps=o["v_W"])]
+    )
+    ov = m["overall"]
+    assert ov["rel_err_median"] < 1e-5 and ov["within_5pct"] == 1.0
+    assert ov["speed_err_median_mps"] < 1e-9 and ov["heading_err_median_deg"] < 1e-3
+    assert ov["false_ranges_sky"] == 0 and ov["id_switches"] == 0
+    for oid in ("1", "2", "3"):
+        ob = m["by_obstacle"][f"evalscene/{oid}"]
+        assert ob["detection_coverage"] == 1.0 and ob["time_to_10pct_s"] == 0.0
+    assert m["by_motion"]["moving"]["reports"] > 0 and m["by_motion"]["stationary"]["reports"] > 0
+
+
+def test_bias_of_3_percent(scen_dir, tmp_path):
+    m = _run(scen_dir, tmp_path, lambda k, g, o, r: [_track(100 + o["id"], o, 1.03 * r)])
+    ov = m["overall"]
+    assert ov["rel_err_median"] == pytest.approx(0.03, abs=1e-5)
+    assert ov["rel_err_signed_median"] == pytest.approx(0.03, abs=1e-5)
+    assert ov["rel_err_p90"] == pytest.approx(0.03, abs=1e-5)
+    assert ov["within_5pct"] == 1.0
+    for b in m["by_range_bin"].values():
+        if b["ranged"]:
+            assert b["rel_err_median"] == pytest.approx(0.03, abs=1e-5)
+
+
+def test_gaussian_noise_gives_the_predicted_percentiles_and_nees_one(scen_dir, tmp_path):
+    rng = np.random.default_rng(42)
+    s = 0.05  # relative sigma
+
+    def make(k, g, o, r):
+        n = rng.normal(size=COPIES)
+        return [_track(1000 * o["id"] + j, o, r * (1 + s * n[j]), range_sigma_m=s * r) for j in range(COPIES)]
+
+    ov = _run(scen_dir, tmp_path, make)["overall"]
+    # |e| of N(0, s^2): median 0.6745 s, p90 1.6449 s; P(|e| <= 0.05 = 1 s) = 68.3%, <= 0.1 = 95.4%
+    assert ov["ranged"] > 1000
+    assert ov["rel_err_median"] == pytest.approx(0.6745 * s, rel=0.08)
+    assert ov["rel_err_p90"] == pytest.approx(1.6449 * s, rel=0.08)
+    assert ov["within_5pct"] == pytest.approx(0.683, abs=0.04)
+    assert ov["within_10pct"] == pytest.approx(0.954, abs=0.02)
+    assert ov["within_1sigma"] == pytest.approx(0.683, abs=0.04)
+    assert ov["nees_mean"] == pytest.approx(1.0, abs=0.1) and ov["nees_consistent"]
+    # a sigma twice too small: NEES ~ 4, flagged inconsistent
+    rng = np.random.default_rng(1)
+    ov2 = _run(
+        scen_dir,
+        tmp_path,
+        lambda k, g, o, r: [_track(100 + o["id"], o, r * (1 + s * rng.normal()), range_sigma_m=0.5 * s * r)],
+    )["overall"]
+    assert ov2["nees_mean"] > 2.5 and not ov2["nees_consistent"]
+
+
+def test_a_wrong_id_is_one_id_switch(scen_dir, tmp_path):
+    def make(k, g, o, r):
+        tid = 555 if (o["id"] == 1 and k >= 20) else 100 + o["id"]
+        return [_track(tid, o, r)]
+
+    m = _run(scen_dir, tmp_path, make)
+    assert m["by_obstacle"]["evalscene/1"]["id_switches"] == 1
+    assert m["by_obstacle"]["evalscene/1"]["track_ids"] == [101, 555]
+    assert m["by_obstacle"]["evalscene/2"]["id_switches"] == 0
+    assert m["overall"]["id_switches"] == 1
+
+
+def test_a_report_on_the_sky_is_one_false_range(scen_dir, tmp_path):
+    up = {"bearing_body": [0.0, 0.0, 1.0]}
+
+    def make(k, g, o, r):
+        out = [_track(100 + o["id"], o, r)]
+        if k == 7 and o["id"] == 1:
+            out.append(_track(900, up, 12.0))  # sky, with a range: false
+            out.append(_track(901, up, None))  # sky without a range: not a false range
+        return out
+
+    ov = _run(scen_dir, tmp_path, make)["overall"]
+    assert ov["false_ranges_sky"] == 1 and ov["sky_reports"] == 2
+    assert ov["rel_err_median"] < 1e-5  # the sky reports do not enter the range errors
+
+
+def test_bounds_that_exclude_truth_drop_coverage_by_that_share(scen_dir, tmp_path):
+    def make(k, g, o, r):
+        lo, hi = (1.2 * r, 1.5 * r) if (k % 5 == 0) else (0.9 * r, 1.1 * r)
+        return [_track(100 + o["id"], o, r, range_min_m=lo, range_max_m=hi)]
+
+    gt = _gt(scen_dir)
+    n_all = sum(o["visible"]["cam0"] for g in gt for o in g["obstacles"])
+    n_bad = sum(o["visible"]["cam0"] for k, g in enumerate(gt) for o in g["obstacles"] if k % 5 == 0)
+    ov = _run(scen_dir, tmp_path, make)["overall"]
+    assert ov["bounds_reports"] == n_all
+    assert ov["bounds_coverage"] == pytest.approx(1.0 - n_bad / n_all, abs=1e-12)
+
+
+def test_velocity_errors(scen_dir, tmp_path):
+    def make(k, g, o, r):
+        v = np.asarray(o["v_W"]) + ([0.5, 0.0, 0.0] if o["moving"] else [0.0, 0.0, 0.0])
+        return [_track(100 + o["id"], o, r, velocity_world_mps=v.tolist())]
+
+    m = _run(scen_dir, tmp_path, make)
+    mv = m["by_motion"]["moving"]
+    assert mv["speed_err_median_mps"] == pytest.approx(math.hypot(3.0, 0.5) - 3.0, abs=1e-6)
+    assert mv["heading_err_median_deg"] == pytest.approx(math.degrees(math.atan2(0.5, 3.0)), abs=1e-4)
+    assert m["by_motion"]["stationary"]["speed_err_median_mps"] == 0.0
+
+
+def test_detection_coverage_and_time_to_10_percent(scen_dir, tmp_path):
+    def make(k, g, o, r):
+        if o["id"] == 2 and k % 2 == 1:
+            return []  # obstacle 2 tracked in every other frame
+        err = 0.2 if (o["id"] == 1 and k < 6) else 0.0  # obstacle 1: within 10% from frame 6 on
+        return [_track(100 + o["id"], o, r * (1 + err))]
+
+    m = _run(scen_dir, tmp_path, make)
+    gt = _gt(scen_dir)
+    vis2 = [
+        (k, g["t_s"])
+        for k, g in enumerate(gt)
+        for o in g["obstacles"]
+        if o["id"] == 2 and o["visible"]["cam0"]
+    ]
+    first = vis2[0][1]
+    elig = [k for k, t in vis2 if t >= first + 0.5]
+    expect = sum(1 for k in elig if k % 2 == 0) / len(elig)
+    assert m["by_obstacle"]["evalscene/2"]["detection_coverage"] == pytest.approx(expect, abs=1e-12)
+    assert m["by_obstacle"]["evalscene/1"]["time_to_10pct_s"] == pytest.approx(6 / FPS, abs=1e-6)
+
+
+def test_narrow_miss_and_ground(scen_dir, tmp_path):
+    def make(k, g, o, r):
+        if o["id"] != 1:
+            return []
+        b = np.asarray(o["bearing_body"])
+        # turn the bearing about body z to 0.5 deg beyond the sphere's limb: misses, within 2 deg
+        half = math.asin(o["radius_m"] / o["range_m"])
+        a = half + math.radians(0.5)
+        c, s = math.cos(a), math.sin(a)
+        miss = np.array([c * b[0] - s * b[1], s * b[0] + c * b[1], b[2]])
+        down = {"bearing_body": [0.3, 0.0, -1.0]}
+        return [
+            _track(101, {"bearing_body": miss.tolist()}, o["range_m"] - o["radius_m"]),
+            _track(102, down, 2.0),
+        ]
+
+    run_m = _run(scen_dir, tmp_path, make)
+    ov = run_m["overall"]
+    assert ov["ground_reports"] > 0 and ov["sky_reports"] == 0
+    # associated to obstacle 1 with truth = nearest-surface range = range_m - R: error ~ 0
+    assert run_m["by_obstacle"]["evalscene/1"]["ranged"] == ov["ground_reports"]
+    assert ov["rel_err_median"] < 1e-5
+
+
+def test_outputs_table_and_plots(scen_dir, tmp_path):
+    frames = [
+        {
+            "frame": g["frame"],
+            "t_s": g["t_s"],
+            "tracks": [
+                _track(
+                    100 + o["id"],
+                    o,
+                    1.02 * (o["range_m"] - o["radius_m"]),
+                    range_sigma_m=0.5,
+                    range_min_m=1.0,
+                    range_max_m=50.0,
+                )
+                for o in g["obstacles"]
+                if o["visible"]["cam0"]
+            ],
+        }
+        for g in _gt(scen_dir)
+    ]
+    ev = evaluate([(_write_run(tmp_path, frames), scen_dir)])
+    paths = write_outputs(ev, tmp_path / "eval")
+    m = json.loads((tmp_path / "eval" / "metrics.json").read_text())
+    assert m["overall"]["rel_err_median"] == pytest.approx(0.02, abs=1e-5)
+    assert "overall" in format_table(m) and (tmp_path / "eval" / "metrics.txt").is_file()
+    pngs = [p for p in paths.values() if p.suffix == ".png"]
+    assert len(pngs) == 3 and all(p.stat().st_size > 1000 for p in pngs)
+
+
+def test_chi2_quantiles_against_tabulated_values():
+    # tables (Abramowitz & Stegun 26.8):
+    # chi2_0.975(10) = 20.483, chi2_0.025(10) = 3.247, chi2_0.95(30) = 43.773
+    assert chi2_quantile(0.975, 10) == pytest.approx(20.483, rel=5e-3)
+    assert chi2_quantile(0.025, 10) == pytest.approx(3.247, rel=1e-2)
+    assert chi2_quantile(0.95, 30) == pytest.approx(43.773, rel=2e-3)
+    assert chi2_quantile(0.95, 2) == pytest.approx(5.991, rel=1e-4)
