@@ -559,8 +559,9 @@ def pipeline_config(task: Mapping[str, Any]):
         "ego_motion": ({"trajectory": task["trajectory"]} if task.get("trajectory") else {"speed_mps": 0.0}),
         "detector": {"name": task.get("detector", "orb"),
                      "options": dict(task.get("detector_options") or {})},
-        "tracker": {"options": dict(task.get("frontend_options") or {})},
-        "fusion": {"settings": dict(task.get("fusion_settings") or {})},
+        # FrontEnd option groups (features, grouping, boxes, association) are the tracker section's keys
+        "tracker": {k: dict(v) for k, v in (task.get("frontend_options") or {}).items()},
+        "fusion": dict(task.get("fusion_settings") or {}),
         "inputs": {"videos": list(task["videos"].values())},
         "outputs": {"progress": False},
     })
@@ -600,11 +601,44 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
+def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
+    """Live mode (``pipeline.live.run_live``) on the clip replayed at its real rate by the paced source:
+    latency from a frame's arrival to its flushed tracks.jsonl line, and stale frames dropped.
+
+    The clip is first decoded once (read + grey) in the same process to give the decode time that the
+    latency target adds to one frame interval."""
+    from pipeline.config import PipelineConfig
+    from pipeline.live import run_live
+
+    vids = list(task["videos"].values())
+    dec = decode_only(task["videos"], int(task["frames"]))
+    cfg = PipelineConfig.model_validate({
+        "rig": {"calibration": task["calibration"]},
+        "ego_motion": {"trajectory": task["trajectory"]},
+        "detector": {"name": task.get("detector", "orb"),
+                     "options": dict(task.get("detector_options") or {})},
+        "live": {"cameras": vids, "paced": True},
+        "outputs": {"progress": False},
+    })
+    res = run_live(cfg, task["out"], max_frames=int(task["frames"]))
+    sm = res.summary
+    grabbed = sm.get("frames_grabbed") or {}
+    lead = next(iter(grabbed.values()), None)
+    lead_stale = next(iter((sm.get("stale_frames_dropped") or {}).values()), res.stale)
+    return {
+        "frames": res.frames, "latency": res.latency, "dropped": lead_stale, "offered": lead,
+        "stale_by_camera": sm.get("stale_frames_dropped"), "grabbed_by_camera": grabbed,
+        "decode_median_s": dec["per_frame"]["median_s"], "decode": dec, "stages": sm.get("timings", {}),
+        "rate_hz": task.get("rate_hz"), "wall_s": sm.get("wall_s"), "fps": sm.get("frames_per_s"),
+    }
+
+
 #: Worker task kinds -> function(task) -> JSON result.
 TASKS: dict[str, Callable[[Mapping[str, Any]], dict[str, Any]]] = {
     "decode": _task_decode,
     "memory_probe": _task_memory_probe,
     "pipeline": _task_pipeline,
+    "live": _task_live,
 }
 
 
@@ -774,7 +808,7 @@ class BenchPlan:
     resolutions: tuple[tuple[int, int], ...]
     rigs: tuple[str, ...] = ("mono", "stereo")
     threads: tuple[int | None, ...] = (1, None)
-    render_frames: int = 150
+    render_frames: int = 300
     measure_frames: int = 300
     live_frames: int = 300
     scaling_resolution: tuple[int, int] = (1280, 720)
@@ -784,7 +818,7 @@ class BenchPlan:
     memory_resolution: tuple[int, int] = (640, 480)
     memory_frames: int = 10_000
     memory_checkpoints: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000)
-    detector_frames: int = 100
+    detector_frames: int = 300
     base_obstacles: int = 8
 
 
@@ -793,9 +827,10 @@ def make_plan(quick: bool) -> BenchPlan:
     if not quick:
         return BenchPlan(quick=False, resolutions=((640, 480), (1280, 720), (1920, 1080)))
     small = (160, 120)
-    return BenchPlan(quick=True, resolutions=(small,), render_frames=12, measure_frames=24, live_frames=24,
-                     scaling_resolution=small, scaling_frames=12, memory_resolution=small, memory_frames=300,
-                     memory_checkpoints=(100, 300), detector_frames=8, threads=(1,))
+    return BenchPlan(quick=True, resolutions=(small,), render_frames=10, measure_frames=20, live_frames=20,
+                     scaling_resolution=small, scaling_frames=8, memory_resolution=small, memory_frames=120,
+                     memory_checkpoints=(40, 120), detector_frames=20, threads=(1,), base_obstacles=4,
+                     obstacle_counts=(1, 50), feature_counts=(100, 2000))
 
 
 def camera_rate_hz(resolution: tuple[int, int]) -> float:
@@ -935,8 +970,8 @@ class BenchRun:
                 self.render(p, o, resolution, self.plan.render_frames)
         c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, render=render)
         dt = time.perf_counter() - t0
-        self.sections.setdefault("clips", {})[c.dir.name] = {"dir": str(c.dir), "render_or_load_s": dt,
-                                                            "cameras": sorted(c.videos)}
+        self.sections.setdefault("clips", {}).setdefault(
+            c.dir.name, {"dir": str(c.dir), "render_or_load_s": dt, "cameras": sorted(c.videos)})
         return c
 
     def run(self, task: dict[str, Any], threads: int | None) -> dict[str, Any]:
@@ -946,7 +981,9 @@ class BenchRun:
         label = f"{task['kind']} {Path(next(iter(task.get('videos', {'': ''}).values()))).parent.name} " \
                 f"{_threads_label(threads)}"
         self.log(f"[bench] {label} ...")
+        load = os.getloadavg() if hasattr(os, "getloadavg") else None
         r = run_task(task, threads)
+        r["loadavg_before"] = load
         if "error" in r:
             self.log(f"[bench]   failed: {r['error']}")
             self.notes.append(f"{label}: {r['error']}")
@@ -1113,7 +1150,11 @@ class BenchRun:
         res = p.resolutions[0]
         clip = self.clip(res, "mono")
         sec = f"detectors ({_res(res)} mono, 1 core)"
-        orb = self.run(clip.task("pipeline", p.detector_frames, detector="orb"), 1)
+        orb = next((t["pipeline"] for t in self.sections.get("throughput", [])
+                    if tuple(t["resolution"]) == tuple(res) and t["rig"] == "mono" and t["threads"] == 1
+                    and p.detector_frames == p.measure_frames and "error" not in t["pipeline"]), None)
+        if orb is None:  # not measured in this run's throughput part (or with another length)
+            orb = self.run(clip.task("pipeline", p.detector_frames, detector="orb"), 1)
         out: dict[str, Any] = {"resolution": list(res), "orb": orb}
         self.rows.append(Row(sec, "orb", orb.get("fps"), "fps", "orb", orb.get("fps"),
                              note=orb.get("error", "")))
@@ -1169,6 +1210,7 @@ class BenchRun:
         self.out.mkdir(parents=True, exist_ok=True)
         main_rows = [r for r in self.rows if not r.section.startswith("time per stage")]
         meta = {"quick": self.plan.quick, "plan": asdict(self.plan), "machine": machine_info(),
+                "loadavg_at_report": os.getloadavg() if hasattr(os, "getloadavg") else None,
                 "notes": self.notes, "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                 "pinning": "one core: a fresh subprocess with OMP/MKL/OPENBLAS/NUMEXPR_NUM_THREADS=1 set "
                            "before any import, os.sched_setaffinity to one CPU, cv2.setNumThreads(1), "
