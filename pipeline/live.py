@@ -1,0 +1,610 @@
+"""Live mode of ``fisheye-des live``: cameras by index or URL, always the newest frame, bounded latency.
+
+- A grabber thread per camera reads continuously and keeps only the newest frame; a frame replaced
+  before the pipeline took it is *stale*: dropped and counted, so latency stays bounded whatever the
+  pipeline's speed.
+- A camera that stops delivering (read fails, or no frame for ``stall_timeout_s``) is reopened with
+  exponential back-off (``reconnect_initial_s`` doubling up to ``reconnect_max_s``); the run goes on.
+- Latency per frame = from the frame's arrival (grabber clock) to its ``tracks.jsonl`` line being
+  written and flushed; median / p99 / max go to ``summary.json``.
+- Preview: the annotated frame to ``preview.mp4``, or served as MJPEG on ``http://127.0.0.1:PORT/``
+  (:class:`MjpegServer`, loopback only).
+- Ego-motion: constant velocity, or a TUM trajectory file that grows while the run goes
+  (:class:`GrowingTrajectory`, re-read when a frame's ``t_s`` passes its end).
+- Testable without a camera: a video file entry is replayed at its real rate (:class:`PacedSource`),
+  and frames then carry the video's own ``t_s``.
+"""
+
+from __future__ import annotations
+
+import http.server
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from estimators.egomotion import EgoMotion, TumTrajectory
+from estimators.errors import InputError, SourceError
+from estimators.se3 import Pose
+from pipeline.config import PipelineConfig, write_resolved
+from pipeline.run import RunningStats, StageTimings, build_egomotion, build_frontend, build_fusion, build_rig
+from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
+from pipeline.sources import PacedSource, Source, VideoSource, open_capture
+
+__all__ = [
+    "LiveFrame",
+    "Grabber",
+    "CaptureReader",
+    "SourceReader",
+    "GrowingTrajectory",
+    "MjpegServer",
+    "LiveResult",
+    "run_live",
+    "make_reader_factory",
+]
+
+
+@dataclass(frozen=True)
+class LiveFrame:
+    """The newest frame of one camera.
+
+    Attributes:
+        seq: index of the frame in the camera's stream (counts stale frames too).
+        t_s: the video's own time (replayed files) or None (cameras: the run's clock gives it).
+        image: (H, W) or (H, W, 3) uint8; arrival_s: ``time.monotonic()`` when it was read.
+    """
+
+    seq: int
+    t_s: float | None
+    image: np.ndarray
+    arrival_s: float
+
+
+class CaptureReader:
+    """A camera index or stream URL read with OpenCV (``read() -> image or None``)."""
+
+    ends = False  # a camera never ends: a failure means reopen
+
+    def __init__(self, ref: int | str, timeout_s: float = 5.0):
+        import cv2
+
+        self.ref = ref
+        if isinstance(ref, str) and "://" in ref:
+            ms = int(timeout_s * 1000)
+            self.cap = cv2.VideoCapture(
+                ref, cv2.CAP_FFMPEG, [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms]
+            )
+            if not self.cap.isOpened():
+                self.cap.release()
+                raise SourceError(
+                    f"{ref}: cannot be opened by OpenCV's FFmpeg backend (unreachable or not a stream)"
+                )
+        else:
+            self.cap = open_capture(ref)
+
+    def read(self) -> tuple[np.ndarray | None, float | None]:
+        ok, img = self.cap.read()
+        return (img if ok else None), None
+
+    def close(self) -> None:
+        self.cap.release()
+
+
+class SourceReader:
+    """A recorded :class:`Source` (e.g. a paced video replay) read frame by frame; it ends at its end."""
+
+    ends = True
+
+    def __init__(self, source: Source):
+        self.source = source
+        self._it = iter(source)
+
+    def read(self) -> tuple[np.ndarray | None, float | None]:
+        f = next(self._it, None)
+        return (None, None) if f is None else (f.image, f.t_s)
+
+    def close(self) -> None:
+        self.source.close()
+
+
+class Grabber:
+    """Reads one camera in a thread and keeps only the newest frame.
+
+    Args:
+        open_reader: returns a fresh reader (``.read() -> (image or None, t_s or None)``, ``.close()``,
+            ``.ends``); raises SourceError when the camera cannot be opened.
+        name: camera name (for messages).
+        reconnect_initial_s / reconnect_max_s: back-off of reopen attempts (doubling), seconds.
+        stall_timeout_s: no frame for this long counts as a stopped camera (reopened).
+
+    Counters: ``grabbed``, ``stale`` (replaced before taken), ``reconnects``, ``errors`` (last message).
+    """
+
+    def __init__(
+        self,
+        open_reader: Callable[[], Any],
+        name: str = "cam0",
+        reconnect_initial_s: float = 0.2,
+        reconnect_max_s: float = 5.0,
+        stall_timeout_s: float = 2.0,
+        clock: Callable[[], float] = time.monotonic,
+    ):
+        self.open_reader = open_reader
+        self.name = name
+        self.backoff0 = float(reconnect_initial_s)
+        self.backoff_max = float(reconnect_max_s)
+        self.stall_timeout_s = float(stall_timeout_s)
+        self.clock = clock
+        self._cond = threading.Condition()
+        self._latest: LiveFrame | None = None
+        self._taken_seq = -1
+        self._stop = threading.Event()
+        self.finished = False
+        self.grabbed = 0
+        self.stale = 0
+        self.reconnects = 0
+        self.last_error: str | None = None
+        self._reader = None
+        self._thread = threading.Thread(target=self._loop, name=f"grab-{name}", daemon=True)
+
+    def start(self, reader: Any = None) -> Grabber:
+        """Start the thread; ``reader``: an already opened reader (so open errors reach the caller)."""
+        self._reader = reader
+        self._thread.start()
+        return self
+
+    def _publish(self, image: np.ndarray, t_s: float | None) -> None:
+        with self._cond:
+            if self._latest is not None and self._latest.seq > self._taken_seq:
+                self.stale += 1  # never taken: dropped in favour of the newer frame
+            self._latest = LiveFrame(self.grabbed, t_s, image, self.clock())
+            self.grabbed += 1
+            self._cond.notify_all()
+
+    def _loop(self) -> None:
+        backoff = self.backoff0
+        reader = self._reader
+        while not self._stop.is_set():
+            if reader is None:
+                try:
+                    reader = self.open_reader()
+                    self.reconnects += 1
+                    backoff = self.backoff0
+                except SourceError as e:
+                    self.last_error = str(e)
+                    self._stop.wait(backoff)
+                    backoff = min(backoff * 2, self.backoff_max)
+                    continue
+            t_read = self.clock()
+            try:
+                image, t_s = reader.read()
+            except Exception as e:  # a driver error is a stopped camera, not the end of the run
+                image, t_s = None, None
+                self.last_error = f"{self.name}: {e}"
+            if image is not None and (
+                getattr(reader, "ends", False) or self.clock() - t_read <= self.stall_timeout_s
+            ):
+                self._publish(image, t_s)
+                continue
+            if image is not None:  # arrived, but after a stall: keep it, then reopen
+                self._publish(image, t_s)
+            if getattr(reader, "ends", False) and image is None:
+                reader.close()
+                break
+            self.last_error = self.last_error or f"{self.name}: camera stopped delivering frames"
+            reader.close()
+            reader = None
+            self._stop.wait(backoff)
+            backoff = min(backoff * 2, self.backoff_max)
+        if reader is not None:
+            reader.close()
+        with self._cond:
+            self.finished = True
+            self._cond.notify_all()
+
+    def take(self, timeout_s: float) -> LiveFrame | None:
+        """The newest frame not taken yet; waits up to ``timeout_s``. None on timeout or when finished."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self._latest is None or self._latest.seq <= self._taken_seq:
+                if self.finished:
+                    return None
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._cond.wait(left)
+            self._taken_seq = self._latest.seq
+            return self._latest
+
+    def peek(self) -> LiveFrame | None:
+        """The newest frame (taken or not), without marking it."""
+        with self._cond:
+            if self._latest is not None and self._latest.seq > self._taken_seq:
+                self._taken_seq = self._latest.seq
+            return self._latest
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self._stop.set()
+        self._thread.join(timeout_s)
+
+
+# ------------------------------------------------------------------------------------- ego-motion
+class GrowingTrajectory(EgoMotion):
+    """A TUM trajectory file that another program appends to during the run.
+
+    ``covers(t_s)`` re-reads the file when ``t_s`` lies past the last pose (and the file changed); an
+    incomplete last line (no newline yet) is ignored until it is complete. Poses are interpolated as in
+    :class:`~estimators.egomotion.TumTrajectory`; outside the span ``pose_at`` raises InputError.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._traj: TumTrajectory | None = None
+        self._stamp: tuple[float, int] | None = None
+        self.reloads = 0
+        self._reload()
+
+    def _reload(self) -> None:
+        try:
+            st = self.path.stat()
+        except FileNotFoundError:
+            return
+        stamp = (st.st_mtime, st.st_size)
+        if stamp == self._stamp:
+            return
+        self._stamp = stamp
+        text = self.path.read_text()
+        rows = []
+        for line in text.splitlines(keepends=True):
+            if not line.endswith("\n"):
+                break  # being written
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            parts = s.replace(",", " ").split()
+            try:
+                vals = [float(x) for x in parts]
+            except ValueError:
+                raise InputError(f"{self.path}: not a number in {s!r}") from None
+            if len(vals) != 8:
+                raise InputError(
+                    f"{self.path}: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', got {s!r}"
+                )
+            if rows and vals[0] <= rows[-1][0]:
+                continue  # a repeated stamp from the writer: keep the first
+            rows.append(vals)
+        if len(rows) >= 2:
+            a = np.array(rows)
+            self._traj = TumTrajectory(a[:, 0], a[:, 1:4], a[:, 4:8], source=str(self.path))
+            self.reloads += 1
+
+    @property
+    def end_s(self) -> float | None:
+        return None if self._traj is None else float(self._traj.t_s[-1])
+
+    def covers(self, t_s: float) -> bool:
+        if self._traj is None or not self._traj.covers(t_s):
+            self._reload()
+        return self._traj is not None and self._traj.covers(t_s)
+
+    def pose_at(self, t_s: float) -> Pose:
+        if not self.covers(t_s):
+            span = "no poses yet" if self._traj is None else f"poses up to {self.end_s:.3f} s"
+            raise InputError(f"{self.path}: no pose for t={t_s:.3f} s ({span})")
+        return self._traj.pose_at(t_s)
+
+    def velocity_at(self, t_s: float) -> np.ndarray:
+        if not self.covers(t_s):
+            raise InputError(f"{self.path}: no pose for t={t_s:.3f} s")
+        return self._traj.velocity_at(t_s)
+
+
+# ------------------------------------------------------------------------------------------ MJPEG
+class MjpegServer:
+    """Serves the newest published frame as MJPEG on ``http://127.0.0.1:PORT/stream.mjpg``.
+
+    ``/`` is a page showing it; ``/frame.jpg`` the newest frame alone. Bound to loopback only.
+
+    Args:
+        port: TCP port (0 = any free port; the chosen one is ``.port``).
+        quality: JPEG quality 1..100.
+    """
+
+    def __init__(self, port: int = 0, quality: int = 80):
+        self.quality = int(quality)
+        self._cond = threading.Condition()
+        self._jpeg: bytes | None = None
+        self._seq = 0
+        self._closed = False
+        server = self
+
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def log_message(self, *args) -> None:  # quiet
+                pass
+
+            def do_GET(self) -> None:  # noqa: N802 - http.server's name
+                if self.path in ("/", "/index.html"):
+                    body = (
+                        b"<html><head><title>fisheye-des live</title></head><body style='margin:0;"
+                        b"background:#111'><img src='/stream.mjpg' style='max-width:100%'></body></html>"
+                    )
+                    self.send_response(200)
+                    self.send_header("Content-Type", "text/html")
+                    self.send_header("Content-Length", str(len(body)))
+                    self.end_headers()
+                    self.wfile.write(body)
+                elif self.path.startswith("/frame.jpg"):
+                    jpeg = server.wait_frame(-1, 2.0)
+                    if jpeg is None:
+                        self.send_error(503, "no frame yet")
+                        return
+                    self.send_response(200)
+                    self.send_header("Content-Type", "image/jpeg")
+                    self.send_header("Content-Length", str(len(jpeg[1])))
+                    self.end_headers()
+                    self.wfile.write(jpeg[1])
+                elif self.path.startswith("/stream.mjpg"):
+                    self.send_response(200)
+                    self.send_header("Cache-Control", "no-cache")
+                    self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=frame")
+                    self.end_headers()
+                    seq = -1
+                    try:
+                        while True:
+                            got = server.wait_frame(seq, 1.0)
+                            if server._closed:
+                                break
+                            if got is None:
+                                continue
+                            seq, jpeg = got
+                            self.wfile.write(
+                                b"--frame\r\nContent-Type: image/jpeg\r\n"
+                                + f"Content-Length: {len(jpeg)}\r\n\r\n".encode()
+                                + jpeg
+                                + b"\r\n"
+                            )
+                            self.wfile.flush()
+                    except (BrokenPipeError, ConnectionResetError):
+                        pass
+                else:
+                    self.send_error(404)
+
+        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", int(port)), Handler)
+        self.httpd.daemon_threads = True
+        self.port = int(self.httpd.server_address[1])
+        self._thread = threading.Thread(
+            target=self.httpd.serve_forever, kwargs={"poll_interval": 0.1}, name="mjpeg", daemon=True
+        )
+        self._thread.start()
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}/stream.mjpg"
+
+    def publish(self, image: np.ndarray) -> None:
+        """Encode ``image`` (H, W[, 3]) uint8 as JPEG and make it the newest frame."""
+        import cv2
+
+        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+        if not ok:
+            raise InputError("MjpegServer.publish: JPEG encoding failed")
+        with self._cond:
+            self._jpeg = buf.tobytes()
+            self._seq += 1
+            self._cond.notify_all()
+
+    def wait_frame(self, after_seq: int, timeout_s: float) -> tuple[int, bytes] | None:
+        """The newest frame once its sequence number passes ``after_seq`` (None on timeout/close)."""
+        with self._cond:
+            self._cond.wait_for(
+                lambda: self._closed or (self._jpeg is not None and self._seq > after_seq), timeout_s
+            )
+            if self._closed or self._jpeg is None or self._seq <= after_seq:
+                return None
+            return self._seq, self._jpeg
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self.httpd.shutdown()
+        self.httpd.server_close()
+        self._thread.join(2.0)
+
+
+# ------------------------------------------------------------------------------------------- loop
+@dataclass
+class LiveResult:
+    """Frames processed, stale frames dropped, latency statistics (seconds), reconnects, summary."""
+
+    out_dir: Path
+    frames: int
+    stale: int
+    latency: dict[str, Any]
+    reconnects: int
+    summary: dict[str, Any]
+
+
+def make_reader_factory(
+    ref: int | str, camera: str, paced: bool = True, expected_size=None, timeout_s: float = 5.0
+) -> Callable[[], Any]:
+    """A function opening camera ``ref``: a device index, a URL, or (testing) a video file replayed
+    at its real rate when ``paced``."""
+    if isinstance(ref, str) and "://" not in ref and not ref.isdigit():
+
+        def open_file() -> SourceReader:
+            src: Source = VideoSource(ref, camera=camera, expected_size=expected_size)
+            return SourceReader(PacedSource(src) if paced else src)
+
+        return open_file
+    return lambda: CaptureReader(int(ref) if isinstance(ref, str) and ref.isdigit() else ref, timeout_s)
+
+
+def run_live(
+    cfg: PipelineConfig,
+    out_dir: str | Path,
+    *,
+    rig: Any = None,
+    egomotion: Any = None,
+    frontend: Any = None,
+    fusion: Any = None,
+    readers: list[Callable[[], Any]] | None = None,
+    max_frames: int | None = None,
+    on_frame: Callable[[int, dict], None] | None = None,
+    on_event: Callable[[str], None] | None = None,
+) -> LiveResult:
+    """Run the pipeline on live cameras until ``live.duration_s``, ``max_frames``, the end of replayed
+    files, or Ctrl-C; write tracks.jsonl (flushed per frame), summary.json and the resolved config.
+
+    Args:
+        readers: one reader factory per rig camera (default from ``live.cameras``).
+        on_frame: called after each written frame with (frame count, {"latency_s": ...}) (tests).
+        on_event: called with human-readable notes (the preview URL); the CLI prints them.
+
+    Raises:
+        SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
+        KeyboardInterrupt: re-raised after the outputs are written.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_resolved(cfg, out)
+    lv = cfg.live
+    rig = rig if rig is not None else build_rig(cfg)
+    names = list(rig.names)
+    if egomotion is None:
+        if cfg.ego_motion.trajectory is not None:
+            egomotion = GrowingTrajectory(cfg.ego_motion.trajectory)
+        else:
+            egomotion = build_egomotion(cfg)
+    frontend = frontend if frontend is not None else build_frontend(cfg, rig)
+    fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
+    if readers is None:
+        if len(lv.cameras) != len(names):
+            raise SourceError(
+                f"live.cameras has {len(lv.cameras)} entries for a rig of {len(names)} ({names})"
+            )
+        readers = []
+        for name, ref in zip(names, lv.cameras, strict=True):
+            m = rig[name].model
+            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height))))
+    grabbers: list[Grabber] = []
+    try:
+        for name, factory in zip(names, readers, strict=True):
+            first = factory()  # open errors (no such camera) surface here, before the run
+            g = Grabber(factory, name, lv.reconnect_initial_s, lv.reconnect_max_s, lv.stall_timeout_s)
+            grabbers.append(g.start(first))
+    except BaseException:
+        for g in grabbers:
+            g.stop()
+        raise
+
+    writer = TracksWriter(out / TRACKS_NAME)
+    annotator = Annotator(rig, egomotion) if lv.preview != "none" else None
+    server = MjpegServer(lv.preview_port) if lv.preview == "mjpeg" else None
+    video = VideoWriter(out / "preview.mp4", 30.0) if lv.preview == "file" else None
+    if on_event is not None:
+        if server is not None:
+            on_event(f"preview: http://127.0.0.1:{server.port}/ (MJPEG stream {server.url})")
+        if video is not None:
+            on_event(f"preview: {video.path}")
+    latency = RunningStats()
+    timings = StageTimings()
+    frames = 0
+    no_pose = 0
+    interrupted = False
+    start_mono = time.monotonic()
+    start_unix = time.time()
+    t_start = time.perf_counter()
+    last_t_s = -np.inf
+    try:
+        while True:
+            if lv.duration_s is not None and time.monotonic() - start_mono >= lv.duration_s:
+                break
+            if max_frames is not None and frames >= max_frames:
+                break
+            lead = grabbers[0].take(timeout_s=0.25)
+            if lead is None:
+                if grabbers[0].finished:
+                    break
+                continue
+            images = {names[0]: lead.image}
+            for g, n in zip(grabbers[1:], names[1:], strict=True):
+                f = g.peek()  # the newest frame of the other cameras
+                if f is not None:
+                    images[n] = f.image
+            if lead.t_s is not None:
+                t_s = lead.t_s
+            elif lv.clock == "unix":
+                t_s = start_unix + (lead.arrival_s - start_mono)
+            else:
+                t_s = lead.arrival_s - start_mono
+            if t_s <= last_t_s:
+                continue
+            if not egomotion.covers(t_s):
+                wait_until = time.monotonic() + lv.trajectory_wait_s
+                while not egomotion.covers(t_s) and time.monotonic() < wait_until:
+                    time.sleep(0.01)
+                if not egomotion.covers(t_s):
+                    no_pose += 1
+                    continue
+            last_t_s = t_s
+            obs = frontend.process(images, lead.seq, t_s)
+            timings.add_all(getattr(frontend, "timings", None))
+            reports = fusion.step(obs, lead.seq, t_s)
+            timings.add_all(getattr(fusion, "timings", None))
+            t0 = time.perf_counter()
+            items = writer.write(lead.seq, t_s, reports)
+            timings.add("write", time.perf_counter() - t0)
+            lat = time.monotonic() - lead.arrival_s
+            latency.add(lat)
+            frames += 1
+            if annotator is not None and frames % cfg.outputs.every_n == 0:
+                img = annotator.draw(images, items, t_s, lead.seq)
+                if server is not None:
+                    server.publish(img)
+                if video is not None:
+                    video.write(img)
+            if on_frame is not None:
+                on_frame(frames, {"latency_s": lat})
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        for g in grabbers:
+            g.stop()
+        writer.close()
+        if server is not None:
+            server.close()
+        if video is not None:
+            video.close()
+        wall = time.perf_counter() - t_start
+        summary = {
+            "mode": "live",
+            "frames": frames,
+            "tracks": len(writer.track_ids),
+            "wall_s": wall,
+            "frames_per_s": frames / wall if wall > 0 else None,
+            "interrupted": interrupted,
+            "latency": latency.summary(),
+            "stale_frames_dropped": {g.name: g.stale for g in grabbers},
+            "frames_grabbed": {g.name: g.grabbed for g in grabbers},
+            "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
+            "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
+            "frames_without_pose": no_pose,
+            "timings": timings.summary(),
+            "parameters": cfg.model_dump(mode="json"),
+        }
+        write_json(out / SUMMARY_NAME, summary)
+    if interrupted:
+        raise KeyboardInterrupt
+    return LiveResult(
+        out,
+        frames,
+        sum(g.stale for g in grabbers),
+        summary["latency"],
+        sum(g.reconnects for g in grabbers),
+        summary,
+    )

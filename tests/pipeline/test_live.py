@@ -1,0 +1,178 @@
+"""Live mode without a camera: paced replay (latency, stale frames), MJPEG on loopback read back as a live
+URL, reopening a stream that stops, a growing trajectory, a camera index that does not exist."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, write_video
+
+from estimators.egomotion import ConstantVelocity
+from estimators.errors import SourceError
+from pipeline.config import load_config
+from pipeline.live import GrowingTrajectory, MjpegServer, make_reader_factory, run_live
+
+
+class SlowFrontEnd(FakeFrontEnd):
+    def __init__(self, rig, delay_s):
+        super().__init__(rig)
+        self.delay_s = delay_s
+
+    def process(self, images, frame, t_s):
+        time.sleep(self.delay_s)
+        return super().process(images, frame, t_s)
+
+
+def _cfg(*sets):
+    return load_config(None, ["ego_motion.speed_mps=5", *sets])
+
+
+def _live(tmp_path, readers, front=None, cfg=None, **kw):
+    rig = mono_rig()
+    return run_live(
+        cfg or _cfg(),
+        tmp_path / "out",
+        rig=rig,
+        egomotion=ConstantVelocity(5.0),
+        frontend=front or FakeFrontEnd(rig),
+        fusion=FakeFusion(),
+        readers=readers,
+        **kw,
+    )
+
+
+def test_paced_replay_latency_and_video_times(tmp_path):
+    times = [k / 20 for k in range(10)]  # 20 frames/s, 0.45 s long
+    v = write_video(tmp_path / "cam0.mkv", 10, times=times)
+    t0 = time.monotonic()
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)])
+    wall = time.monotonic() - t0
+    assert wall >= 0.4  # real rate, not as fast as decoding
+    assert r.frames == 10 and r.stale == 0
+    recs = [json.loads(x) for x in (tmp_path / "out" / "tracks.jsonl").read_text().splitlines()]
+    assert [x["t_s"] for x in recs] == pytest.approx(times)  # a replayed file keeps its own times
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["latency"]["n"] == 10 and 0 <= s["latency"]["median_s"] <= s["latency"]["p99_s"] < 1.0
+
+
+def test_slow_pipeline_takes_newest_frame_and_counts_stale(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 12, times=[k / 30 for k in range(12)])
+    rig = mono_rig()
+    front = SlowFrontEnd(rig, delay_s=0.1)  # 10 frames/s against a 30 frames/s camera
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0")], front=front)
+    s = r.summary
+    assert r.stale > 0
+    assert r.frames + r.stale == s["frames_grabbed"]["cam0"] == 12  # every frame either used or dropped
+    seqs = [c[0] for c in front.calls]
+    assert seqs == sorted(seqs) and max(np.diff(seqs)) > 1  # skipped over stale frames
+
+
+def _publisher(server, stop, period_s=0.02):
+    k = 0
+    while not stop.is_set():
+        server.publish(np.full((H, W, 3), (8 * k) % 256, np.uint8))
+        k += 1
+        time.sleep(period_s)
+
+
+def test_mjpeg_served_on_loopback_and_read_back_as_a_live_url(tmp_path):
+    server = MjpegServer(port=0)
+    stop = threading.Event()
+    th = threading.Thread(target=_publisher, args=(server, stop), daemon=True)
+    th.start()
+    try:
+        assert server.url.startswith("http://127.0.0.1:")
+        r = _live(tmp_path, [make_reader_factory(server.url, "cam0", timeout_s=3.0)], max_frames=5)
+    finally:
+        stop.set()
+        server.close()
+    assert r.frames == 5
+    recs = [json.loads(x) for x in (tmp_path / "out" / "tracks.jsonl").read_text().splitlines()]
+    assert len(recs) == 5 and all(b["t_s"] > a["t_s"] for a, b in zip(recs, recs[1:], strict=False))
+
+
+def test_stream_that_stops_is_reopened_and_the_run_goes_on(tmp_path):
+    server = MjpegServer(port=0)
+    port = server.port
+    stop = threading.Event()
+    threading.Thread(target=_publisher, args=(server, stop), daemon=True).start()
+    state = {}
+
+    def on_frame(n, info):
+        if n == 3 and "restarted" not in state:  # the camera goes away for 0.3 s, then comes back
+            stop.set()
+            server.close()
+            time.sleep(0.3)
+            state["server"] = MjpegServer(port=port)
+            state["stop"] = threading.Event()
+            threading.Thread(target=_publisher, args=(state["server"], state["stop"]), daemon=True).start()
+            state["restarted"] = True
+
+    cfg = _cfg(
+        "live.reconnect_initial_s=0.05",
+        "live.reconnect_max_s=0.2",
+        "live.stall_timeout_s=0.5",
+        "live.duration_s=20",
+    )
+    try:
+        r = _live(
+            tmp_path,
+            [make_reader_factory(server.url, "cam0", timeout_s=1.0)],
+            cfg=cfg,
+            max_frames=8,
+            on_frame=on_frame,
+        )
+    finally:
+        stop.set()
+        if "server" in state:
+            state["stop"].set()
+            state["server"].close()
+    assert r.frames == 8
+    assert r.summary["reopened"]["cam0"] >= 1
+
+
+def test_mjpeg_preview_of_the_annotated_frames(tmp_path):
+    import urllib.request
+
+    v = write_video(tmp_path / "cam0.mkv", 20, times=[k / 20 for k in range(20)])
+    urls = []
+    got = {}
+
+    def on_frame(n, info):
+        if n == 3:
+            with urllib.request.urlopen(urls[0].replace("/stream.mjpg", "/frame.jpg"), timeout=2) as resp:
+                got["type"] = resp.headers["Content-Type"]
+                got["jpeg"] = resp.read()
+
+    cfg = _cfg("live.preview=mjpeg", "live.preview_port=0")
+    _live(
+        tmp_path,
+        [make_reader_factory(str(v), "cam0")],
+        cfg=cfg,
+        on_frame=on_frame,
+        on_event=lambda m: urls.append(m.split("MJPEG stream ")[1].rstrip(")")),
+    )
+    assert urls[0].startswith("http://127.0.0.1:")
+    assert got["type"] == "image/jpeg" and got["jpeg"][:2] == b"\xff\xd8"
+
+
+def test_growing_trajectory_is_reread_when_time_passes_its_end(tmp_path):
+    p = tmp_path / "t.tum"
+    p.write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    g = GrowingTrajectory(p)
+    assert g.covers(0.5) and not g.covers(1.5)
+    assert g.pose_at(0.5).t == pytest.approx([0.5, 0, 0])
+    with p.open("a") as f:
+        f.write("2.0 3 0 0 0 0 0 1\n3.0 4 0")  # the last line is still being written
+    assert g.covers(1.5) and not g.covers(2.5)
+    assert g.pose_at(1.5).t == pytest.approx([2.0, 0, 0])
+    assert g.velocity_at(1.5) == pytest.approx([2.0, 0, 0])
+
+
+def test_camera_index_that_does_not_exist(tmp_path):
+    with pytest.raises(SourceError, match="camera index 97: cannot be opened"):
+        _live(tmp_path, [make_reader_factory(97, "cam0")])
