@@ -61,6 +61,9 @@ class FeatureHistory:
     frame: np.ndarray
 
 
+POPCOUNT8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
+
+
 def lens_mask(model, margin_px: float = 3.0) -> np.ndarray:
     """(H, W) uint8 mask, 255 inside the lens's image circle shrunk by ``margin_px``, else 0.
 
@@ -459,10 +462,10 @@ class FeatureTracker:
         out = np.full(len(uv), -1, np.intp)
         if not near.any():
             return out
-        # Hamming distances of 32-byte descriptors: popcount of XOR
-        x = np.bitwise_xor(desc[:, None, :], self.lost_desc[None, :, :])
-        ham = np.unpackbits(x, axis=2).sum(axis=2)
-        ham = np.where(near, ham, 10**6)
+        # Hamming distances of 32-byte descriptors (popcount of XOR), for the near pairs only
+        ii, jj = np.nonzero(near)
+        ham = np.full(near.shape, 10**6, np.int64)
+        ham[ii, jj] = POPCOUNT8[np.bitwise_xor(desc[ii], self.lost_desc[jj])].sum(axis=1)
         taken: set[int] = set()
         for i in np.argsort(ham.min(axis=1)):
             j = int(np.argmin(ham[i]))

@@ -155,64 +155,115 @@ class ObstacleGrouper:
         rad_px = self._rad_per_px(ft)
         self.link_rad = self.link_px * rad_px
         self.max_radius_rad = self.max_radius_px * rad_px
+        cos_link, cos_r = np.cos(self.link_rad), np.cos(self.max_radius_rad)
         flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
+        fnorm = np.sqrt(np.einsum("ij,ij->i", flow, flow))
         b_prev, pvalid = ft.previous_bearing()
-        order = np.argsort(ids, kind="stable")
-        sids = ids[order]
-        assigned = np.full(n, -1, np.int64)
-        # 1. keep consistent members
-        for tr in self.tracks.values():
-            tr.seen = False
-            rows = self._rows_of(tr.members, sids, order)
-            if len(rows):
-                rows = self._prune(tr, rows, b, flow, fvalid)
-            tr.members = ids[rows]
-            assigned[rows] = tr.id
-        # 2. unassigned features join the track of their nearest member
-        free = np.flatnonzero((assigned < 0) & fvalid)
-        memb = np.flatnonzero(assigned >= 0)
+        tracks = list(self.tracks.values())
+        T = len(tracks)
+        rep = np.array([t.b_C for t in tracks]).reshape(T, 3)
+        tflow = np.array([t.flow_rad_s for t in tracks]).reshape(T, 3)
+        # owner[i]: index (into tracks) of the track feature i belonged to last frame, or -1
+        owner = np.full(n, -1, np.intp)
+        if T and n:
+            order = np.argsort(ids, kind="stable")
+            sids = ids[order]
+            lens = [len(t.members) for t in tracks]
+            if sum(lens):
+                mem = np.concatenate([t.members for t in tracks])
+                mem_t = np.repeat(np.arange(T), lens)
+                k = np.minimum(np.searchsorted(sids, mem), n - 1)
+                ok = sids[k] == mem
+                owner[order[k[ok]]] = mem_t[ok]
+        for t in tracks:
+            t.seen = False
+        # 1. members stay within max_radius of the representative bearing and move with the track
+        r = np.flatnonzero(owner >= 0)
+        if len(r):
+            far = np.einsum("ij,ij->i", b[r], rep[owner[r]]) < cos_r
+            owner[r[far]] = -1
+        for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
+            tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
+            sel = np.flatnonzero((owner >= 0) & fvalid)
+            if len(sel):
+                o = owner[sel]
+                d = np.linalg.norm(flow[sel] - tflow[o], axis=1)
+                thr = self.flow_abs + self.flow_rel * np.maximum(fnorm[sel], np.linalg.norm(tflow[o], axis=1))
+                owner[sel[(d >= loose * thr) & has_flow[o]]] = -1
+        tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
+        # 2. unassigned features with a flow join the track of their nearest member
+        free = np.flatnonzero((owner < 0) & fvalid)
+        memb = np.flatnonzero(owner >= 0)
         if len(free) and len(memb):
             cosd = b[free] @ b[memb].T
             j = np.argmax(cosd, axis=1)
-            near = cosd[np.arange(len(free)), j] > np.cos(self.link_rad)
-            for fi, jj, ok in zip(free, j, near, strict=True):
-                if not ok:
-                    continue
-                tr = self.tracks[int(assigned[memb[jj]])]
-                if float(b[fi] @ tr.b_C) < np.cos(self.max_radius_rad):
-                    continue
-                if fvalid[memb[jj]] and not self._agree(flow[fi], tr.flow_rad_s):
-                    continue
-                assigned[fi] = tr.id
-        for tr in self.tracks.values():
-            tr.members = ids[assigned == tr.id]
+            t_of = owner[memb[j]]
+            ok = cosd[np.arange(len(free)), j] > cos_link
+            ok &= np.einsum("ij,ij->i", b[free], rep[t_of]) > cos_r
+            fd = np.linalg.norm(flow[free] - tflow[t_of], axis=1)
+            thr = self.flow_abs + self.flow_rel * np.maximum(fnorm[free], np.linalg.norm(tflow[t_of], axis=1))
+            ok &= (fd < thr) | ~has_flow[t_of]
+            owner[free[ok]] = t_of[ok]
         # 3. new groups from the rest
-        free = np.flatnonzero((assigned < 0) & fvalid)
-        fresh: set[int] = set()
+        free = np.flatnonzero((owner < 0) & fvalid)
+        fresh = np.zeros(T, bool)
+        new_rep, new_flow = [], []
         for rows in self._components(free, b, flow):
             if len(rows) < self.min_features:
                 continue
-            tr = self._revive(b[rows], flow[rows])
-            if tr is None:
+            c = _normalise(b[rows].mean(0))
+            ti = self._revive(tracks, c, owner)
+            if ti is None:
                 tid = next(self._ids)
-                tr = ObstacleTrack(
-                    tid, ft.name, ids[rows], _normalise(b[rows].mean(0)), hits=0, label=self.label
-                )
+                tr = ObstacleTrack(tid, ft.name, ids[rows], c, hits=0, label=self.label)
                 self.tracks[tid] = tr
+                tracks.append(tr)
+                ti = len(tracks) - 1
+                fresh = np.append(fresh, True)
+                new_rep.append(c)
+                new_flow.append(flow[rows].mean(0))
             else:
-                tr.members = ids[rows]
-                tr.b_C = _normalise(b[rows].mean(0))
-            assigned[rows] = tr.id
-            fresh.add(tr.id)
-        # 4. representative bearing, sigma, life cycle
+                fresh[ti] = True
+                rep[ti] = c
+            owner[rows] = ti
+        if new_rep:
+            rep = np.concatenate([rep, np.array(new_rep)])
+            tflow = np.concatenate([tflow, np.array(new_flow)])
+        T = len(tracks)
+        tflow, _ = self._track_flow(owner, flow, fvalid, tflow, T)
+        # 4. representative bearing, sigma, members, life cycle
+        own = np.flatnonzero(owner >= 0)
+        o = owner[own]
+        cnt = np.bincount(o, minlength=T)
+        bsum = np.stack([np.bincount(o, b[own, k], T) for k in range(3)], 1)
+        mean_c = _normalise(bsum)
+        per = own[pvalid[own] & ~fresh[o]]
+        po = owner[per]
+        pcnt = np.bincount(po, minlength=T)
+        dsum = np.stack([np.bincount(po, b[per, k] - b_prev[per, k], T) for k in range(3)], 1)
+        # move with the members present in both frames: b_rep += mean(b_now - b_prev), then a
+        # gentle pull towards the member mean (gain centre_gain)
+        moved = _normalise(rep + dsum / np.maximum(pcnt, 1)[:, None])
+        moved = _normalise(moved + self.centre_gain * (mean_c - moved))
+        use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
+        new_rep_all = np.where(use_moved[:, None], moved, mean_c)
+        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b[own], new_rep_all[o]), -1.0, 1.0))
+        spread2 = np.bincount(o, ang * ang, T) / np.maximum(cnt, 1)
+        # sigma^2 = spread^2 / n + floor^2
+        sigma = np.sqrt(spread2 / np.maximum(cnt, 1) + (self.sigma_floor_px * rad_px) ** 2)
+        srt = own[np.argsort(o, kind="stable")]
+        groups = np.split(srt, np.cumsum(cnt)[:-1]) if T else []
+        keep_min = max(2, self.min_features // 2)
         seen, lost = [], []
-        for tid in list(self.tracks):
-            tr = self.tracks[tid]
-            rows = np.flatnonzero(assigned == tid)
-            if len(rows) >= max(2, self.min_features // 2):
+        for ti, tr in enumerate(tracks):
+            if cnt[ti] >= keep_min:
+                rows = groups[ti]
                 tr.members = ids[rows]
-                self._update_rep(tr, rows, b, b_prev, pvalid & (tid not in fresh), flow, fvalid, rad_px)
+                tr.member_b_C = b[rows]
+                tr.b_C = new_rep_all[ti]
+                tr.flow_rad_s = tflow[ti]
+                tr.sigma_rad = float(sigma[ti])
                 tr.hits += 1
                 tr.missed = 0
                 tr.seen = True
@@ -221,17 +272,30 @@ class ObstacleGrouper:
                 seen.append(tr)
             else:
                 tr.members = np.zeros(0, np.int64)
+                tr.member_b_C = np.zeros((0, 3))
                 tr.missed += 1
                 if tr.missed > self.max_missed:
                     tr.status = "lost"
                     lost.append(tr)
-                    del self.tracks[tid]
+                    del self.tracks[tr.id]
         if seen:
             uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
-            for t, u, o in zip(seen, uv, ok, strict=True):
-                if o:
+            for t, u, v in zip(seen, uv, ok, strict=True):
+                if v:
                     t.uv = u
         return seen, lost
+
+    @staticmethod
+    def _track_flow(
+        owner: np.ndarray, flow: np.ndarray, fvalid: np.ndarray, old: np.ndarray, T: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Mean member flow per track (T,3) where >= 3 members have a flow (else ``old``), and that mask."""
+        sel = np.flatnonzero((owner >= 0) & fvalid)
+        o = owner[sel]
+        cnt = np.bincount(o, minlength=T)
+        sums = np.stack([np.bincount(o, flow[sel, k], T) for k in range(3)], 1) if T else np.zeros((0, 3))
+        has = cnt >= 3
+        return np.where(has[:, None], sums / np.maximum(cnt, 1)[:, None], old), has
 
     # ----------------------------------------------------------------------------- helpers
     def _flows(
@@ -255,33 +319,6 @@ class ObstacleGrouper:
         flow[valid] = (ft.b_C[valid] - b_then[valid]) / dt[valid, None]
         return flow, valid
 
-    @staticmethod
-    def _rows_of(member_ids: np.ndarray, sids: np.ndarray, order: np.ndarray) -> np.ndarray:
-        """Rows (into the live features) of the given feature ids that are still alive."""
-        if not len(member_ids) or not len(sids):
-            return np.zeros(0, np.intp)
-        k = np.minimum(np.searchsorted(sids, member_ids), len(sids) - 1)
-        return order[k[sids[k] == member_ids]]
-
-    def _agree(self, f1: np.ndarray, f2: np.ndarray) -> bool:
-        d = float(np.linalg.norm(f1 - f2))
-        return d < self.flow_abs + self.flow_rel * max(float(np.linalg.norm(f1)), float(np.linalg.norm(f2)))
-
-    def _prune(
-        self, tr: ObstacleTrack, rows: np.ndarray, b: np.ndarray, flow: np.ndarray, fvalid: np.ndarray
-    ) -> np.ndarray:
-        rows = rows[np.sum(b[rows] * tr.b_C, axis=1) > np.cos(self.max_radius_rad)]
-        fv = rows[fvalid[rows]]
-        if len(fv) >= 3:
-            med = np.median(flow[fv], axis=0)
-            tr.flow_rad_s = med
-            d = np.linalg.norm(flow[rows] - med, axis=1)
-            thr = self.flow_abs + self.flow_rel * np.maximum(
-                np.linalg.norm(flow[rows], axis=1), np.linalg.norm(med)
-            )
-            rows = rows[~fvalid[rows] | (d < thr)]
-        return rows
-
     def _components(self, free: np.ndarray, b: np.ndarray, flow: np.ndarray) -> list[np.ndarray]:
         """Connected components (union-find) of the free features, cut to max_radius_rad pieces."""
         m = len(free)
@@ -293,20 +330,18 @@ class ObstacleGrouper:
         d = np.linalg.norm(ff[:, None, :] - ff[None, :, :], axis=2)
         agree = d < self.flow_abs + self.flow_rel * np.maximum(fn[:, None], fn[None, :])
         adj = close & agree
-        parent = np.arange(m)
-
-        def find(i: int) -> int:
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = parent[i]
-            return i
-
-        ii, jj = np.nonzero(np.triu(adj, 1))
-        for i, j in zip(ii.tolist(), jj.tolist(), strict=True):
-            ri, rj = find(i), find(j)
-            if ri != rj:
-                parent[rj] = ri
-        roots = np.array([find(i) for i in range(m)])
+        # connected components by min-label propagation: each feature takes the smallest label
+        # among its neighbours until nothing changes (at most the graph's diameter rounds)
+        labels = np.arange(m)
+        big = m + 1
+        for _ in range(m):
+            nxt = np.where(adj, labels[None, :], big).min(axis=1)
+            nxt = np.minimum(nxt, labels)
+            nxt = nxt[nxt]  # pointer jumping speeds it up
+            if np.array_equal(nxt, labels):
+                break
+            labels = nxt
+        roots = labels
         out: list[np.ndarray] = []
         cos_r = np.cos(self.max_radius_rad)
         for r in np.unique(roots):
@@ -329,53 +364,22 @@ class ObstacleGrouper:
                 comp = np.setdiff1d(comp, piece)
         return out
 
-    def _revive(self, bs: np.ndarray, fs: np.ndarray) -> ObstacleTrack | None:
-        """A coasting track (unseen lately) whose predicted bearing is near this group, or None."""
-        c = _normalise(bs.mean(0))
-        best, best_a = None, self.max_radius_rad
-        for tr in self.tracks.values():
-            if tr.seen or tr.missed == 0 or len(tr.members):
+    def _revive(self, tracks: list[ObstacleTrack], c: np.ndarray, owner: np.ndarray) -> int | None:
+        """Index of a coasting track (unseen last frame, no members now) whose bearing is within
+        max_radius of the group centre ``c`` (3,), or None."""
+        taken = set(np.unique(owner[owner >= 0]).tolist())
+        best, best_cos = None, np.cos(self.max_radius_rad)
+        for ti, tr in enumerate(tracks):
+            if tr.missed == 0 or ti in taken or tr.hits == 0:
                 continue
-            a = float(angle_between(c, tr.b_C))
-            if a < best_a:
-                best, best_a = tr, a
+            cs = float(c @ tr.b_C)
+            if cs > best_cos:
+                best, best_cos = ti, cs
         return best
 
     def _rad_per_px(self, ft: FeatureTracker) -> float:
         cx, cy, r = ft.model.image_circle()
         return float(ft.model.max_angle_rad / max(r, 1.0))
-
-    def _update_rep(
-        self,
-        tr: ObstacleTrack,
-        rows: np.ndarray,
-        b: np.ndarray,
-        b_prev: np.ndarray,
-        pvalid: np.ndarray,
-        flow: np.ndarray,
-        fvalid: np.ndarray,
-        rad_px: float,
-    ) -> None:
-        mean_c = _normalise(b[rows].mean(0))
-        persist = rows[pvalid[rows]]
-        if len(persist):
-            # move with the members present in both frames: b_rep += mean(b_now - b_prev)
-            delta = (b[persist] - b_prev[persist]).mean(0)
-            rep = _normalise(tr.b_C + delta)
-            rep = _normalise(rep + self.centre_gain * (mean_c - rep))
-        else:
-            rep = mean_c
-        if np.dot(rep, mean_c) < np.cos(self.max_radius_rad):
-            rep = mean_c
-        tr.b_C = rep
-        fv = rows[fvalid[rows]]
-        if len(fv):
-            tr.flow_rad_s = np.median(flow[fv], axis=0)
-        ang = np.arccos(np.clip(b[rows] @ rep, -1.0, 1.0))
-        spread2 = float(ang @ ang) / len(rows)
-        # sigma^2 = spread^2 / n + floor^2
-        tr.sigma_rad = float(np.sqrt(spread2 / len(rows) + (self.sigma_floor_px * rad_px) ** 2))
-        tr.member_b_C = b[rows]
 
 
 class BoxTracker:
