@@ -724,8 +724,9 @@ def format_table(rows: Sequence[Row]) -> str:
     return "\n".join(out)
 
 
-def machine_info() -> dict[str, Any]:
-    """What ran the benchmark: CPU model and count, memory, Python, OpenCV, numpy, torch/CUDA."""
+def machine_info(probe_torch: bool = True) -> dict[str, Any]:
+    """What ran the benchmark: CPU model and count, memory, Python, OpenCV, numpy, torch/CUDA
+    (``probe_torch=False`` skips importing torch, which takes seconds)."""
     import cv2
 
     cpu = None
@@ -753,6 +754,8 @@ def machine_info() -> dict[str, Any]:
         "opencv": cv2.__version__,
         "numpy": np.__version__,
     }
+    if not probe_torch:
+        return info
     try:
         import torch
 
@@ -809,16 +812,16 @@ class BenchPlan:
     rigs: tuple[str, ...] = ("mono", "stereo")
     threads: tuple[int | None, ...] = (1, None)
     render_frames: int = 300
-    measure_frames: int = 300
+    measure_frames: int = 200
     live_frames: int = 300
     scaling_resolution: tuple[int, int] = (1280, 720)
     obstacle_counts: tuple[int, ...] = (1, 10, 50)
     feature_counts: tuple[int, ...] = (100, 500, 2000)
-    scaling_frames: int = 200
+    scaling_frames: int = 150
     memory_resolution: tuple[int, int] = (640, 480)
     memory_frames: int = 10_000
     memory_checkpoints: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000)
-    detector_frames: int = 300
+    detector_frames: int = 200
     base_obstacles: int = 8
 
 

@@ -218,5 +218,86 @@ def test_table_and_json_report(tmp_path):
 
 
 def test_machine_info_names_the_software():
-    info = bench.machine_info()
+    info = bench.machine_info(probe_torch=False)
     assert info["opencv"] == cv2.__version__ and info["python"] == sys.version.split()[0]
+
+
+# ------------------------------------------------------------------------------------ plan, scenes
+def test_quick_plan_is_small_and_full_plan_covers_the_issue():
+    q, f = bench.make_plan(True), bench.make_plan(False)
+    assert q.quick and q.memory_frames < 1000 and len(q.resolutions) == 1
+    assert f.resolutions == ((640, 480), (1280, 720), (1920, 1080))
+    assert f.rigs == ("mono", "stereo") and f.threads == (1, None)
+    assert f.obstacle_counts == (1, 10, 50) and f.feature_counts == (100, 500, 2000)
+    assert f.memory_frames == 10_000 and f.memory_checkpoints[0] == 1_000
+    # thesis Table 4.1: 30 fps at 1080p, 60 at 720p, 100 at 480p
+    assert [bench.camera_rate_hz(r) for r in f.resolutions] == [100.0, 60.0, 30.0]
+
+
+@pytest.mark.parametrize("n", [1, 10, 50])
+def test_bench_scenario_validates_and_keeps_the_corridor_clear(n):
+    from pipeline.sim.scene import scenario_from_dict
+
+    d = bench.bench_scenario("s", (640, 480), "stereo", 100.0, 300, n)
+    scn = scenario_from_dict(d)
+    assert len(scn.obstacles) == n and scn.n_frames == 300 and scn.rig.kind == "stereo"
+    for o in scn.obstacles:  # the observer flies along x at y = 0: nothing may sit in its way
+        assert abs(o.position_m[1]) >= 2.5 and o.position_m[0] >= 12.0
+
+
+# -------------------------------------------------------------------------------- end to end (CLI)
+def _have_pipeline() -> bool:
+    try:
+        import pipeline.live  # noqa: F401
+        import pipeline.run  # noqa: F401
+        import pipeline.sim.writer  # noqa: F401
+        import trackers.frontend  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _have_pipeline(), reason="simulator / front end / run loop not importable")
+def test_bench_quick_throughput_end_to_end(tmp_path):
+    from typer.testing import CliRunner
+
+    from pipeline.cli import app
+
+    r = CliRunner().invoke(app, ["bench", "--quick", "--only", "throughput", "--out", str(tmp_path / "o"),
+                                 "--cache", str(tmp_path / "c")])
+    assert r.exit_code == 0, r.output
+    assert "pipeline throughput" in r.output and "decode-only" in r.output and "stage (ms/frame)" in r.output
+    doc = json.loads((tmp_path / "o" / "bench.json").read_text())
+    assert doc["schema"] == bench.SCHEMA and doc["meta"]["quick"] is True
+    tp = doc["sections"]["throughput"]
+    assert {(t["rig"], t["threads"]) for t in tp} == {("mono", 1), ("stereo", 1)}
+    for t in tp:
+        assert "error" not in t["pipeline"], t["pipeline"]
+        assert t["pipeline"]["frames"] == bench.make_plan(True).measure_frames
+        assert {"decode", "detect", "track", "estimate", "fuse", "write"} <= set(t["pipeline"]["stages"])
+        assert len(t["pipeline"]["pinning"]["affinity"]) == 1
+        # the run wrote one tracks.jsonl line per frame
+        lines = (Path(t["pipeline"]["out"]) / "tracks.jsonl").read_text().splitlines()
+        assert len(lines) == t["pipeline"]["frames"]
+    rows = {(row["section"].split(" (")[0], row["name"]): row for row in doc["rows"]}
+    assert any(k[0] == "pipeline throughput" and v["ratio"] is not None for k, v in rows.items())
+    # the clips were rendered into the cache, complete
+    clips = sorted((tmp_path / "c").iterdir())
+    assert len(clips) == 2
+    assert all((c / ".complete").is_file() and (c / "camchain.yaml").is_file() for c in clips)
+
+
+@pytest.mark.heavy
+@pytest.mark.skipif(not _have_pipeline(), reason="simulator / front end / run loop not importable")
+def test_bench_quick_everything_end_to_end(tmp_path):
+    import subprocess
+
+    cmd = [sys.executable, "-m", "pipeline.cli", "bench", "--quick", "--out", str(tmp_path / "o"),
+           "--cache", str(tmp_path / "c")]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr[-2000:]
+    for part in ("live latency", "cost vs obstacles", "cost vs features", "memory", "detectors"):
+        assert part in r.stdout
+    doc = json.loads((tmp_path / "o" / "bench.json").read_text())
+    assert set(doc["sections"]) >= {"throughput", "live", "scaling", "memory", "detectors"}
+    assert doc["sections"]["live"][0]["result"].get("latency", {}).get("n", 0) > 0
