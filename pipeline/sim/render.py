@@ -90,14 +90,18 @@ def to_uint8(img: np.ndarray, gain: float = 1.0, noise_sigma: float = 0.0,
     """Float image in [0, 1] -> uint8 with ``gain`` and Gaussian noise of ``noise_sigma`` grey levels.
 
     mask: (H, W) bool of the lens circle; noise is added inside it only (outside stays black)."""
+    import cv2
+
     x = img * np.float32(255.0 * gain)
     if noise_sigma > 0:
         rng = rng or np.random.default_rng(0)
-        n = rng.normal(0.0, noise_sigma, size=x.shape).astype(np.float32)
+        n = rng.standard_normal(size=x.shape, dtype=np.float32)
+        n *= np.float32(noise_sigma)
         if mask is not None:
             n *= mask[..., None] if x.ndim == 3 else mask
         x += n
-    return np.clip(np.rint(x), 0, 255).astype(np.uint8)
+        np.maximum(x, np.float32(0), out=x)
+    return cv2.convertScaleAbs(x)  # round half to even-free, saturating to [0, 255]
 
 
 def lens_mask(renderer: Renderer, name: str) -> np.ndarray:

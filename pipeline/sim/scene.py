@@ -147,6 +147,7 @@ class GroundSpec(_Model):
     cell_m: float = Field(default=1.0, gt=0)
     seed: int = 7
     colour: Colour = (0.55, 0.65, 0.6)
+    contrast: float = Field(default=0.45, gt=0, le=1)
 
 
 class SkySpec(_Model):

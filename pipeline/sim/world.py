@@ -280,8 +280,10 @@ class World:
         sky = hits.part == -1
         col[sky] = self._sky(d_W[sky])
         shared_origin = o_W.ndim == 1
+        on_obj = np.nonzero(hits.part >= 0)[0]  # objects usually cover a small share of the rays
+        part_on = hits.part[on_obj]
         for k, (pl, part) in enumerate(flat):
-            idx = np.nonzero(hits.part == k)[0]
+            idx = on_obj[part_on == k]
             if len(idx) == 0:
                 continue
             if part.emissive is not None:
@@ -297,9 +299,9 @@ class World:
             seed = tex.seed if tex.seed is not None else self.scn.seed * 1000 + pl.spec.id
             fade = None
             if pix_rad > 0:
-                fade = np.clip(2.0 - hits.t_m[idx] * pix_rad / (cell / 3.0) * 2.0, 0.25, 1.0)
+                fade = _clamp(2.0 - hits.t_m[idx] * (pix_rad / (cell / 3.0) * 2.0), 0.25, 1.0)
             v = checker_value(q_O, cell, seed, tex.contrast, fade)
-            lam = 0.45 + 0.55 * np.clip(n_W @ _SUN_W, 0.0, 1.0)  # Lambert with ambient
+            lam = 0.45 + 0.55 * _clamp(n_W @ _SUN_W, 0.0, 1.0)  # Lambert with ambient
             col[idx] = (v * lam).astype(np.float32)[:, None] * np.asarray(tex.colour, np.float32)
         gidx = np.nonzero(hits.part == -2)[0]
         if len(gidx):
@@ -309,21 +311,27 @@ class World:
             fade = None
             if pix_rad > 0:
                 # footprint of a pixel on the plane grows with range and obliquity
-                foot = hits.t_m[gidx] * pix_rad / np.maximum(np.abs(d_W[gidx, 2]), 0.05)
-                fade = np.clip(1.5 - foot / g.cell_m * 1.5, 0.0, 1.0)
-            v = checker_value(xy, g.cell_m, g.seed, 0.7, fade)
+                obl = np.maximum(np.abs(d_W[gidx, 2]), np.float32(0.05))
+                foot = hits.t_m[gidx] * np.float32(pix_rad) / obl
+                fade = _clamp(1.5 - foot * np.float32(1.5 / g.cell_m), 0.0, 1.0)
+            v = checker_value(xy, g.cell_m, g.seed, g.contrast, fade)
             lam = 0.45 + 0.55 * float(_SUN_W[2])
             col[gidx] = (v * lam)[:, None] * np.asarray(g.colour, np.float32)
         return col
 
     def _sky(self, d_W: np.ndarray) -> np.ndarray:
         s = self.scn.sky
-        z = np.clip(d_W[:, 2], -1.0, 1.0).astype(np.float32)[:, None]
-        up = np.sqrt(np.clip(z, 0, 1))  # gradient from the horizon to the zenith
+        z = d_W[:, 2:3].astype(np.float32)
         zen, hor, nad = (np.asarray(c, np.float32) for c in (s.zenith, s.horizon, s.nadir))
-        above = hor + (zen - hor) * up
-        below = hor + (nad - hor) * np.sqrt(np.clip(-z, 0, 1))
-        return np.where(z >= 0, above, below).astype(np.float32)
+        # gradient horizon -> zenith above (sqrt of the elevation sine), horizon -> nadir below
+        up = np.sqrt(np.maximum(z, np.float32(0)))
+        down = np.sqrt(np.maximum(-z, np.float32(0)))
+        return hor + (zen - hor) * up + (nad - hor) * down
+
+
+def _clamp(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """np.clip without its overhead (float32 kept)."""
+    return np.minimum(np.maximum(x, x.dtype.type(lo)), x.dtype.type(hi))
 
 
 def _default_cell(spec: ObstacleSpec) -> float:
@@ -379,12 +387,19 @@ def _ray_box(o: np.ndarray, d: np.ndarray, h: np.ndarray) -> np.ndarray:
 
 
 def _ray_cyl(o: np.ndarray, d: np.ndarray, r: float, height: float) -> np.ndarray:
-    # side: (ox + t dx)^2 + (oy + t dy)^2 = r^2 with 0 <= z <= height; caps z = 0 and z = height
+    # side: (ox + t dx)^2 + (oy + t dy)^2 = r^2 with 0 <= z <= height; caps z = 0 and z = height.
+    # A ray that meets a cap also meets the infinite cylinder (disc >= 0) unless it is vertical,
+    # so only those rays are solved.
     o2 = np.broadcast_to(o, d.shape)
     a = d[:, 0] ** 2 + d[:, 1] ** 2
     b = o2[:, 0] * d[:, 0] + o2[:, 1] * d[:, 1]
     c = o2[:, 0] ** 2 + o2[:, 1] ** 2 - r * r
     disc = b * b - a * c
+    out = np.full(len(d), np.inf, dtype=d.dtype)
+    sel = np.nonzero((disc >= 0) | (a < 1e-12))[0]
+    if len(sel) == 0:
+        return out
+    a, b, disc, o2, d = a[sel], b[sel], disc[sel], o2[sel], d[sel]
     sq = np.sqrt(np.maximum(disc, 0))
     with np.errstate(divide="ignore", invalid="ignore"):
         ts = []
@@ -398,7 +413,8 @@ def _ray_cyl(o: np.ndarray, d: np.ndarray, r: float, height: float) -> np.ndarra
             y = o2[:, 1] + tt * d[:, 1]
             ok = (tt > _EPS_T) & (x * x + y * y <= r * r)
             ts.append(np.where(ok, tt, np.inf))
-    return np.minimum.reduce(ts)
+    out[sel] = np.minimum.reduce(ts)
+    return out
 
 
 def _normal_O(part: Part, q_O: np.ndarray) -> np.ndarray:
