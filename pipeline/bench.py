@@ -354,14 +354,17 @@ def looped_frames(videos: Mapping[str, str | Path], n_frames: int, fps: float | 
 def decode_only(videos: Mapping[str, str | Path], n_frames: int) -> dict[str, Any]:
     """Read and convert to grey ``n_frames`` steps of all cameras, nothing else: the decoder floor.
 
-    Returns ``{"frames", "wall_s", "fps", "per_frame": Stats json}``; ``fps`` counts multi-camera
-    steps per second (a stereo step decodes two images)."""
+    Returns ``{"frames", "wall_s", "fps", "cpu_s", "cpu_fps", "per_frame": Stats json}``; ``fps``
+    counts multi-camera steps per wall-clock second (a stereo step decodes two images), ``cpu_fps``
+    per second of this process's CPU time (all its threads), which other load on the machine does
+    not change."""
     clock: list[float] = []
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for f in looped_frames(videos, n_frames):
         clock.append(f.decode_s)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {"frames": len(clock), "wall_s": wall, "fps": len(clock) / wall if wall > 0 else None,
+            "cpu_s": cpu, "cpu_fps": len(clock) / cpu if cpu > 0 else None,
             "per_frame": Stats.from_samples(clock).to_json()}
 
 
@@ -488,6 +491,8 @@ class LoopingSource:
         self.memory = MemorySampler(checkpoints)
         self.t_warm: float | None = None
         self.t_end: float | None = None
+        self.cpu_warm: float | None = None
+        self.cpu_end: float | None = None
         self.sets = 0
 
     def __iter__(self):
@@ -496,17 +501,23 @@ class LoopingSource:
         for k, f in enumerate(looped_frames(self.videos, self.n_frames, self.fps, grey=False)):
             self.memory.after_frame(k)
             if k == self.warmup:
-                self.t_warm = time.perf_counter()
+                self.t_warm, self.cpu_warm = time.perf_counter(), time.process_time()
             self.sets = k + 1
             yield FrameSet(f.frame, f.t_s, {c: Frame(f.frame, f.t_s, c, im) for c, im in f.images.items()})
         self.memory.after_frame(self.sets)
-        self.t_end = time.perf_counter()
+        self.t_end, self.cpu_end = time.perf_counter(), time.process_time()
 
     def steady_fps(self) -> float | None:
         """Frame sets per second after the warm-up (None when the run was shorter)."""
         if self.t_warm is None or self.t_end is None or self.t_end <= self.t_warm:
             return None
         return (self.sets - self.warmup) / (self.t_end - self.t_warm)
+
+    def steady_cpu_fps(self) -> float | None:
+        """Frame sets per second of process CPU time after the warm-up (load-independent)."""
+        if self.cpu_warm is None or self.cpu_end is None or self.cpu_end <= self.cpu_warm:
+            return None
+        return (self.sets - self.warmup) / (self.cpu_end - self.cpu_warm)
 
     def close(self) -> None:
         pass
@@ -592,7 +603,7 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     sm = res.summary
     return {
         "frames": res.frames, "wall_s": res.wall_s, "fps_all": res.frames_per_s,
-        "fps": src.steady_fps() or res.frames_per_s, "warmup_frames": warm,
+        "fps": src.steady_fps() or res.frames_per_s, "cpu_fps": src.steady_cpu_fps(), "warmup_frames": warm,
         "stages": sm.get("timings", {}), "per_frame": sm.get("per_frame", {}),
         "observations_mean": float(np.mean(front.observations)) if front.observations else 0.0,
         "grouped_features_mean": float(np.mean(front.features)) if front.features else 0.0,
@@ -620,7 +631,9 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "live": {"cameras": vids, "paced": True},
         "outputs": {"progress": False},
     })
+    c0 = time.process_time()
     res = run_live(cfg, task["out"], max_frames=int(task["frames"]))
+    cpu = time.process_time() - c0
     sm = res.summary
     grabbed = sm.get("frames_grabbed") or {}
     lead = next(iter(grabbed.values()), None)
@@ -630,6 +643,7 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "stale_by_camera": sm.get("stale_frames_dropped"), "grabbed_by_camera": grabbed,
         "decode_median_s": dec["per_frame"]["median_s"], "decode": dec, "stages": sm.get("timings", {}),
         "rate_hz": task.get("rate_hz"), "wall_s": sm.get("wall_s"), "fps": sm.get("frames_per_s"),
+        "cpu_s": cpu, "cpu_busy": cpu / sm["wall_s"] if sm.get("wall_s") else None,
     }
 
 
@@ -706,7 +720,8 @@ def format_table(rows: Sequence[Row]) -> str:
     body: list[tuple[str, ...]] = []
     out: list[str] = []
     section = None
-    for r in rows:
+    order = {sec: i for i, sec in reversed(list(enumerate(r.section for r in rows)))}
+    for r in sorted(rows, key=lambda r: order[r.section]):  # grouped by section, stable within
         if r.section != section:
             body.append(("## " + r.section, "", "", "", ""))
             section = r.section
@@ -1016,6 +1031,13 @@ class BenchRun:
                         target=None if target is None else f">= {target:.0f} fps",
                         met=None if target is None or pfps is None else pfps >= target,
                         note=pipe.get("error", "")))
+                    if th == 1:
+                        cd, cp = dec.get("cpu_fps"), pipe.get("cpu_fps")
+                        self.rows.append(Row(
+                            "pipeline frames per CPU-second (1 core; what other load on the machine "
+                            "does not change)", name, cp, "fps", "decode-only per CPU-s", cd, inverse=True,
+                            target=None if target is None else f">= {target:.0f} fps",
+                            met=None if target is None or cp is None else cp >= target))
                     if tuple(res) == (1280, 720) and rig == "mono" and th == 1 and dfps and pfps:
                         ratio = dfps / pfps
                         self.rows.append(Row(
@@ -1187,6 +1209,29 @@ class BenchRun:
                                  "orb", orb.get("fps"), inverse=True, note=r.get("error", "")))
         self.sections["detectors"] = out
 
+    def prepare(self, parts: Sequence[str]) -> None:
+        """Render (or find in the cache) every clip the parts need, before any measurement, so that no
+        rendering runs between measurements."""
+        p = self.plan
+        need: list[tuple[tuple[int, int], str, int | None]] = []
+        if "throughput" in parts:
+            need += [(r, rig, None) for r in p.resolutions for rig in p.rigs]
+        if "live" in parts:
+            need += [(r, "mono", None) for r in p.resolutions]
+        if "scaling" in parts:
+            need += [(p.scaling_resolution, "mono", n) for n in (*p.obstacle_counts, None)]
+        if "memory" in parts:
+            need.append((p.memory_resolution, "mono", None))
+        if "detectors" in parts:
+            need.append((p.resolutions[0], "mono", None))
+        seen = set()
+        for r, rig, n in need:
+            if (r, rig, n) in seen:
+                continue
+            seen.add((r, rig, n))
+            self.log(f"[bench] clip {_res(r)} {rig} {n if n is not None else p.base_obstacles} obstacles ...")
+            self.clip(r, rig, n)
+
     # --------------------------------------------------------------------------------- driver
     def run_all(self, only: Sequence[str] | None = None) -> None:
         parts = {"throughput": self.throughput, "live": self.live, "scaling": self.scaling,
@@ -1195,6 +1240,12 @@ class BenchRun:
             if name not in parts:
                 raise ConfigError(f"bench: unknown part {name!r}; expected one of {', '.join(parts)}")
         t0 = time.perf_counter()
+        try:
+            self.prepare([n for n in parts if not only or n in only])
+        except FisheyeDesError as e:
+            self.notes.append(f"rendering clips: {e}")
+            self.log(f"[bench] rendering failed: {e}")
+        self.sections["render_wall_s"] = time.perf_counter() - t0
         for name, fn in parts.items():
             if only and name not in only:
                 continue
