@@ -17,8 +17,10 @@ Why filterpy's ``ExtendedKalmanFilter`` (and not the UKF)
     * It is ~5x cheaper per update than the UKF (matters with tens of tracks at 30 fps).
 
 Process model (constant velocity, continuous white-noise acceleration of spectral density q):
-    F = [[I, dt I], [0, I]],   Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]],   q = a^2 * 1 s
-so that the velocity's random walk reaches ``a`` m/s after one second. Two hypotheses:
+    F = [[I, dt I], [0, I]],   Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]],   q = a^2 tau
+with tau = ``accel_time_s``: the velocity changes by about a * tau over tau (Bar-Shalom, Li and
+Kirubarajan 2001, sec. 6.2.2: sqrt(q T) ~ a_max T, with a fixed time scale tau instead of the frame
+interval, so that Q does not depend on the frame rate). Two hypotheses:
     * ``moving`` (a track any stereo fix has fed): ``a = max_accel_mps2``, velocity prior from the
       max speed. Velocity is observable from successive stereo fixes and is reported.
     * ``static`` (mono-only tracks): ``a = static_accel_mps2`` and a tight zero-mean velocity prior.
@@ -59,8 +61,8 @@ Bounds under bearing noise: the exact geometric interval of two *noisy* rays can
 Ray a is projected into the epipolar plane of (baseline, ray b) (a superset: for points in that
 plane the distance to the projected ray is never larger), and ray b is turned in that plane by
 0 and +-delta, delta = ``bounds_noise_sigmas`` * sqrt(sigma_a^2 + sigma_b^2); the reported interval
-is the union of the three. Intervals from two baselines (the oldest sighting in the window and
-one about half as old) are intersected: each must hold the truth.
+is the union of them. The earlier ray is the oldest sighting in the baseline window (the longest
+time, so the widest motion allowance, but also the longest baseline).
 """
 
 from __future__ import annotations
@@ -92,10 +94,14 @@ class FusionSettings:
         max_speed_mps: largest obstacle speed (m/s) the bounds allow; None = the drone's own speed at
             the two sightings (the thesis's assumption, sec. 3.3.2). Default None.
         max_accel_mps2: largest obstacle acceleration (m/s^2), the process noise of moving
-            (stereo-fed) tracks. Default 3.0.
+            (stereo-fed) tracks. Default 2.0.
+        accel_time_s: time scale tau (s) of the process noise, q = a^2 tau. Default 0.1.
         static_accel_mps2: process noise (m/s^2) of the stationary hypothesis of mono-only tracks.
-            Default 0.02.
-        static_velocity_sigma_mps: velocity prior sigma (m/s) of a mono-initialised track. Default 0.02.
+            Default 0.005. Small on purpose: a bearing-only track's lateral sigma is millimetres, so
+            any larger velocity allowance makes the filter under-confident (NEES well below its dof);
+            raise it when the front end's representative point drifts over the obstacle.
+        static_velocity_sigma_mps: velocity prior sigma (m/s) of a mono-initialised track.
+            Default 0.002.
         velocity_prior_sigma_mps: velocity prior sigma (m/s) of a stereo-initialised track; None =
             the max speed (or the drone's speed, at least 1 m/s). Default None.
         bearing_sigma_floor_rad: smallest bearing sigma used (rad), whatever the front end says.
@@ -117,9 +123,10 @@ class FusionSettings:
     """
 
     max_speed_mps: float | None = None
-    max_accel_mps2: float = 3.0
-    static_accel_mps2: float = 0.02
-    static_velocity_sigma_mps: float = 0.02
+    max_accel_mps2: float = 2.0
+    accel_time_s: float = 0.1
+    static_accel_mps2: float = 0.005
+    static_velocity_sigma_mps: float = 0.002
     velocity_prior_sigma_mps: float | None = None
     bearing_sigma_floor_rad: float = 5e-4
     gate_probability: float = 0.999
@@ -146,7 +153,7 @@ class FusionSettings:
                 "FusionSettings.gate_probability: expected a probability in (0, 1), "
                 f"got {self.gate_probability}"
             )
-        positive = ("baseline_max_age_s", "lost_after_s", "bearing_sigma_floor_rad",
+        positive = ("baseline_max_age_s", "lost_after_s", "bearing_sigma_floor_rad", "accel_time_s",
                     "bounds_pseudo_sigma_frac")
         for name in positive:
             if getattr(self, name) <= 0:
@@ -420,36 +427,20 @@ class ObstacleFusion:
         return best, tri
 
     def _update_bounds(self, tr: _Track, sg: _Sighting) -> None:
-        """Moving-obstacle bounds of the current sighting against the oldest and a middle one."""
+        """Moving-obstacle bounds of the current sighting against the oldest one in the window."""
         tr.bounds, tr.bounds_reason = None, None
         if not tr.history:
             tr.bounds_reason = "no earlier sighting yet"
             return
-        n = len(tr.history)
-        picks = {0, n // 2} if n > 2 else {0}
-        got: list[geometry.RangeBounds] = []
-        reason = None
-        vb = sg.views[0]
-        for i in sorted(picks):
-            h = tr.history[i]
-            va = h.views[0]
-            D = self._max_speed(h.t_s, sg.t_s) * (sg.t_s - h.t_s)  # eq. 3.11-3.13: FC = GC = v dt
-            delta = self.settings.bounds_noise_sigmas * math.hypot(va.sigma_rad, vb.sigma_rad)
-            r = _noisy_bounds(va.c_W, va.b_W, vb.c_W, vb.b_W, D, sg.o_W, delta)
-            if isinstance(r, geometry.RangeBounds):
-                got.append(r)
-            else:
-                reason = r.reason
-        if not got:
-            tr.bounds_reason = reason or "bounds unobservable"
-            return
-        lo = max(r.range_min_m for r in got)
-        his = [r.range_max_m for r in got if r.range_max_m is not None]
-        hi = min(his) if his else None
-        if hi is not None and lo > hi:  # inconsistent (faster than max speed, or > k-sigma noise)
-            tr.bounds = got[0]
+        h = tr.history[0]
+        va, vb = h.views[0], sg.views[0]
+        D = self._max_speed(h.t_s, sg.t_s) * (sg.t_s - h.t_s)  # eq. 3.11-3.13: FC = GC = v dt
+        delta = self.settings.bounds_noise_sigmas * math.hypot(va.sigma_rad, vb.sigma_rad)
+        r = _noisy_bounds(va.c_W, va.b_W, vb.c_W, vb.b_W, D, sg.o_W, delta)
+        if isinstance(r, geometry.RangeBounds):
+            tr.bounds = r
         else:
-            tr.bounds = geometry.RangeBounds(lo, hi, 0.0, None)
+            tr.bounds_reason = f"bounds unobservable: {r.reason}"
 
     # ---------------------------------------------------------------------------------- filter
     def _new_kf(self, p_W: np.ndarray, P_pp: np.ndarray, v_sigma: float) -> ExtendedKalmanFilter:
@@ -499,7 +490,7 @@ class ObstacleFusion:
         if dt <= 0:
             return
         a = self.settings.max_accel_mps2 if tr.moving else self.settings.static_accel_mps2
-        q = a * a  # PSD, m^2/s^3: velocity random walk of a m/s after 1 s
+        q = a * a * self.settings.accel_time_s  # PSD, m^2/s^3: sqrt(q tau) = a tau
         F = np.eye(6)
         F[:3, 3:] = np.eye(3) * dt  # p' = p + v dt
         Q = np.zeros((6, 6))
@@ -650,34 +641,34 @@ def _rotate_about(b: np.ndarray, n: np.ndarray, ang: float) -> np.ndarray:
 def _noisy_bounds(c_a, b_a, c_b, b_b, D: float, origin, delta: float):
     """``geometry.moving_obstacle_bounds`` widened for bearing noise (see the module docstring).
 
-    Candidates for ray b: turned about the epipolar normal n by 0, +delta, -delta, and onto ray a's
-    direction when that is within delta (then noise could make the rays parallel: no upper bound).
+    Ray a is projected into the plane through c_b spanned by the baseline and ray b (for points of
+    that plane the distance to the projected ray is never larger: a superset of the exact interval);
+    ray b is turned about that plane's normal n by 0, +delta, -delta, and onto ray a's direction
+    when that is within delta (then noise could make the rays parallel: no upper bound). The
+    union of the intervals is returned.
     """
-    nominal = geometry.moving_obstacle_bounds(c_a, b_a, c_b, b_b, D, origin=origin)
-    if delta <= 0:
-        return nominal
     n = np.cross(c_b - c_a, b_b)  # normal of the epipolar plane (baseline, ray b)
     if float(np.linalg.norm(n)) < 1e-9:
         n = np.cross(b_a, b_b)  # zero baseline: the plane of the two bearings
     nn = float(np.linalg.norm(n))
-    if nn < 1e-12:
-        return nominal
+    if delta <= 0 or nn < 1e-12:
+        return geometry.moving_obstacle_bounds(c_a, b_a, c_b, b_b, D, origin=origin)
     n = n / nn
-    b_a_in = b_a - float(b_a @ n) * n  # ray a projected into that plane (a superset, see above)
-    if float(np.linalg.norm(b_a_in)) < 1e-9:
-        return nominal
+    b_a_in = b_a - float(b_a @ n) * n
+    if float(np.linalg.norm(b_a_in)) < 1e-9:  # ray a along the normal: nothing to project
+        return geometry.moving_obstacle_bounds(c_a, b_a, c_b, b_b, D, origin=origin)
     b_a_in = b_a_in / np.linalg.norm(b_a_in)
     angles = [0.0, delta, -delta]
     to_a = math.atan2(float(n @ np.cross(b_b, b_a_in)), float(b_b @ b_a_in))  # signed, about n
     if abs(to_a) <= delta:
         angles.append(to_a)
-    results = [nominal] + [
-        geometry.moving_obstacle_bounds(c_a, b_a_in, c_b, _rotate_about(b_b, n, ang), D, origin=origin)
-        for ang in angles
-    ]
+    dirs = [_rotate_about(b_b, n, ang) for ang in angles]
+    if abs(to_a) <= delta:
+        dirs[-1] = b_a_in  # exactly parallel (a rotation would leave a rounding-size angle)
+    results = [geometry.moving_obstacle_bounds(c_a, b_a_in, c_b, d, D, origin=origin) for d in dirs]
     ok = [r for r in results if isinstance(r, geometry.RangeBounds)]
     if not ok:
-        return nominal
+        return results[0]
     lo = min(r.range_min_m for r in ok)
     hi = None if any(r.range_max_m is None for r in ok) else max(r.range_max_m for r in ok)
     return geometry.RangeBounds(lo, hi, min(r.depth_min_m for r in ok), None)

@@ -1,0 +1,308 @@
+"""Tests of estimators.fusion (the per-obstacle EKF) on closed-form flights.
+
+Truth comes from the scene geometry written here (positions, poses, ranges by hand); bearings are
+made from it with seeded noise. Nothing expected is computed with the code under test.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from estimators.cameras import Equidistant
+from estimators.egomotion import ConstantVelocity, TumTrajectory
+from estimators.errors import ConfigError, InputError
+from estimators.fusion import FusionSettings, ObstacleFusion
+from estimators.fusion_stats import chi2_cdf, chi2_ppf, nees_interval
+from estimators.records import CameraView, ObstacleObservation
+from estimators.rig import mono_forward_rig, stereo_forward_rig
+from estimators.se3 import Pose
+
+MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)  # 0.15 deg/px, 192-degree circle
+FPS = 30.0
+
+
+def _bearing(rig_cam, T_W_B: Pose, p_W: np.ndarray, sigma: float, rng) -> np.ndarray:
+    """Unit bearing of p_W in the camera frame, turned by isotropic noise of sigma rad."""
+    p_C = (rig_cam.T_C_B @ T_W_B.inverse()).apply(p_W)
+    b = p_C / np.linalg.norm(p_C)
+    if sigma > 0:
+        e = rng.normal(scale=sigma, size=3)
+        b = b + e - (e @ b) * b
+        b /= np.linalg.norm(b)
+    return b
+
+
+def _fly(rig, ego, p0_W, v_W=None, *, T_s=1.5, sigma=1e-3, seed=0, settings=None, cams=None):
+    """Run a fusion over a flight; returns [(t, report, true range from the body origin, truth p_W)]."""
+    rng = np.random.default_rng(seed)
+    v_W = np.zeros(3) if v_W is None else v_W
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    out = []
+    for k in range(int(round(T_s * FPS)) + 1):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        p_W = p0_W + v_W * t
+        views = tuple(
+            CameraView(c.name, _bearing(c, T_W_B, p_W, sigma, rng), np.zeros(2), max(sigma, 1e-4))
+            for c in rig if cams is None or c.name in cams
+        )
+        reps = fus.step([ObstacleObservation(7, k, t, "confirmed", views)], k, t)
+        assert len(reps) == 1
+        out.append((t, reps[0], float(np.linalg.norm(p_W - T_W_B.t)), p_W, fus))
+    return out
+
+
+# ----------------------------------------------------------------------------- mono, stationary
+def test_stationary_point_straight_flight_converges_within_sigma():
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(5.0)  # body along +x at 5 m/s from the origin, level
+    p_W = np.array([14.0, 4.0, 1.5])
+    run = _fly(rig, ego, p_W, sigma=1e-3)
+    ranged = [(t, r, rt) for t, r, rt, _, _ in run if r.range_m is not None]
+    assert ranged, "never initialised"
+    t_first, r_first, _ = ranged[0]
+    assert t_first < 0.5  # 1 degree of parallax at ~14 m and 5 m/s takes ~0.1 s
+    t, r, rt, _, _ = run[-1]
+    # at t = 1.5 s the body is at x = 7.5: true range sqrt(6.5^2 + 4^2 + 1.5^2)
+    assert rt == pytest.approx(math.sqrt(6.5**2 + 16 + 2.25), abs=1e-9)
+    assert abs(r.range_m - rt) <= 3 * r.range_sigma_m
+    assert abs(r.range_m - rt) / rt < 0.02
+    assert r.range_sigma_m < 0.5 * r_first.range_sigma_m  # the sigma shrinks as parallax grows
+    assert r.source == "mono"
+    assert r.velocity_world_mps is None  # mono never reports a velocity
+    assert r.range_min_m is not None and r.range_min_m <= rt
+    assert r.range_max_m is None or rt <= r.range_max_m
+    # body-frame position: p_B = p_W - (7.5, 0, 0) (level flight along x)
+    np.testing.assert_allclose(r.position_body_m, [6.5, 4.0, 1.5], atol=0.15)
+
+
+def test_noise_free_flight_converges_tightly():
+    run = _fly(mono_forward_rig(MODEL), ConstantVelocity(5.0), np.array([20.0, -6.0, 2.0]), sigma=0.0)
+    t, r, rt, _, _ = run[-1]
+    assert abs(r.range_m - rt) / rt < 2e-3
+
+
+def test_obstacle_beyond_90_degrees_off_the_optical_axis():
+    # 100 degrees off the forward axis (behind-left), still in the 192-degree lens: tangent-plane
+    # residuals work with any ray direction
+    rig = mono_forward_rig(MODEL)
+    a = math.radians(95.0)
+    p_W = np.array([6.0 * math.cos(a), 6.0 * math.sin(a), 0.0])
+    run = _fly(rig, ConstantVelocity(3.0), p_W, T_s=1.0, sigma=5e-4)
+    t, r, rt, _, _ = run[-1]
+    assert r.range_m is not None and abs(r.range_m - rt) / rt < 0.03
+
+
+def test_ttc_closed_form_for_a_stationary_obstacle():
+    # body at 5 m/s along x, obstacle at (20, 0.5, 0): closest approach at t* = 20 / 5 = 4 s
+    run = _fly(mono_forward_rig(MODEL), ConstantVelocity(5.0), np.array([20.0, 2.0, 0.0]), sigma=0.0)
+    t, r, *_ = run[-1]
+    assert r.ttc_s == pytest.approx(4.0 - t, rel=0.02)
+
+
+def test_hover_mono_range_is_unobservable_with_bounds():
+    run = _fly(mono_forward_rig(MODEL), ConstantVelocity(0.0), np.array([8.0, 2.0, 1.0]), T_s=1.0)
+    for _t, r, _rt, _, _ in run[1:]:
+        assert r.range_m is None and r.range_sigma_m is None and r.position_body_m is None
+        assert "baseline" in r.unobservable_reason
+        # zero baseline, zero max speed: the point can be anywhere on the ray
+        assert r.range_min_m == pytest.approx(0.0, abs=1e-9) and r.range_max_m is None
+        assert r.source == "bounds"
+    j = run[-1][1].to_json()
+    assert j["range_m"] is None and j["source"] == "bounds"
+
+
+# ----------------------------------------------------------------------------- stereo, moving
+def test_stereo_constant_velocity_obstacle_velocity_recovered():
+    rig = stereo_forward_rig(MODEL, 0.30)
+    v_true = np.array([-1.0, 1.5, 0.0])
+    run = _fly(rig, ConstantVelocity(3.0), np.array([7.0, -3.0, 0.5]), v_true, T_s=1.5, sigma=5e-4)
+    t, r, rt, _, _ = run[-1]
+    assert "stereo" in r.source
+    assert r.velocity_world_mps is not None
+    speed = float(np.linalg.norm(v_true))
+    assert abs(r.speed_mps - speed) / speed < 0.10
+    dh = math.atan2(r.velocity_world_mps[1], r.velocity_world_mps[0]) - math.atan2(1.5, -1.0)
+    assert abs(math.degrees(math.atan2(math.sin(dh), math.cos(dh)))) < 10.0
+    assert abs(r.range_m - rt) / rt < 0.04
+
+
+def test_stereo_hover_stationary_point_first_frame_range():
+    # one frame of a 0.30 m stereo pair, noise-free: range from the body origin (midpoint of the pair)
+    rig = stereo_forward_rig(MODEL, 0.30)
+    run = _fly(rig, ConstantVelocity(0.0), np.array([3.0, 0.4, -0.2]), T_s=0.0, sigma=0.0)
+    _, r, rt, _, _ = run[0]
+    assert rt == pytest.approx(math.sqrt(9 + 0.16 + 0.04))
+    assert r.range_m == pytest.approx(rt, rel=1e-6)
+    assert r.source == "stereo"
+
+
+# ----------------------------------------------------------------------------- bounds
+def test_bounds_contain_truth_for_random_moving_obstacles():
+    rng = np.random.default_rng(42)
+    rig = mono_forward_rig(MODEL)
+    sigma = 1e-3
+    n_reports = n_inside = 0
+    for _ in range(300):
+        v_drone = rng.uniform(1.0, 10.0)
+        ego = ConstantVelocity(v_drone)
+        az = math.radians(rng.uniform(-80, 80))
+        el = math.radians(rng.uniform(-30, 30))
+        rng_m = rng.uniform(3.0, 30.0)
+        p0 = rng_m * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+        d = rng.normal(size=3)
+        v = rng.uniform(0.0, 1.0) * v_drone * d / np.linalg.norm(d)  # no faster than the drone
+        fus = ObstacleFusion(rig, ego, FusionSettings())
+        for k, t in enumerate((0.0, 0.1, 0.2, 0.3)):
+            T_W_B = ego.pose_at(t)
+            p = p0 + v * t
+            b = _bearing(rig[0], T_W_B, p, sigma, rng)
+            view = CameraView("cam0", b, [0, 0], sigma)
+            (r,) = fus.step([ObstacleObservation(1, k, t, "confirmed", (view,))], k, t)
+            if k == 0:
+                assert r.range_min_m is None  # one sighting: no bound yet
+                continue
+            true_r = float(np.linalg.norm(p - T_W_B.t))
+            n_reports += 1
+            n_inside += r.range_min_m <= true_r and (r.range_max_m is None or true_r <= r.range_max_m)
+    assert n_reports == 900
+    assert n_inside / n_reports >= 0.99
+
+
+def test_bounds_constrain_a_mono_estimate_of_a_moving_obstacle():
+    # obstacle receding along the flight at the drone's speed: the stationary hypothesis is wrong,
+    # the bounds (which hold the truth) keep the estimate inside them
+    rig = mono_forward_rig(MODEL)
+    run = _fly(rig, ConstantVelocity(4.0), np.array([10.0, 3.0, 0.0]), np.array([-4.0, 0.0, 0.0]),
+               T_s=1.5, sigma=5e-4)
+    for _t, r, rt, _, _ in run[5:]:
+        assert r.range_min_m <= rt and (r.range_max_m is None or rt <= r.range_max_m)
+        if r.range_m is not None:
+            assert r.range_min_m * 0.97 <= r.range_m
+            assert r.range_max_m is None or r.range_m <= r.range_max_m * 1.03
+
+
+# ----------------------------------------------------------------------------- consistency
+def test_nees_monte_carlo_within_95_percent_interval():
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(5.0)
+    p_W = np.array([12.0, -5.0, 1.0])
+    nees = []
+    for seed in range(30):
+        run = _fly(rig, ego, p_W, T_s=1.0, sigma=1e-3, seed=seed)
+        _, _, _, p_true, fus = run[-1]
+        x, P, _ = fus.state(7)
+        e = x[:3] - p_true
+        nees.append(float(e @ np.linalg.solve(P[:3, :3], e)))
+    lo, hi = nees_interval(3, len(nees), 0.95)
+    assert lo <= float(np.mean(nees)) <= hi
+
+
+def test_gated_outlier_is_counted_not_fused():
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(5.0)
+    p_W = np.array([15.0, 4.0, 0.0])
+    run = _fly(rig, ego, p_W, T_s=1.0, sigma=1e-3)
+    fus = run[-1][4]
+    x_before = fus.state(7)[0].copy()
+    k = 31
+    t = k / FPS
+    T_W_B = ego.pose_at(t)
+    b = _bearing(rig[0], T_W_B, p_W + np.array([0.0, 0.0, 3.0]), 0.0, None)  # 3 m off: ~20 sigma
+    (r,) = fus.step([ObstacleObservation(7, k, t, "confirmed", (CameraView("cam0", b, [0, 0], 1e-3),))], k, t)
+    assert r.gated == run[-1][1].gated + 1
+    x_after = fus.state(7)[0]
+    # only the prediction moved it (stationary hypothesis: the velocity is ~0)
+    assert np.linalg.norm(x_after[:3] - x_before[:3]) < 0.05
+
+
+# ----------------------------------------------------------------------------- track lifetime
+def test_lost_track_is_reported_once_then_removed():
+    rig = mono_forward_rig(MODEL)
+    run = _fly(rig, ConstantVelocity(5.0), np.array([15.0, 4.0, 0.0]), T_s=0.5, sigma=1e-3)
+    fus = run[-1][4]
+    k = 16
+    t = k / FPS
+    (r,) = fus.step([ObstacleObservation(7, k, t, "lost", ())], k, t)
+    assert r.status == "lost" and r.id == 7
+    assert 7 not in fus.track_ids
+    assert fus.step([], k + 1, (k + 1) / FPS) == []
+
+
+def test_unobserved_track_ends_after_lost_after_s():
+    rig = mono_forward_rig(MODEL)
+    run = _fly(rig, ConstantVelocity(5.0), np.array([15.0, 4.0, 0.0]), T_s=0.5, sigma=1e-3,
+               settings=FusionSettings(lost_after_s=0.2))
+    fus = run[-1][4]
+    assert fus.step([], 16, 16 / FPS) == []  # 0.033 s unseen: kept
+    reps = fus.step([], 22, 22 / FPS)  # 0.233 s unseen: ended
+    assert [(r.id, r.status) for r in reps] == [(7, "lost")]
+    assert fus.step([], 23, 23 / FPS) == []
+
+
+# ----------------------------------------------------------------------------- bad input
+def _obs(k, t, cam="cam0"):
+    return [ObstacleObservation(1, k, t, "confirmed", (CameraView(cam, [0.0, 0.0, 1.0], [0, 0], 1e-3),))]
+
+
+@pytest.mark.parametrize(
+    "times, egomotion, message",
+    [
+        ([0.0, 0.1, 0.1], ConstantVelocity(2.0), r"frame 2: t_s=0\.100000 s repeats .* \(frame 1\)"),
+        ([0.0, 0.2, 0.1], ConstantVelocity(2.0), r"frame 2: t_s=0\.100000 s goes back .* \(frame 1\)"),
+        ([0.0, 0.1, float("nan")], ConstantVelocity(2.0), r"frame 2: t_s must be finite"),
+        (
+            [0.0, 0.5, 1.5],
+            TumTrajectory(np.array([0.0, 1.0]), np.zeros((2, 3)), np.array([[0, 0, 0, 1.0]] * 2), "traj.tum"),
+            r"frame 2 \(t_s=1\.500000 s\): ego-motion: traj\.tum: time 1\.500000 s is outside",
+        ),
+    ],
+    ids=["duplicated", "decreasing", "nan", "trajectory-gap"],
+)
+def test_bad_time_input(times, egomotion, message):
+    fus = ObstacleFusion(mono_forward_rig(MODEL), egomotion, FusionSettings())
+    for k, t in enumerate(times[:-1]):
+        fus.step(_obs(k, t), k, t)
+    k = len(times) - 1
+    with pytest.raises(InputError, match=message):
+        fus.step([] if math.isnan(times[-1]) else _obs(k, times[-1]), k, times[-1])
+
+
+def test_bad_observation_input():
+    fus = ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(1.0), FusionSettings())
+    with pytest.raises(InputError, match="unknown camera 'cam9'"):
+        fus.step(_obs(0, 0.0, cam="cam9"), 0, 0.0)
+    with pytest.raises(InputError, match="expected the frame's t_s"):
+        fus.step(_obs(1, 0.5), 1, 0.4)
+    with pytest.raises(InputError, match="appears twice"):
+        fus.step(_obs(2, 0.6) + _obs(2, 0.6), 2, 0.6)
+
+
+@pytest.mark.parametrize(
+    "kw", [{"max_accel_mps2": -1.0}, {"gate_probability": 1.0}, {"lost_after_s": 0.0},
+           {"max_speed_mps": float("nan")}, {"reinit_after_gated": 0}]
+)
+def test_settings_validation(kw):
+    with pytest.raises(ConfigError, match="FusionSettings"):
+        FusionSettings(**kw)
+
+
+# ----------------------------------------------------------------------------- chi-square helpers
+@pytest.mark.parametrize(
+    "p, k, x",  # textbook table values (Abramowitz & Stegun 26.8; any chi-square table)
+    [(0.95, 1, 3.841), (0.95, 2, 5.991), (0.95, 3, 7.815), (0.99, 2, 9.210), (0.999, 3, 16.266),
+     (0.975, 6, 14.449), (0.025, 3, 0.216), (0.05, 10, 3.940), (0.95, 300, 341.395)],
+)
+def test_chi2_ppf_table_values(p, k, x):
+    assert chi2_ppf(p, k) == pytest.approx(x, abs=2e-3)
+    if k <= 200:
+        assert chi2_cdf(x, k) == pytest.approx(p, abs=5e-4)
+
+
+def test_nees_interval_bar_shalom_example():
+    # Bar-Shalom et al. (2001) sec. 5.4.2: 50 runs, 2 dof -> [1.5, 2.6] (74.2 / 50, 129.6 / 50)
+    lo, hi = nees_interval(2, 50, 0.95)
+    assert lo == pytest.approx(1.5, abs=0.02) and hi == pytest.approx(2.6, abs=0.02)
