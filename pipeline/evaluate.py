@@ -242,9 +242,15 @@ def _pct(x: np.ndarray, q: float) -> float | None:
     return float(np.percentile(x, q)) if len(x) else None
 
 
-def range_metrics(rows: list[Row]) -> dict:
-    """Range, bounds, velocity and consistency metrics of associated rows (see module doc)."""
-    assoc = [r for r in rows if r.obstacle_id is not None and r.range_true_m]
+def range_metrics(rows: list[Row], surface: str = "obstacle") -> dict:
+    """Range, bounds, velocity and consistency metrics of associated rows (see module doc).
+
+    surface: ``"obstacle"`` scores reports associated with an obstacle; ``"ground"`` scores the
+    reports whose ray hit the ground (truth: the ground's depth along the bearing)."""
+    if surface == "ground":
+        assoc = [r for r in rows if r.hit == "ground" and r.obstacle_id is None and r.range_true_m]
+    else:
+        assoc = [r for r in rows if r.obstacle_id is not None and r.range_true_m]
     ranged = [r for r in assoc if r.range_m is not None]
     out: dict = {"reports": len(assoc), "ranged": len(ranged)}
     if ranged:
@@ -372,7 +378,7 @@ def sky_metrics(rows: list[Row]) -> dict:
     ground = [r for r in rows if r.hit == "ground" and r.obstacle_id is None]
     false = [r for r in sky if r.range_m is not None]
     return {
-        "reports": len(rows),
+        "all_reports": len(rows),
         "sky_reports": len(sky),
         "false_ranges_sky": len(false),
         "false_range_share": (len(false) / len(rows)) if rows else None,
@@ -428,13 +434,14 @@ def evaluate(
     overall = range_metrics(all_rows)
     overall.update(sky_metrics(all_rows))
     overall.update(
-        detection_coverage_mean=float(np.mean(cov)) if cov else None,
+        detection_coverage=float(np.mean(cov)) if cov else None,
         id_switches=int(sum(m["id_switches"] for m in obs_vals)),
     )
     metrics = {
         "overall": overall,
         "by_scenario": by_scenario,
         "sky_by_scenario": sky_by,
+        "ground": range_metrics(all_rows, surface="ground"),
         "by_obstacle": by_obstacle,
         "by_motion": by_motion,
         "by_range_bin": by_bin,
@@ -477,6 +484,7 @@ def format_table(metrics: dict) -> str:
     ]
     groups += [(k, v) for k, v in metrics["by_motion"].items()]
     groups += [(f"range {k}", v) for k, v in metrics["by_range_bin"].items()]
+    groups += [("(reports on the ground)", metrics["ground"])]
     w0 = max(len(g) for g, _ in groups) + 1
     head = "group".ljust(w0) + " ".join(h.rjust(8) for _, h, _ in _COLS)
     lines = [head, "-" * len(head)]
@@ -489,7 +497,7 @@ def format_table(metrics: dict) -> str:
     o = metrics["overall"]
     lines.append("")
     lines.append(
-        f"false ranges on sky: {o['false_ranges_sky']} of {o['reports']} reports; "
+        f"false ranges on sky: {o['false_ranges_sky']} of {o['all_reports']} reports; "
         f"sky reports {o['sky_reports']}, ground reports {o['ground_reports']}"
     )
     if o.get("nees_mean") is not None:

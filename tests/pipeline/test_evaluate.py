@@ -240,6 +240,9 @@ def test_narrow_miss_and_ground(scen_dir, tmp_path):
     # associated to obstacle 1 with truth = nearest-surface range = range_m - R: error ~ 0
     assert run_m["by_obstacle"]["evalscene/1"]["ranged"] == ov["ground_reports"]
     assert ov["rel_err_median"] < 1e-5
+    # the ground reports: truth = 2 m height / |d_z| along (0.3, 0, -1) (level flight at z = 2)
+    depth = 2.0 * math.sqrt(1.09)
+    assert run_m["ground"]["rel_err_median"] == pytest.approx(abs(2.0 - depth) / depth, abs=1e-6)
 
 
 def test_outputs_table_and_plots(scen_dir, tmp_path):
