@@ -18,7 +18,7 @@ import typer
 
 from estimators.errors import FisheyeDesError
 
-COMMANDS: tuple[str, ...] = ("thesis", "simulate", "run", "bench", "accuracy", "live")
+COMMANDS: tuple[str, ...] = ("thesis", "simulate", "run", "bench", "accuracy", "live", "calibrate")
 
 app = typer.Typer(
     name="fisheye-des",
