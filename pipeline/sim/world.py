@@ -452,12 +452,12 @@ def surface_distance(part: Part, pl: _Placed, x_W: np.ndarray) -> float:
 
 
 def raycast(
-    world: World, t_s: float, origins_W: np.ndarray, dirs_W: np.ndarray
+    world: World | Scenario, t_s: float, origins_W: np.ndarray, dirs_W: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ground-truth ray casting, the renderer's own code path.
 
     Args:
-        world: the scene (``World(scenario)``).
+        world: the scene, a ``World`` (reuse it for many calls) or a ``Scenario``.
         t_s: time in seconds (objects are placed at this time).
         origins_W: ray origins in W, (N,3) or (3,) metres.
         dirs_W: ray directions in W, (N,3), any non-zero length (normalised here).
@@ -465,6 +465,8 @@ def raycast(
         depth_m (N,): distance from the origin to the nearest surface along the ray, inf on sky.
         object_id (N,) int: the hit object's id, -1 for sky, the ground's id for the ground.
     """
+    if isinstance(world, Scenario):
+        world = World(world)
     d = np.asarray(dirs_W, dtype=float)
     if d.ndim == 1:
         d = d[None]

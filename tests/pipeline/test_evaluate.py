@@ -281,3 +281,28 @@ def test_chi2_quantiles_against_tabulated_values():
     assert chi2_quantile(0.025, 10) == pytest.approx(3.247, rel=1e-2)
     assert chi2_quantile(0.95, 30) == pytest.approx(43.773, rel=2e-3)
     assert chi2_quantile(0.95, 2) == pytest.approx(5.991, rel=1e-4)
+
+
+def test_cli_evaluate(scen_dir, tmp_path, capsys):
+    from pipeline.cli import main
+
+    frames = [
+        {
+            "frame": g["frame"],
+            "t_s": g["t_s"],
+            "tracks": [
+                _track(100 + o["id"], o, 1.05 * (o["range_m"] - o["radius_m"]))
+                for o in g["obstacles"]
+                if o["visible"]["cam0"]
+            ],
+        }
+        for g in _gt(scen_dir)
+    ]
+    run = _write_run(tmp_path, frames)
+    assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / "ev"), "--no-plots"]) == 0
+    assert "overall" in capsys.readouterr().out
+    m = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    assert m["overall"]["rel_err_median"] == pytest.approx(0.05, abs=1e-5)
+    assert main(["evaluate", str(run)]) == 2  # not a pair
+    assert main(["evaluate", str(run), str(tmp_path)]) == 2  # not a scenario folder
+    assert "scene.yaml" in capsys.readouterr().err

@@ -129,3 +129,29 @@ def test_preset_loads_and_renders(path):
         assert img.shape == (round(H * f), 160, 3) and img.max() > 0
     _, obs = sim.truth(0.0)
     assert len(obs) == len(scn.obstacles) and any(any(o["visible"].values()) for o in obs)
+
+
+def test_cli_simulate_and_errors(tmp_path, capsys):
+    from pipeline.cli import main
+
+    rc = main(["simulate", str(SCENARIOS / "ci_small.yaml"), "--out", str(tmp_path / "s"), "--frames", "3",
+               "--resolution", "160x120", "--no-progress"])
+    assert rc == 0 and "wrote 3 frames" in capsys.readouterr().out
+    assert len(_read_video(tmp_path / "s" / "cam0.mkv")) == 3
+    assert main(["simulate", str(SCENARIOS / "ci_small.yaml"), "--out", str(tmp_path / "x"),
+                 "--resolution", "160by120"]) == 2
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: b\nobstacles:\n  - {id: 1, kind: cone}\n")
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "y")]) == 2
+    assert "obstacles.0.kind" in capsys.readouterr().err
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_preset_full_resolution_benchmark(path, tmp_path):
+    """Renders 5 frames of each preset at its own resolution and prints the time per frame."""
+    scn = load_scenario(path)
+    res = simulate(scn, tmp_path, frames=5)
+    print(f"{scn.name}: {res.resolution[0]}x{res.resolution[1]} x{len(res.cameras)} "
+          f"{res.render_s_per_frame * 1000:.0f} ms/frame")
+    assert res.frames_written + res.frames_dropped == 5
