@@ -506,19 +506,22 @@ class KannalaBrandt(_ThetaModel):
         self._finish_theta_model(self._monotonic_limit())
 
     def _monotonic_limit(self) -> float:
-        # theta_d'(theta) = 1 + 3 k1 t + 5 k2 t^2 + 7 k3 t^3 + 9 k4 t^4 with t = theta^2;
-        # the first positive root t* gives the limit sqrt(t*).
-        coeffs = [9 * self.k4, 7 * self.k3, 5 * self.k2, 3 * self.k1, 1.0]
-        while coeffs and coeffs[0] == 0.0:
-            coeffs.pop(0)
-        limit = np.pi
-        if len(coeffs) > 1:
-            roots = np.roots(coeffs)
-            real = roots[np.abs(roots.imag) <= 1e-12 * np.maximum(1.0, np.abs(roots.real))].real
-            pos = real[(real > 0) & (real < np.pi**2)]
-            if pos.size:
-                limit = float(np.sqrt(pos.min()))
-        return limit
+        # First zero of theta_d'(theta) = 1 + 3 k1 t + 5 k2 t^2 + 7 k3 t^3 + 9 k4 t^4 (t = theta^2)
+        # in (0, pi]: scan a fine grid for the first sign change, then bisect (robust to tiny
+        # leading coefficients, where polynomial root finders lose the relevant root).
+        th = np.linspace(0.0, np.pi, 8193)
+        _, d = self._theta_d(th)
+        bad = np.flatnonzero(d <= 0)
+        if bad.size == 0:
+            return np.pi
+        lo, hi = th[bad[0] - 1], th[bad[0]]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if self._theta_d(np.array([mid]))[1][0] > 0:
+                lo = mid
+            else:
+                hi = mid
+        return float(lo)
 
     def _theta_d(self, theta):
         t2 = theta * theta

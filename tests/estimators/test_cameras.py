@@ -333,3 +333,48 @@ def test_kannala_brandt_equals_cv2_fisheye_undistort_points():
 def test_make_camera_model_errors(name, params, match):
     with pytest.raises(CalibrationError, match=match):
         make_camera_model(name, **params)
+
+
+# ------------------------------------------------------------------------- property tests
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@st.composite
+def _random_model(draw) -> CameraModel:
+    name = draw(st.sampled_from(sorted(CAMERA_MODELS)))
+    f = draw(st.floats(80.0, 800.0))
+    common = dict(fx=f, fy=f * draw(st.floats(0.95, 1.05)), cx=draw(st.floats(300.0, 340.0)),
+                  cy=draw(st.floats(220.0, 260.0)), width=640, height=480)
+    if name == "kannala_brandt":
+        ks = draw(st.lists(st.floats(-0.05, 0.05), min_size=4, max_size=4))
+        return KannalaBrandt(**common, k1=ks[0], k2=ks[1], k3=ks[2], k4=ks[3])
+    if name == "double_sphere":
+        return DoubleSphere(**common, xi=draw(st.floats(-0.6, 0.6)), alpha=draw(st.floats(0.3, 0.75)))
+    if name == "eucm":
+        return Eucm(**common, alpha=draw(st.floats(0.3, 0.8)), beta=draw(st.floats(0.6, 2.0)))
+    return make_camera_model(name, **common)
+
+
+@settings(max_examples=60, deadline=None)
+@given(model=_random_model(), seed=st.integers(0, 2**32 - 1))
+def test_random_models_never_nan_and_valid_rows_round_trip(model, seed):
+    rng = np.random.default_rng(seed)
+    b = rng.normal(size=(400, 3)) * rng.choice([1e-3, 1.0, 1e3], size=(400, 1))
+    uv, valid = model.bearing_to_pixel(b, within_image=False)
+    J = model.bearing_to_pixel_jacobian(b, within_image=False)
+    assert np.all(np.isfinite(uv)) and np.all(np.isfinite(J))
+    assert not uv[~valid].any() and not J[~valid].any()
+    b2, valid2 = model.pixel_to_bearing(uv[valid], within_image=False)
+    assert valid2.all()
+    # well inside the lens the round trip is exact to rounding; near a KB turning point it is
+    # ill-conditioned (sqrt(eps)), so the bound is looser there
+    theta = np.arctan2(np.hypot(b[valid, 0], b[valid, 1]), b[valid, 2])
+    inner = theta < model.max_angle_rad - 0.05
+    ang = _angle(_unit(b[valid]), b2)
+    assert ang[inner].max(initial=0.0) < 1e-9 and ang.max(initial=0.0) < 1e-6
+    uv_any = rng.uniform(-2000, 2000, size=(400, 2))
+    bb, vv = model.pixel_to_bearing(uv_any, within_image=False)
+    Ju = model.pixel_to_bearing_jacobian(uv_any, within_image=False)
+    assert np.all(np.isfinite(bb)) and np.all(np.isfinite(Ju)) and not bb[~vv].any()
+    np.testing.assert_allclose(np.linalg.norm(bb[vv], axis=1), 1.0, atol=1e-12)
