@@ -53,21 +53,23 @@ class Renderer:
         self.world = world
         self.cams = {c.name: _camera_rays(c) for c in cameras}
 
-    def cast_camera(self, name: str, T_W_B: Pose, t_s: float) -> tuple[Hits, np.ndarray, np.ndarray, list]:
+    def cast_camera(self, name: str, T_W_B: Pose, t_s: float,
+                    halo: bool = False) -> tuple[Hits, np.ndarray, np.ndarray, list]:
         """Cast the valid pixels' rays of camera ``name`` at body pose ``T_W_B``, time ``t_s``.
 
+        halo: give navigation lights a radius of at least one pixel (images only; see World.cast).
         Returns (hits, o_W (3,) camera centre, d_W (M,3) float32 ray directions, flat parts)."""
         cr = self.cams[name]
         T_W_C = T_W_B @ cr.T_C_B.inverse()
         d_W = cr.b_C @ T_W_C.R.T.astype(np.float32)  # d_W = R_W_C b_C for each row
         o_W = T_W_C.t
-        hits, flat = self.world.cast(t_s, o_W, d_W)
+        hits, flat = self.world.cast(t_s, o_W, d_W, light_halo_rad=cr.pix_rad if halo else 0.0)
         return hits, o_W, d_W, flat
 
     def render_float(self, name: str, T_W_B: Pose, t_s: float) -> np.ndarray:
         """Linear BGR image (H, W, 3) float32 in [0, 1]; black outside the lens circle."""
         cr = self.cams[name]
-        hits, o_W, d_W, flat = self.cast_camera(name, T_W_B, t_s)
+        hits, o_W, d_W, flat = self.cast_camera(name, T_W_B, t_s, halo=True)
         col = self.world.shade(t_s, o_W, d_W, hits, flat, pix_rad=cr.pix_rad)
         img = np.zeros((cr.height * cr.width, 3), np.float32)
         img[cr.valid_idx] = col

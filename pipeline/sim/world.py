@@ -218,9 +218,12 @@ class World:
 
     # -- ray casting
     def cast(self, t_s: float, o_W: np.ndarray, d_W: np.ndarray,
-             placed: list[_Placed] | None = None) -> tuple[Hits, list]:
+             placed: list[_Placed] | None = None, light_halo_rad: float = 0.0) -> tuple[Hits, list]:
         """Nearest hit along rays ``o_W + t d_W`` (d_W unit, (N,3); o_W (3,) or (N,3)), at ``t_s``.
 
+        light_halo_rad: rendering only (shared origin): emissive parts (navigation lights) are
+        enlarged to subtend at least this angle in radius, so that a light smaller than a pixel
+        still lights a pixel, like the bloom of a real light. 0 for ground truth.
         Returns the hits and the flat list of (placed object, part) that ``Hits.part`` indexes."""
         placed = self.place(t_s) if placed is None else placed
         N = len(d_W)
@@ -232,11 +235,12 @@ class World:
         for pl in placed:
             # bounding-sphere culling: |(c - o) x d| <= r and the sphere not wholly behind
             oc = (pl.bound_c_W - o_W).astype(dt)
+            halo = light_halo_rad > 0 and shared_origin and any(p.emissive for p in pl.parts)
             if shared_origin:
                 dist_c = float(np.linalg.norm(oc))
                 b = d_W @ oc
                 perp2 = dist_c * dist_c - b * b
-                r = pl.bound_r
+                r = pl.bound_r + (light_halo_rad * (dist_c + pl.bound_r) if halo else 0.0)
                 cand = np.nonzero((perp2 <= r * r) & (b + r > 0) & (b - r < best))[0]
             else:
                 b = np.einsum("ij,ij->i", d_W, oc)
@@ -247,7 +251,12 @@ class World:
                 if len(cand) == 0:
                     continue
                 o = o_W if shared_origin else o_W[cand]
-                t = _intersect_part(part, pl, o, d_W[cand])
+                geom = part
+                if halo and part.emissive is not None:
+                    c_W = pl.p_W + pl.R_W_O @ np.asarray(part.offset_O)
+                    r_eff = max(part.size[0], light_halo_rad * float(np.linalg.norm(c_W - o_W)))
+                    geom = Part("sphere", (r_eff,), part.offset_O, part.emissive)
+                t = _intersect_part(geom, pl, o, d_W[cand])
                 closer = t < best[cand]
                 idx = cand[closer]
                 best[idx] = t[closer]

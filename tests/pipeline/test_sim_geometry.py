@@ -222,3 +222,20 @@ def test_forward_mount_by_hand():
     scn = scenario_from_dict({"name": "r"})
     np.testing.assert_allclose(build_rig(scn.rig)[0].T_C_B.R, R_C_B_FWD)
     assert Pose(R_C_B_FWD, np.zeros(3)).apply([1.0, 0, 0])[2] == 1.0
+
+
+def test_drone_lights_red_left_green_right_white_tail():
+    # a drone flying away along +x, 4 m ahead: we see its tail (white) in the middle, its left
+    # (red, +y) on the image's left and its right (green) on the image's right
+    drone = {"id": 1, "kind": "drone", "position_m": [4.0, 0.0, 2.3], "light_radius_m": 0.06,
+             "motion": {"kind": "constant_velocity", "velocity_mps": [2.0, 0.0, 0.0]}}
+    sim = _mono_sim([drone], res=(640, 480))
+    img = sim.render("cam0", 0.0).astype(int)
+    b, g, r = img[..., 0], img[..., 1], img[..., 2]
+    red = np.argwhere((r > 200) & (g < 80) & (b < 80))
+    green = np.argwhere((g > 200) & (r < 100) & (b < 80))
+    white = np.argwhere((r > 240) & (g > 240) & (b > 240))
+    assert len(red) and len(green) and len(white)
+    cx = sim.rig[0].model.cx
+    assert red[:, 1].mean() < cx - 3 < cx + 3 < green[:, 1].mean()
+    assert abs(white[:, 1].mean() - cx) < 3
