@@ -147,8 +147,9 @@ def run_benchmark(
     Wall-clock rates (``fps``) suffer from other processes on a shared machine; ``fps_cpu`` uses
     this process's CPU time (``time.process_time``), which with one OpenCV thread is the work done.
 
-    Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per stage, coverage per
-    obstacle (and overall), id switches per obstacle and per obstacle-minute, rim features.
+    Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
+    stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
+    rim features.
     """
     from trackers.frontend import FrontEnd
 

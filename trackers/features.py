@@ -111,6 +111,8 @@ class FeatureTracker:
         reacquire_radius_px: a new keypoint re-acquires a lost feature within this distance of its
             predicted position and with ``reacquire_max_hamming`` or fewer differing descriptor bits.
         history: samples kept per feature (ring buffer).
+        max_residual: a track is also dropped when LK's residual (mean absolute grey difference of
+            the window) exceeds both this and 3x the frame's median residual.
         margin_px: lens-circle margin (features closer to the circle's edge are dropped).
     """
 
@@ -128,9 +130,10 @@ class FeatureTracker:
         fb_max_px: float = 1.0,
         min_distance_px: float = 10.0,
         reacquire_frames: int = 8,
-        reacquire_radius_px: float = 25.0,
-        reacquire_max_hamming: int = 60,
+        reacquire_radius_px: float = 15.0,
+        reacquire_max_hamming: int = 40,
         history: int = 32,
+        max_residual: float = 12.0,
         margin_px: float = 4.0,
     ) -> None:
         if max_features < 1 or history < 2 or redetect_every < 1 or fb_max_px <= 0:
@@ -152,6 +155,7 @@ class FeatureTracker:
         self.win = (int(win_px), int(win_px))
         self.levels = int(levels)
         self.fb_max_px = float(fb_max_px)
+        self.max_residual = float(max_residual)
         self.min_distance_px = float(min_distance_px)
         self.reacquire_frames = int(reacquire_frames)
         self.reacquire_radius_px = float(reacquire_radius_px)
@@ -311,7 +315,7 @@ class FeatureTracker:
         p0 = self.uv.reshape(-1, 1, 2)
         # forward, starting from the constant-velocity prediction p0 + v
         guess = (self.uv + self.vel).reshape(-1, 1, 2).astype(np.float32)
-        p1, st, _ = cv2.calcOpticalFlowPyrLK(
+        p1, st, err = cv2.calcOpticalFlowPyrLK(
             prev,
             cur,
             p0,
@@ -337,6 +341,11 @@ class FeatureTracker:
         p1 = p1.reshape(-1, 2)
         fb = np.linalg.norm(p0r.reshape(-1, 2) - self.uv, axis=1)
         ok = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1) & np.isfinite(fb) & (fb <= self.fb_max_px)
+        # appearance: LK's residual (mean absolute grey difference over the window) must be ordinary
+        # for this frame, which tolerates global exposure changes but not a patch that changed
+        err = err.reshape(-1)
+        if np.any(ok):
+            ok &= err <= max(self.max_residual, 3.0 * float(np.median(err[ok])))
         ok &= np.all(np.isfinite(p1), axis=1)
         h, w = self.shape_hw
         ui = np.clip(np.round(p1[:, 0]).astype(np.intp), 0, w - 1)
@@ -373,7 +382,7 @@ class FeatureTracker:
 
     def _detect(self, image: np.ndarray) -> None:
         free = self.max_features - len(self.ids)
-        if free <= 0:
+        if free <= 0 and not len(self.lost_ids):
             return
         m = self.mask.copy()
         r = max(1, int(round(self.min_distance_px)))
@@ -393,35 +402,45 @@ class FeatureTracker:
             return
         # prefer keypoints in thin cells: round-robin over the grid, strongest first
         order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
-        # non-maximum spacing among the new ones (min_distance_px) by a coarse occupancy grid
-        cell = max(1.0, self.min_distance_px)
-        occ: set[tuple[int, int]] = set()
-        keep = []
-        for i in order:
-            key = (int(uv[i, 0] // cell), int(uv[i, 1] // cell))
-            if key in occ:
-                continue
-            occ.add(key)
-            keep.append(i)
-            if len(keep) >= free:
-                break
-        keep = np.asarray(keep, np.intp)
-        uv = uv[keep]
-        desc = (
-            det.descriptors[keep]
+        desc_all = (
+            det.descriptors
             if det.descriptors is not None
             and det.descriptors.shape[1] == 32
             and det.descriptors.dtype == np.uint8
             else None
         )
+        # re-acquisition first: lost features come back whatever the free capacity (their slots
+        # are still held), so live features may briefly exceed max_features by the lost pool
+        reacq_all = np.full(len(uv), -1, np.intp)
+        if desc_all is not None and len(self.lost_ids):
+            reacq_all = self._match_lost(uv, desc_all)
+        # non-maximum spacing among the new ones (min_distance_px) by a coarse occupancy grid
+        cell = max(1.0, self.min_distance_px)
+        occ: set[tuple[int, int]] = set()
+        keep = list(np.flatnonzero(reacq_all >= 0))
+        for i in keep:
+            occ.add((int(uv[i, 0] // cell), int(uv[i, 1] // cell)))
+        n_new = 0
+        for i in order:
+            if n_new >= free:
+                break
+            if reacq_all[i] >= 0:
+                continue
+            key = (int(uv[i, 0] // cell), int(uv[i, 1] // cell))
+            if key in occ:
+                continue
+            occ.add(key)
+            keep.append(i)
+            n_new += 1
+        keep = np.asarray(keep, np.intp)
+        uv = uv[keep]
+        desc = None if desc_all is None else desc_all[keep]
+        reacq = reacq_all[keep]
         n = len(uv)
         new_ids = np.empty(n, np.int64)
         new_slot = np.empty(n, np.intp)
         new_age = np.ones(n, np.int64)
         new_vel = np.zeros((n, 2), np.float32)
-        reacq = np.full(n, -1, np.intp)
-        if desc is not None and len(self.lost_ids):
-            reacq = self._match_lost(uv, desc)
         used_lost = []
         for i in range(n):
             j = reacq[i]
@@ -467,9 +486,12 @@ class FeatureTracker:
         ham = np.full(near.shape, 10**6, np.int64)
         ham[ii, jj] = POPCOUNT8[np.bitwise_xor(desc[ii], self.lost_desc[jj])].sum(axis=1)
         taken: set[int] = set()
-        for i in np.argsort(ham.min(axis=1)):
+        srt = np.sort(ham, axis=1)
+        second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
+        for i in np.argsort(srt[:, 0]):
             j = int(np.argmin(ham[i]))
-            if ham[i, j] <= self.reacquire_max_hamming and j not in taken:
+            # distinctive (Lowe's ratio 0.8 against the second-best lost feature) and close enough
+            if ham[i, j] <= self.reacquire_max_hamming and ham[i, j] < 0.8 * second[i] and j not in taken:
                 out[i] = j
                 taken.add(j)
         return out
@@ -484,7 +506,7 @@ class FeatureTracker:
         keep = np.ones(len(self.ids), bool)
         keep[idx] = False
         gone = ~keep
-        if remember:
+        if remember and self.reacquire_frames > 0:
             r = gone & self.has_desc
             self.lost_ids = np.concatenate([self.lost_ids, self.ids[r]])
             self.lost_uv = np.concatenate([self.lost_uv, self.uv[r]])
