@@ -165,12 +165,14 @@ def score_reports(truth: ScenarioTruth, frames: list[dict], assoc_tol_deg: float
     tol = math.radians(assoc_tol_deg)
     ground_id = truth.scn.ground.id if truth.scn.ground.enabled else None
     for fr in frames:
+        if not isinstance(fr, dict) or "t_s" not in fr:
+            raise InputError(f"tracks.jsonl: expected objects with t_s and tracks, got {str(fr)[:80]!r}")
         t = float(fr["t_s"])
         tracks = [tr for tr in fr.get("tracks", []) if tr.get("status") != "lost"]
         if not tracks or not truth.traj.covers(t):
             continue
         T_W_B = truth.traj.pose_at(t)
-        b_B = np.array([tr["bearing_body"] for tr in tracks], float)
+        b_B = np.array([_bearing(tr, fr) for tr in tracks], float)
         b_B /= np.linalg.norm(b_B, axis=1, keepdims=True)
         d_W = T_W_B.rotate(b_B)
         depth, ids = raycast(truth.world, t, T_W_B.t, d_W)
@@ -217,6 +219,20 @@ def score_reports(truth: ScenarioTruth, frames: list[dict], assoc_tol_deg: float
                 )
             )
     return rows
+
+
+def _bearing(tr: dict, fr: dict) -> list[float]:
+    b = tr.get("bearing_body")
+    try:
+        v = np.asarray(b, float).reshape(3)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-12:
+        raise InputError(
+            f"tracks.jsonl frame {fr.get('frame')} (t_s {fr.get('t_s')}): track {tr.get('id')} has "
+            f"bearing_body {b!r}; expected a non-zero [x, y, z]"
+        )
+    return v.tolist()
 
 
 def _f(v) -> float | None:
@@ -433,6 +449,14 @@ def evaluate(
     cov = [m["detection_coverage"] for m in obs_vals if m["detection_coverage"] is not None]
     overall = range_metrics(all_rows)
     overall.update(sky_metrics(all_rows))
+    overall["frames_outside_truth"] = int(
+        sum(
+            1
+            for tr, frs in zip(truths, frames_all, strict=True)
+            for f in frs
+            if not tr.traj.covers(float(f["t_s"]))
+        )
+    )
     overall.update(
         detection_coverage=float(np.mean(cov)) if cov else None,
         id_switches=int(sum(m["id_switches"] for m in obs_vals)),

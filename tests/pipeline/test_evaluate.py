@@ -306,3 +306,13 @@ def test_cli_evaluate(scen_dir, tmp_path, capsys):
     assert main(["evaluate", str(run)]) == 2  # not a pair
     assert main(["evaluate", str(run), str(tmp_path)]) == 2  # not a scenario folder
     assert "scene.yaml" in capsys.readouterr().err
+
+
+def test_malformed_bearing_is_an_input_error(scen_dir, tmp_path):
+    from estimators.errors import InputError
+
+    frames = [
+        {"frame": 0, "t_s": 0.0, "tracks": [{"id": 1, "status": "confirmed", "bearing_body": [0, 0, 0]}]}
+    ]
+    with pytest.raises(InputError, match="bearing_body"):
+        evaluate([(_write_run(tmp_path, frames), scen_dir)])
