@@ -206,7 +206,7 @@ class TrackerConfig(_Section):
 class FusionConfig(_Section):
     """Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` (SI units, radians).
 
-    A key left out takes FusionSettings' own default."""
+    A key left out (null) takes FusionSettings' own default (see its docstring)."""
 
     max_speed_mps: float | None = Field(
         None,
@@ -216,14 +216,17 @@ class FusionConfig(_Section):
     max_accel_mps2: float | None = Field(
         None,
         description="float, m/s^2: largest obstacle acceleration (process noise of moving, stereo-fed "
-        "tracks; FusionSettings default 3.0).",
+        "tracks).",
+    )
+    accel_time_s: float | None = Field(
+        None, description="float, s: time scale tau of the process noise, q = a^2 tau."
     )
     static_accel_mps2: float | None = Field(
         None,
-        description="float, m/s^2: process noise of the stationary hypothesis of mono-only tracks (0.02).",
+        description="float, m/s^2: process noise of the stationary hypothesis of mono-only tracks.",
     )
     static_velocity_sigma_mps: float | None = Field(
-        None, description="float, m/s: velocity prior sigma of a mono-initialised track (0.02)."
+        None, description="float, m/s: velocity prior sigma of a mono-initialised track."
     )
     velocity_prior_sigma_mps: float | None = Field(
         None,
@@ -231,39 +234,44 @@ class FusionConfig(_Section):
         "speed, or the drone's speed, at least 1 m/s).",
     )
     bearing_sigma_floor_rad: float | None = Field(
-        None, description="float, rad: smallest bearing sigma used, whatever the front end says (5e-4)."
+        None, description="float, rad: smallest bearing sigma used, whatever the front end says."
     )
     gate_probability: float | None = Field(
-        None, description="float, probability in (0, 1): chi-square gate of bearing / stereo updates (0.999)."
+        None, description="float, probability in (0, 1): chi-square gate of bearing / stereo updates."
     )
     min_parallax_rad: float | None = Field(
-        None, description="float, rad: parallax needed to initialise a mono track (1 degree = 0.01745)."
+        None, description="float, rad: parallax needed to initialise a mono track."
     )
     stereo_max_rel_sigma: float | None = Field(
         None,
         description="float, ratio: a stereo triangulation is used only when range_sigma / range is at most "
-        "this (0.3).",
+        "this.",
+    )
+    stereo_update: Literal["bearings", "point"] | None = Field(
+        None,
+        description="str: how a stereo frame updates an initialised track: 'bearings' (each camera's "
+        "bearing) or 'point' (the triangulated point).",
     )
     baseline_max_age_s: float | None = Field(
-        None, description="float, s: oldest sighting a mono baseline / bound may use (1.0)."
+        None, description="float, s: oldest sighting a mono baseline / bound may use."
     )
     bounds_noise_sigmas: float | None = Field(
-        None, description="float, sigmas: bearing-noise margin of the moving-obstacle bounds (4.0)."
+        None, description="float, sigmas: bearing-noise margin of the moving-obstacle bounds."
     )
     bounds_pseudo_sigma_frac: float | None = Field(
         None,
-        description="float, fraction: sigma of the bound pseudo-measurement relative to the bound (0.01).",
+        description="float, fraction: sigma of the bound pseudo-measurement relative to the bound.",
     )
     lost_after_s: float | None = Field(
         None,
-        description="float, s: a track not observed for this long is ended, reported once as lost (0.5).",
+        description="float, s: a track not observed for this long is ended, reported once as lost.",
     )
     reinit_after_gated: int | None = Field(
-        None, description="int: consecutive gated updates after which a track's filter restarts (5)."
+        None, description="int: consecutive gated updates after which a track's filter restarts."
     )
     velocity_report_max_sigma_mps: float | None = Field(
         None,
-        description="float, m/s: velocity is reported only when its largest sigma is at most this (1.0).",
+        description="float, m/s: velocity is reported only when its largest sigma is at most this.",
     )
 
     def settings_kwargs(self) -> dict[str, Any]:

@@ -206,7 +206,7 @@ class Annotator:
                 txt = f"#{t.get('id')}"
                 txt += f" {rng:.1f}m" if rng is not None else " ?m"
                 lo, hi = t.get("range_min_m"), t.get("range_max_m")
-                if lo is not None or hi is not None:
+                if hi is not None or (lo is not None and lo > 0):  # [0, inf) says nothing
                     txt += f" [{'-' if lo is None else f'{lo:.1f}'},{'-' if hi is None else f'{hi:.1f}'}]"
                 cv2.putText(
                     canvas,
