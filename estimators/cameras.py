@@ -166,6 +166,11 @@ class CameraModel(ABC):
         valid = np.all(np.isfinite(uv), axis=1)
         if within_image:
             valid &= self.in_image(uv)
+        if valid.all():  # the common case (whole images): no gathering and scattering
+            b, vi = self._unproject(uv)
+            valid = vi & self._within_angle(b)
+            b[~valid] = 0.0
+            return b, valid
         idx = np.flatnonzero(valid)
         if idx.size:
             bi, vi = self._unproject(uv[idx])
@@ -312,8 +317,11 @@ class CameraModel(ABC):
         return bu, valid, np.where(valid, norm, 1.0)
 
     def _within_angle(self, b: np.ndarray) -> np.ndarray:
-        theta = np.arctan2(np.hypot(b[:, 0], b[:, 1]), b[:, 2])
-        return theta <= self.max_angle_rad + _ANGLE_TOL_RAD
+        """Unit bearings (N,3) -> (N,) bool: angle off +z <= max_angle_rad (+ tolerance).
+
+        theta <= theta_max  <=>  b_z = cos(theta) >= cos(theta_max) for unit b (cos falls on [0, pi]).
+        """
+        return b[:, 2] >= np.cos(min(self.max_angle_rad + _ANGLE_TOL_RAD, np.pi))
 
     def _check_common(self) -> None:
         """Validate and normalise the shared fields (fx, fy, cx, cy, width, height)."""
@@ -402,8 +410,10 @@ class _ThetaModel(CameraModel):
         my = (uv[:, 1] - self.cy) / self.fy
         td = np.hypot(mx, my)
         valid = td <= self._theta_d_max * (1 + 1e-12) + 1e-15
-        theta = np.zeros_like(td)
-        if np.any(valid):
+        if valid.all():
+            theta = self._theta_from_theta_d(np.minimum(td, self._theta_d_max))
+        else:  # solve only inside the lens circle
+            theta = np.zeros_like(td)
             theta[valid] = self._theta_from_theta_d(np.minimum(td[valid], self._theta_d_max))
         # b = (sin(theta) m / theta_d, cos(theta)); on the axis sin(theta)/theta_d -> 1/theta_d'(0) = 1.
         q = np.where(td > 0, np.sin(theta) / np.where(td > 0, td, 1.0), 1.0)
