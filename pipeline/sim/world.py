@@ -41,9 +41,9 @@ def hash01(ix: np.ndarray, iy: np.ndarray, iz: np.ndarray, seed: int) -> np.ndar
     ix, iy, iz: integer arrays of one shape (any sign). Returns float32 of that shape."""
     with np.errstate(over="ignore"):
         h = (
-            ix.astype(np.int64).astype(np.uint32) * np.uint32(73856093)
-            ^ iy.astype(np.int64).astype(np.uint32) * np.uint32(19349663)
-            ^ iz.astype(np.int64).astype(np.uint32) * np.uint32(83492791)
+            np.asarray(ix).astype(np.uint32) * np.uint32(73856093)  # two's-complement wrap for < 0
+            ^ np.asarray(iy).astype(np.uint32) * np.uint32(19349663)
+            ^ np.asarray(iz).astype(np.uint32) * np.uint32(83492791)
             ^ np.uint32((seed * 2654435761) & 0xFFFFFFFF)
         )
         # lowbias32 finaliser (Wellons): avalanche the bits
@@ -66,12 +66,13 @@ def checker_value(q: np.ndarray, cell_m: float, seed: int, contrast: float,
     (used against aliasing far away).
     """
     q = np.asarray(q, dtype=np.float32)
-    if q.shape[1] == 2:
-        q = np.concatenate([q, np.zeros((len(q), 1), np.float32)], axis=1)
     off = np.float32(0.3819660)  # (3 - sqrt 5) / 2
-    c1 = np.floor(q / np.float32(cell_m) + off).astype(np.int32)
-    c2 = np.floor(q / np.float32(cell_m / 3.0) + off).astype(np.int32)
-    c0 = np.floor(q / np.float32(cell_m * 3.0) + off).astype(np.int32)
+    c1 = np.floor(q * np.float32(1.0 / cell_m) + off).astype(np.int32)
+    c2 = np.floor(q * np.float32(3.0 / cell_m) + off).astype(np.int32)
+    c0 = np.floor(q * np.float32(1.0 / (3.0 * cell_m)) + off).astype(np.int32)
+    if q.shape[1] == 2:  # planar texture: the third lattice index is 0
+        z = np.zeros((len(q), 1), np.int32)
+        c1, c2, c0 = (np.concatenate([c, z], axis=1) for c in (c1, c2, c0))
     coarse = hash01(c1[:, 0], c1[:, 1], c1[:, 2], seed) > 0.5
     flip = hash01(c2[:, 0], c2[:, 1], c2[:, 2], seed + 1) > 0.75
     slow = 0.8 + 0.2 * hash01(c0[:, 0], c0[:, 1], c0[:, 2], seed + 2)
@@ -284,10 +285,7 @@ class World:
         """BGR colour in [0, 1] (N,3) float32 of each ray: texture x Lambert at hits, sky otherwise.
 
         pix_rad: angular size of a pixel (rad), used to fade far textures against aliasing."""
-        N = len(d_W)
-        col = np.empty((N, 3), np.float32)
-        sky = hits.part == -1
-        col[sky] = self._sky(d_W[sky])
+        col = self._sky(d_W)  # everywhere first (cheaper than gathering the sky rays), then overwritten
         shared_origin = o_W.ndim == 1
         on_obj = np.nonzero(hits.part >= 0)[0]  # objects usually cover a small share of the rays
         part_on = hits.part[on_obj]
