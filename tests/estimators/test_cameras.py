@@ -175,6 +175,18 @@ def test_jacobians_match_central_differences(model):
     assert np.abs(np.einsum("ni,nij->nj", bu, Ju)).max() < 1e-12
 
 
+def test_jacobians_on_the_optical_axis_hand_computed(model):
+    # On the axis every model is locally a pinhole with focal length f_eff: theta models and EUCM
+    # (D = alpha + (1 - alpha) = 1) have f_eff = fx; double sphere has D = 1 + xi -> fx / (1 + xi).
+    scale = 1.0 / (1.0 + model.xi) if model.name == "double_sphere" else 1.0
+    J = model.bearing_to_pixel_jacobian(np.array([[0.0, 0.0, 2.0]]))[0]
+    np.testing.assert_allclose(J, [[model.fx * scale / 2, 0, 0], [0, model.fy * scale / 2, 0]], rtol=1e-12,
+                               atol=1e-12)
+    Ju = model.pixel_to_bearing_jacobian(np.array([[model.cx, model.cy]]))[0]
+    np.testing.assert_allclose(Ju, [[1 / (model.fx * scale), 0], [0, 1 / (model.fy * scale)], [0, 0]],
+                               rtol=1e-12, atol=1e-15)
+
+
 def test_invalid_rows_are_zero_and_flagged_never_nan(model):
     b = np.array([
         [0.0, 0.0, 1.0],
