@@ -186,15 +186,21 @@ class MemorySampler:
         checkpoints: frame counts (1-based: "after this many frames") at which to record RSS.
     """
 
-    def __init__(self, checkpoints: Sequence[int]) -> None:
+    def __init__(self, checkpoints: Sequence[int], path: str | Path | None = None) -> None:
         self.checkpoints = sorted({int(c) for c in checkpoints})
         self.samples: dict[int, int] = {}
+        self.path = None if path is None else Path(path)
         self._rss_fn: Callable[[], int] = rss_bytes
 
     def after_frame(self, n_done: int) -> None:
-        """Call once per frame with the number of frames processed so far."""
+        """Call once per frame with the number of frames processed so far. With ``path`` the samples
+        so far are rewritten there at every checkpoint, so a run stopped early still tells."""
         if n_done in self.checkpoints:
             self.samples[n_done] = self._rss_fn()
+            if self.path is not None:
+                tmp = self.path.with_name(self.path.name + ".tmp")
+                tmp.write_text(json.dumps(self.to_json()))
+                os.replace(tmp, self.path)
 
     def growth(self, a: int, b: int) -> dict[str, float | int] | None:
         """RSS difference (bytes) and ratio between checkpoints ``a`` and ``b`` (None if either missing)."""
@@ -482,13 +488,14 @@ class LoopingSource:
     """
 
     def __init__(self, videos: Mapping[str, str | Path], n_frames: int, fps: float,
-                 checkpoints: Sequence[int] = (), warmup: int = 0) -> None:
+                 checkpoints: Sequence[int] = (), warmup: int = 0,
+                 memory_path: str | Path | None = None) -> None:
         self.videos = {k: str(v) for k, v in videos.items()}
         self.n_frames, self.fps, self.warmup = int(n_frames), float(fps), int(warmup)
         self.sources = [_SourceInfo(k, v, self.fps) for k, v in self.videos.items()]
         self.dropped = {k: 0 for k in self.videos}
         self.error: str | None = None
-        self.memory = MemorySampler(checkpoints)
+        self.memory = MemorySampler(checkpoints, memory_path)
         self.t_warm: float | None = None
         self.t_end: float | None = None
         self.cpu_warm: float | None = None
@@ -596,8 +603,9 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     fusion = run_mod.build_fusion(cfg, rig, ego)
     n = int(task["frames"])
     warm = int(task.get("warmup", min(10, n // 10)))
+    Path(task["out"]).mkdir(parents=True, exist_ok=True)
     src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
-                        task.get("checkpoints") or [], warm)
+                        task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json")
     res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
                       progress=False)
     sm = res.summary
@@ -647,12 +655,40 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
+def _task_profile(task: Mapping[str, Any]) -> dict[str, Any]:
+    """The pipeline task under cProfile: the functions with the most own time and most cumulative time
+    (seconds over the run and per frame), to name the hot spots."""
+    import cProfile
+    import pstats
+
+    import estimators.fusion  # noqa: F401 - imported before profiling: import time is not a hot spot
+    import pipeline.run  # noqa: F401
+    import trackers.frontend  # noqa: F401
+
+    prof = cProfile.Profile()
+    prof.enable()
+    res = _task_pipeline(task)
+    prof.disable()
+    st = pstats.Stats(prof)
+    n = max(1, int(res["frames"]))
+    rows = []
+    for (file, line, fn), (_cc, ncalls, tt, ct, _callers) in st.stats.items():
+        short = "/".join(Path(file).parts[-2:]) if file != "~" else "~"
+        rows.append({"function": f"{short}:{line}({fn})", "calls": ncalls, "own_s": tt, "cum_s": ct,
+                     "own_ms_per_frame": 1000 * tt / n, "cum_ms_per_frame": 1000 * ct / n})
+    top = int(task.get("top", 20))
+    return {"frames": res["frames"], "stages": res["stages"],
+            "by_own_time": sorted(rows, key=lambda r: -r["own_s"])[:top],
+            "by_cumulative_time": sorted(rows, key=lambda r: -r["cum_s"])[:top]}
+
+
 #: Worker task kinds -> function(task) -> JSON result.
 TASKS: dict[str, Callable[[Mapping[str, Any]], dict[str, Any]]] = {
     "decode": _task_decode,
     "memory_probe": _task_memory_probe,
     "pipeline": _task_pipeline,
     "live": _task_live,
+    "profile": _task_profile,
 }
 
 
@@ -826,17 +862,18 @@ class BenchPlan:
     resolutions: tuple[tuple[int, int], ...]
     rigs: tuple[str, ...] = ("mono", "stereo")
     threads: tuple[int | None, ...] = (1, None)
-    render_frames: int = 300
-    measure_frames: int = 200
+    render_frames: int = 150
+    measure_frames: int = 120
     live_frames: int = 300
     scaling_resolution: tuple[int, int] = (1280, 720)
     obstacle_counts: tuple[int, ...] = (1, 10, 50)
     feature_counts: tuple[int, ...] = (100, 500, 2000)
-    scaling_frames: int = 150
+    scaling_frames: int = 100
     memory_resolution: tuple[int, int] = (640, 480)
     memory_frames: int = 10_000
     memory_checkpoints: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000)
-    detector_frames: int = 200
+    memory_timeout_s: float = 2400.0
+    detector_frames: int = 120
     base_obstacles: int = 8
 
 
@@ -992,16 +1029,20 @@ class BenchRun:
             c.dir.name, {"dir": str(c.dir), "render_or_load_s": dt, "cameras": sorted(c.videos)})
         return c
 
-    def run(self, task: dict[str, Any], threads: int | None) -> dict[str, Any]:
+    def run(self, task: dict[str, Any], threads: int | None, timeout_s: float = 3600.0) -> dict[str, Any]:
         self._n_task += 1
-        if task["kind"] in ("pipeline", "live"):
+        if task["kind"] in ("pipeline", "live", "profile"):
             task.setdefault("out", str(self.out / "runs" / f"{self._n_task:02d}_{task['kind']}"))
         label = f"{task['kind']} {Path(next(iter(task.get('videos', {'': ''}).values()))).parent.name} " \
                 f"{_threads_label(threads)}"
         self.log(f"[bench] {label} ...")
         load = os.getloadavg() if hasattr(os, "getloadavg") else None
-        r = run_task(task, threads)
+        r = run_task(task, threads, timeout_s=timeout_s)
         r["loadavg_before"] = load
+        mem = Path(task.get("out", "")) / "memory.json"
+        if "error" in r and task.get("out") and mem.is_file():  # stopped early: keep the RSS so far
+            r["memory"] = json.loads(mem.read_text())
+            r["partial"] = True
         if "error" in r:
             self.log(f"[bench]   failed: {r['error']}")
             self.notes.append(f"{label}: {r['error']}")
@@ -1148,7 +1189,8 @@ class BenchRun:
         p = self.plan
         clip = self.clip(p.memory_resolution, "mono")
         cps = list(p.memory_checkpoints)
-        r = self.run(clip.task("pipeline", p.memory_frames, checkpoints=cps, warmup=0), 1)
+        r = self.run(clip.task("pipeline", p.memory_frames, checkpoints=cps, warmup=0), 1,
+                     timeout_s=p.memory_timeout_s)
         self.sections["memory"] = {"resolution": list(p.memory_resolution), "frames": p.memory_frames,
                                    "result": r}
         at = {int(k): v for k, v in (r.get("memory", {}).get("rss_bytes_at_frames") or {}).items()}
@@ -1160,7 +1202,9 @@ class BenchRun:
                                  f"RSS at {first}", at[first] * mib if first in at else None,
                                  note=r.get("error", "")))
         grow = None
-        if first in at and last in at:
+        reached = [c for c in cps if c in at]
+        if first in at and len(reached) >= 2:  # a run stopped early compares up to where it got
+            last = reached[-1]
             grow = memory_grew({"growth_bytes": at[last] - at[first], "rss_from_bytes": at[first]})
         peak = r.get("memory", {}).get("peak_rss_bytes")
         self.rows.append(Row(sec, f"growth {first} -> {last} frames",
@@ -1224,6 +1268,8 @@ class BenchRun:
             need.append((p.memory_resolution, "mono", None))
         if "detectors" in parts:
             need.append((p.resolutions[0], "mono", None))
+        if "profile" in parts:
+            need.append(((1280, 720) if (1280, 720) in p.resolutions else p.resolutions[0], "mono", None))
         seen = set()
         for r, rig, n in need:
             if (r, rig, n) in seen:
@@ -1232,10 +1278,22 @@ class BenchRun:
             self.log(f"[bench] clip {_res(r)} {rig} {n if n is not None else p.base_obstacles} obstacles ...")
             self.clip(r, rig, n)
 
+    def profile(self) -> None:
+        """cProfile of the pipeline at 1280x720 mono (or the plan's first size), one core: hot spots."""
+        p = self.plan
+        res = (1280, 720) if (1280, 720) in p.resolutions else p.resolutions[0]
+        clip = self.clip(res, "mono")
+        r = self.run(clip.task("profile", min(p.measure_frames, 100), top=25), 1)
+        self.sections["profile"] = {"resolution": list(res), "result": r}
+        sec = f"hot spots (cProfile, {_res(res)} mono, 1 core; own time per frame)"
+        for f in (r.get("by_own_time") or [])[:8]:
+            self.rows.append(Row(sec, f["function"], f["own_ms_per_frame"], "ms",
+                                 extra={"calls": f["calls"], "cum_ms_per_frame": f["cum_ms_per_frame"]}))
+
     # --------------------------------------------------------------------------------- driver
     def run_all(self, only: Sequence[str] | None = None) -> None:
         parts = {"throughput": self.throughput, "live": self.live, "scaling": self.scaling,
-                 "memory": self.memory, "detectors": self.detectors}
+                 "detectors": self.detectors, "profile": self.profile, "memory": self.memory}
         for name in only or parts:
             if name not in parts:
                 raise ConfigError(f"bench: unknown part {name!r}; expected one of {', '.join(parts)}")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-PARTS = ("throughput", "live", "scaling", "memory", "detectors")
+PARTS = ("throughput", "live", "scaling", "memory", "detectors", "profile")
 
 
 def register(app: typer.Typer) -> None:
