@@ -25,20 +25,33 @@ class _CamRays:
     valid_idx: np.ndarray  # (M,) flat pixel indices inside the lens circle
     b_C: np.ndarray  # (M,3) float32 unit bearings of those pixels, C
     pix_rad: float  # angular size of a pixel near the image centre, rad
+    sub_b_C: list[np.ndarray]  # supersampling: (M,3) bearings at s x s sub-pixel offsets (empty: s = 1)
 
 
-def _camera_rays(cam) -> _CamRays:
-    """Precompute the bearings of every pixel centre of ``cam`` (``Camera``: name, model, T_C_B)."""
+def _camera_rays(cam, supersample: int = 1) -> _CamRays:
+    """Precompute the bearings of every pixel centre of ``cam`` (``Camera``: name, model, T_C_B),
+    and with ``supersample`` s > 1 those of an s x s grid inside each pixel (a sub-sample outside
+    the lens falls back to the pixel centre)."""
     m = cam.model
     W, H = int(m.width), int(m.height)
     u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
     uv = np.stack([u.ravel(), v.ravel()], axis=1)
     b, ok = m.pixel_to_bearing(uv)
     idx = np.nonzero(ok)[0]
+    b_C = b[idx].astype(np.float32)
     cx, cy, _ = m.image_circle()
     bb, okc = m.pixel_to_bearing(np.array([[cx, cy], [cx + 1.0, cy]]))
     pix = float(np.arccos(np.clip(bb[0] @ bb[1], -1, 1))) if okc.all() else 1.0 / max(W, H)
-    return _CamRays(cam.name, W, H, cam.T_C_B, idx, b[idx].astype(np.float32), pix)
+    subs = []
+    if supersample > 1:
+        offs = (np.arange(supersample) + 0.5) / supersample - 0.5  # sub-pixel centres in (-0.5, 0.5)
+        for dv in offs:
+            for du in offs:
+                bs, oks = m.pixel_to_bearing(uv[idx] + [du, dv], within_image=False)
+                bs = bs.astype(np.float32)
+                bs[~oks] = b_C[~oks]
+                subs.append(bs)
+    return _CamRays(cam.name, W, H, cam.T_C_B, idx, b_C, pix, subs)
 
 
 class Renderer:
@@ -47,11 +60,12 @@ class Renderer:
     Args:
         world: the scene.
         cameras: iterable of cameras with ``name``, ``model`` (a ``CameraModel``) and ``T_C_B``.
+        supersample: s x s rays per pixel, averaged (anti-aliasing; s^2 times the cost).
     """
 
-    def __init__(self, world: World, cameras):
+    def __init__(self, world: World, cameras, supersample: int = 1):
         self.world = world
-        self.cams = {c.name: _camera_rays(c) for c in cameras}
+        self.cams = {c.name: _camera_rays(c, supersample) for c in cameras}
 
     def cast_camera(self, name: str, T_W_B: Pose, t_s: float,
                     halo: bool = False) -> tuple[Hits, np.ndarray, np.ndarray, list]:
@@ -69,8 +83,21 @@ class Renderer:
     def render_float(self, name: str, T_W_B: Pose, t_s: float) -> np.ndarray:
         """Linear BGR image (H, W, 3) float32 in [0, 1]; black outside the lens circle."""
         cr = self.cams[name]
-        hits, o_W, d_W, flat = self.cast_camera(name, T_W_B, t_s, halo=True)
-        col = self.world.shade(t_s, o_W, d_W, hits, flat, pix_rad=cr.pix_rad)
+        if cr.sub_b_C:
+            T_W_C = T_W_B @ cr.T_C_B.inverse()
+            R = T_W_C.R.T.astype(np.float32)
+            placed = self.world.place(t_s)
+            col = None
+            sub_pix = cr.pix_rad / len(cr.sub_b_C) ** 0.5  # a sub-sample's angular size
+            for b_C in cr.sub_b_C:
+                d_W = b_C @ R
+                hits, flat = self.world.cast(t_s, T_W_C.t, d_W, placed=placed, light_halo_rad=cr.pix_rad)
+                c = self.world.shade(t_s, T_W_C.t, d_W, hits, flat, pix_rad=sub_pix)
+                col = c if col is None else col + c
+            col /= np.float32(len(cr.sub_b_C))
+        else:
+            hits, o_W, d_W, flat = self.cast_camera(name, T_W_B, t_s, halo=True)
+            col = self.world.shade(t_s, o_W, d_W, hits, flat, pix_rad=cr.pix_rad)
         img = np.zeros((cr.height * cr.width, 3), np.float32)
         img[cr.valid_idx] = col
         return img.reshape(cr.height, cr.width, 3)

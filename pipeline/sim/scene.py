@@ -260,6 +260,10 @@ class ExposureSpec(_Model):
 
 
 class RealismSpec(_Model):
+    """Image effects. ``supersample``: s x s rays per pixel averaged (anti-aliased edges and
+    textures, s^2 times the render cost)."""
+
+    supersample: int = Field(default=1, ge=1, le=4)
     noise_sigma: float = Field(default=0.0, ge=0, description="Gaussian pixel noise, grey levels (0-255)")
     motion_blur: MotionBlurSpec = MotionBlurSpec()
     exposure: ExposureSpec = ExposureSpec()

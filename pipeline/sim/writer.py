@@ -73,7 +73,7 @@ class Simulation:
         t_end = (self.n_frames - 1) / self.scn.fps + half_exp
         t_end = max(t_end, 1.0 / self.scn.fps)
         self.traj = observer_trajectory(self.scn.observer, t_end, t_start_s=-half_exp)
-        self.renderer = Renderer(self.world, self.rig)
+        self.renderer = Renderer(self.world, self.rig, self.scn.realism.supersample)
         self._masks = {c.name: lens_mask(self.renderer, c.name) for c in self.rig}
 
     def frame_time(self, k: int) -> float:
