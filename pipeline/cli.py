@@ -18,7 +18,7 @@ import typer
 
 from estimators.errors import FisheyeDesError
 
-COMMANDS: tuple[str, ...] = ("thesis", "simulate", "run", "bench", "accuracy", "live", "calibrate", "demo")
+COMMANDS: tuple[str, ...] = ("thesis", "simulate", "run", "bench", "accuracy", "calibrate", "evaluate", "live", "demo")
 
 app = typer.Typer(
     name="fisheye-des",
