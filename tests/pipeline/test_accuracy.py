@@ -1,0 +1,126 @@
+"""Tests of the accuracy harness (pipeline/accuracy.py): metric definitions on hand-made samples,
+the thesis baseline on a hand-worked triangle, a one-scene bearings-mode smoke run, and (heavy) the
+quick harness against the issue's targets."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.accuracy import (
+    AccuracyOptions,
+    Sample,
+    _law_of_sines,
+    format_table,
+    run_accuracy,
+    run_bearings,
+    summarize,
+)
+
+
+def _s(**kw) -> Sample:
+    base = dict(scene="s", rig="mono", track=1, t_s=2.0, in_view_s=1.5, moving=False, speed_true=0.0,
+                max_speed=5.0, off_axis_deg=30.0, range_true=10.0, n_views=1, range_m=10.0,
+                range_sigma_m=0.1, range_min_m=None, range_max_m=None, source="mono")
+    base.update(kw)
+    return Sample(**base)
+
+
+def test_summarize_mono_selection_and_quantiles():
+    samples = [_s(range_m=10.0 + 0.1 * k) for k in range(11)]  # rel errors 0, 1 %, ..., 10 %
+    samples += [
+        _s(range_true=25.0, range_m=0.0),  # beyond 20 m: excluded
+        _s(off_axis_deg=5.0, range_m=0.0),  # < 10 deg off the flight direction: excluded
+        _s(in_view_s=0.5, range_m=0.0),  # < 1 s in view: excluded
+        _s(moving=True, speed_true=1.0, range_m=0.0),  # moving: excluded
+    ]
+    m = summarize(samples)
+    assert m["mono_n"] == 11
+    assert m["mono_median_rel"] == pytest.approx(0.05)
+    assert m["mono_p90_rel"] == pytest.approx(0.09)  # numpy linear quantile of 0..0.10 step 0.01
+
+
+def test_summarize_bounds_coverage_counts_only_obstacles_within_max_speed():
+    samples = [
+        _s(moving=True, speed_true=3.0, range_min_m=8.0, range_max_m=12.0),  # inside
+        _s(moving=True, speed_true=3.0, range_min_m=8.0, range_max_m=None),  # inside, unbounded
+        _s(moving=True, speed_true=3.0, range_min_m=11.0, range_max_m=12.0),  # outside
+        _s(moving=True, speed_true=9.0, range_min_m=11.0, range_max_m=12.0),  # faster than max: ignored
+    ]
+    m = summarize(samples)
+    assert m["bounds_n"] == 3
+    assert m["bounds_coverage"] == pytest.approx(2 / 3)
+    assert m["bounds_upper_share"] == pytest.approx(2 / 3)
+
+
+def test_summarize_stereo_and_velocity_metrics():
+    samples = [
+        _s(rig="stereo", n_views=2, range_true=2.0, range_m=2.02),  # 1 %
+        _s(rig="stereo", n_views=2, range_true=6.0, range_m=6.18),  # 3 %
+        _s(rig="stereo", n_views=2, range_true=7.0, range_m=7.35, moving=True, speed_true=2.0,
+           speed_mps=2.2, heading_err_deg=4.0, source="stereo", stereo_fed=True),  # 5 %, 10 %
+    ]
+    m = summarize(samples)
+    assert m["stereo_3m_n"] == 1 and m["stereo_3m_median_rel"] == pytest.approx(0.01)
+    assert m["stereo_8m_n"] == 3 and m["stereo_8m_median_rel"] == pytest.approx(0.03)
+    assert m["stereo_speed_median_rel"] == pytest.approx(0.10)
+    assert m["stereo_heading_median_deg"] == pytest.approx(4.0)
+
+
+def test_summarize_one_sigma_share_and_nees():
+    samples = [_s(range_m=10.05, nees3=2.0), _s(range_m=10.2, nees3=4.0, track=2)]  # sigma 0.1
+    m = summarize(samples)
+    assert m["one_sigma_share"] == pytest.approx(0.5)
+    assert m["nees_mean"] == pytest.approx(3.0)
+    assert m["nees_n_tracks"] == 2
+    lo, hi = m["nees_interval95"]
+    assert lo < 3.0 < hi
+    table = format_table(m)
+    assert "position NEES" in table and "PASS" in table
+
+
+def test_thesis_law_of_sines_hand_worked_triangle():
+    # A = (0,0,0), B = (4,0,0), C = (4,3,0): theta1 = atan2(3, 4), theta2 = 90 deg, |BC| = 3
+    c_a, c_b = np.zeros(3), np.array([4.0, 0.0, 0.0])
+    b_a = np.array([0.8, 0.6, 0.0])
+    b_b = np.array([0.0, 1.0, 0.0])
+    assert _law_of_sines(c_a, b_a, c_b, b_b, c_b) == pytest.approx(3.0, abs=1e-9)
+    assert _law_of_sines(c_a, b_a, c_b, b_b, c_a) == pytest.approx(5.0, abs=1e-9)  # range from A
+    assert _law_of_sines(c_a, b_a, c_a, b_b, c_b) is None  # zero baseline
+
+
+def _tiny_scene():
+    from pipeline.sim.scene import scenario_from_dict
+
+    return scenario_from_dict({
+        "name": "tiny", "duration_s": 1.4, "fps": 15,
+        "rig": {"kind": "mono", "resolution": [640, 480]},
+        "observer": {"kind": "straight", "speed_mps": 5.0, "start": {"position_m": [0, 0, 5]}},
+        "ground": {"enabled": False},
+        "obstacles": [{"id": 1, "kind": "sphere", "radius_m": 0.3, "position_m": [12.0, 4.0, 5.5]}],
+    })
+
+
+def test_bearings_mode_one_scene_matches_truth():
+    scn = _tiny_scene()
+    ss = run_bearings(scn, AccuracyOptions(pixel_sigma_px=0.3), np.random.default_rng(1))
+    assert len(ss) == scn.n_frames  # one report per frame, the sphere is always in view
+    last = ss[-1]
+    # truth by hand: body at x = 5 * t, obstacle centre (12, 4, 5.5), body at z = 5
+    t = (scn.n_frames - 1) / scn.fps
+    assert last.range_true == pytest.approx(math.sqrt((12 - 5 * t) ** 2 + 16 + 0.25), abs=1e-5)
+    assert last.range_m is not None
+    assert abs(last.range_m - last.range_true) / last.range_true < 0.03
+    assert last.thesis_range_m is not None  # 0.5 s back is within the run
+
+
+@pytest.mark.heavy
+def test_quick_harness_meets_targets_bearings_mode():
+    res = run_accuracy(AccuracyOptions(quick=True))
+    m = res["metrics"]
+    assert m["mono_median_rel"] <= 0.02 and m["mono_p90_rel"] <= 0.05
+    assert m["stereo_8m_median_rel"] <= 0.04
+    assert m["bounds_coverage"] >= 0.99
+    assert res["elapsed_s"] < 120
