@@ -186,12 +186,12 @@ def test_cli_video_input(board_images, tmp_path, capsys):
         (["--board", "9by6"], InputError,
          r"--board: expected COLSxROWS inner corners such as 9x6, got '9by6'"),
         (["--board", "9x6", "--square-m", "-1"], InputError, r"--square-m: expected a square size > 0"),
-        (["--board", "7x5"], CalibrationError, r"the board \(7x5 inner corners\) was found in 0 of 3 views"),
+        (["--board", "7x5"], CalibrationError, r"the board \(7x5 inner corners\) was found in 0 of 1 views"),
         (["--model", "double_sphere"], InputError, r"--model: 'double_sphere' cannot be calibrated here"),
     ],
 )
 def test_cli_errors(board_images, tmp_path, capsys, args, error, match):
-    base = ["calibrate", str(board_images / "view_0[0-2].png"), "--square-m", "0.03", "--board", "9x6",
+    base = ["calibrate", str(board_images / "view_00.png"), "--square-m", "0.03", "--board", "9x6",
             "--out", str(tmp_path / "c.yaml")]
     rc = main(base + args)
     assert rc == 2
