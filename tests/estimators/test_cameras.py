@@ -273,6 +273,38 @@ def test_equidistant_thesis_linear_scale():
     np.testing.assert_allclose(b[0], [-math.sin(ten), 0.0, math.cos(ten)], atol=1e-12)
 
 
+@pytest.mark.parametrize(
+    "model, radius",
+    [
+        # alpha = 0 (and xi = 0): the pinhole, r = f tan(theta)
+        (DoubleSphere(fx=200.0, fy=200.0, cx=500.0, cy=400.0, width=1000, height=800, xi=0.0, alpha=0.0),
+         lambda th: 200.0 * math.tan(th)),
+        (Eucm(fx=200.0, fy=200.0, cx=500.0, cy=400.0, width=1000, height=800, alpha=0.0, beta=1.0),
+         lambda th: 200.0 * math.tan(th)),
+        # alpha = 0.5, beta = 1 (EUCM) or xi = 0 (DS): D = (1 + cos theta)/2 -> stereographic 2 f tan(theta/2)
+        (Eucm(fx=200.0, fy=200.0, cx=500.0, cy=400.0, width=1000, height=800, alpha=0.5, beta=1.0),
+         lambda th: 400.0 * math.tan(th / 2)),
+        (DoubleSphere(fx=200.0, fy=200.0, cx=500.0, cy=400.0, width=1000, height=800, xi=0.0, alpha=0.5),
+         lambda th: 400.0 * math.tan(th / 2)),
+        # xi = 1, alpha = 0 (DS): D = 1 + cos theta -> f tan(theta/2)
+        (DoubleSphere(fx=200.0, fy=200.0, cx=500.0, cy=400.0, width=1000, height=800, xi=1.0, alpha=0.0),
+         lambda th: 200.0 * math.tan(th / 2)),
+    ],
+)
+def test_double_sphere_and_eucm_special_cases_are_classic_projections(model, radius):
+    for deg in (10.0, 45.0, 80.0, 120.0):
+        th = math.radians(deg)
+        b = np.array([[0.0, math.sin(th), math.cos(th)]])  # straight down the image (+y of C)
+        uv, valid = model.bearing_to_pixel(b, within_image=False)
+        if deg >= 90.0 and radius(math.radians(89.0)) > 10000:  # the pinhole cannot image it
+            assert not valid.any()
+            continue
+        assert valid.all()
+        np.testing.assert_allclose(uv[0], [500.0, 400.0 + radius(th)], rtol=1e-12)
+        b2, valid2 = model.pixel_to_bearing(uv, within_image=False)
+        assert valid2.all() and _angle(b, b2).max() < 1e-12
+
+
 def test_kannala_brandt_beyond_90_degrees_hand_computed():
     # theta = 120 deg about +x: theta_d = theta (1 + k1 theta^2), u = cx + fx theta_d
     k1 = 0.01
