@@ -84,8 +84,19 @@ def test_raycast_pole_side_and_top():
 
 
 def test_raycast_moving_sphere_follows_its_velocity():
-    w = World(_scn([{"id": 2, "kind": "sphere", "radius_m": 0.5, "position_m": [10, 0, 0],
-                     "motion": {"kind": "constant_velocity", "velocity_mps": [-2.0, 1.0, 0.0]}}]))
+    w = World(
+        _scn(
+            [
+                {
+                    "id": 2,
+                    "kind": "sphere",
+                    "radius_m": 0.5,
+                    "position_m": [10, 0, 0],
+                    "motion": {"kind": "constant_velocity", "velocity_mps": [-2.0, 1.0, 0.0]},
+                }
+            ]
+        )
+    )
     for t in (0.0, 1.0, 2.5):
         c = np.array([10 - 2 * t, t, 0.0])
         depth, ids = raycast(w, t, np.zeros(3), (c / np.linalg.norm(c))[None])
@@ -111,8 +122,12 @@ def test_scenario_errors_are_clear():
 
 # ---------------------------------------------------------------------------- rendered geometry
 def _mono_sim(obstacles, res=(320, 240), observer=None, model="kannala_brandt"):
-    d = {"name": "g", "obstacles": obstacles, "ground": {"enabled": False},
-         "rig": {"kind": "mono", "resolution": list(res), "model": {"name": model}}}
+    d = {
+        "name": "g",
+        "obstacles": obstacles,
+        "ground": {"enabled": False},
+        "rig": {"kind": "mono", "resolution": list(res), "model": {"name": model}},
+    }
     if observer:
         d["observer"] = observer
     return Simulation(scenario_from_dict(d), n_frames=61)
@@ -162,8 +177,9 @@ def _pixel_angle(model):
 def test_sphere_centre_pixel_matches_cv2_fisheye():
     # cv2.fisheye projects the sphere's centre; the mask's centroid agrees within ~1 px near the axis
     R, c_B = 0.8, np.array([10.0, 1.5, 1.0])
-    sim = _mono_sim([{"id": 1, "kind": "sphere", "radius_m": R, "position_m": (c_B + [0, 0, 2]).tolist()}],
-                    res=(640, 480))
+    sim = _mono_sim(
+        [{"id": 1, "kind": "sphere", "radius_m": R, "position_m": (c_B + [0, 0, 2]).tolist()}], res=(640, 480)
+    )
     m = sim.rig[0].model
     _, ids = sim.renderer.depth("cam0", sim.traj.pose_at(0.0), 0.0)
     vv, uu = np.nonzero(ids == 1)
@@ -177,9 +193,11 @@ def test_sphere_centre_pixel_matches_cv2_fisheye():
 def test_pole_azimuth_over_a_straight_flight():
     x0, y0, v = 12.0, 3.0, 4.0
     pole = {"id": 7, "kind": "pole", "radius_m": 0.2, "height_m": 6.0, "position_m": [x0, y0, 0.0]}
-    sim = _mono_sim([pole],
-                    res=(640, 480), observer={"kind": "straight", "speed_mps": v,
-                                              "start": {"position_m": [0.0, 0.0, 2.0]}})
+    sim = _mono_sim(
+        [pole],
+        res=(640, 480),
+        observer={"kind": "straight", "speed_mps": v, "start": {"position_m": [0.0, 0.0, 2.0]}},
+    )
     cam = sim.rig[0]
     m = cam.model
     row = int(round(m.cy))  # the image row of elevation 0 (cy is on a pixel centre here)
@@ -227,8 +245,13 @@ def test_forward_mount_by_hand():
 def test_drone_lights_red_left_green_right_white_tail():
     # a drone flying away along +x, 4 m ahead: we see its tail (white) in the middle, its left
     # (red, +y) on the image's left and its right (green) on the image's right
-    drone = {"id": 1, "kind": "drone", "position_m": [4.0, 0.0, 2.3], "light_radius_m": 0.06,
-             "motion": {"kind": "constant_velocity", "velocity_mps": [2.0, 0.0, 0.0]}}
+    drone = {
+        "id": 1,
+        "kind": "drone",
+        "position_m": [4.0, 0.0, 2.3],
+        "light_radius_m": 0.06,
+        "motion": {"kind": "constant_velocity", "velocity_mps": [2.0, 0.0, 0.0]},
+    }
     sim = _mono_sim([drone], res=(640, 480))
     img = sim.render("cam0", 0.0).astype(int)
     b, g, r = img[..., 0], img[..., 1], img[..., 2]
@@ -239,3 +262,32 @@ def test_drone_lights_red_left_green_right_white_tail():
     cx = sim.rig[0].model.cx
     assert red[:, 1].mean() < cx - 3 < cx + 3 < green[:, 1].mean()
     assert abs(white[:, 1].mean() - cx) < 3
+
+
+def test_stereo_right_camera_sees_from_its_own_centre():
+    # cam1 of a 0.30 m forward pair sits at body y = -0.15: a sphere's pixels in cam1 are exactly
+    # the rays from (0, -0.15, 0) within asin(R/d) of the direction to the centre
+    R, c_B = 0.4, np.array([3.0, 0.5, 0.2])
+    scn = scenario_from_dict(
+        {
+            "name": "s",
+            "ground": {"enabled": False},
+            "rig": {"kind": "stereo", "baseline_m": 0.3, "resolution": [320, 240]},
+            "obstacles": [
+                {"id": 1, "kind": "sphere", "radius_m": R, "position_m": (c_B + [0, 0, 2.0]).tolist()}
+            ],
+        }
+    )
+    sim = Simulation(scn, n_frames=2)
+    cam = sim.rig[1]
+    _, ids = sim.renderer.depth(cam.name, sim.traj.pose_at(0.0), 0.0)
+    H, W = ids.shape
+    u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+    b_C, _ = cam.model.pixel_to_bearing(np.stack([u.ravel(), v.ravel()], 1))
+    rel_C = R_C_B_FWD @ (c_B - np.array([0.0, -0.15, 0.0]))
+    d = np.linalg.norm(rel_C)
+    ang = np.arccos(np.clip(b_C @ (rel_C / d), -1, 1)).reshape(H, W)
+    half = np.arcsin(R / d)
+    mask = ids == 1
+    assert mask.sum() > 20 and np.all(ang[mask] <= half + 1e-9)
+    assert np.all(mask[ang < half - 2 * _pixel_angle(cam.model)[0]])
