@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from estimators.errors import ConfigError, InputError
+from estimators.errors import ConfigError, FisheyeDesError, InputError
 
 ENTRY_POINT_GROUP = "fisheye_des.detectors"
 
@@ -210,7 +210,14 @@ def make_detector(name: str, **options: Any) -> Detector:
         raise ConfigError(f"detector {name!r}: bad options {sorted(options)}: {e}; accepted: {sig}") from e
     except ValueError:
         pass  # no signature available (builtin): let the call report
-    det = factory(**options)
+    try:
+        det = factory(**options)
+    except FisheyeDesError:
+        raise
+    except Exception as e:  # a plug-in's own failure, reported as a configuration problem
+        raise ConfigError(
+            f"detector {name!r} could not be built with {options}: {type(e).__name__}: {e}"
+        ) from e
     if not isinstance(det, Detector):
         raise ConfigError(
             f"detector {name!r}: {factory!r} returned {type(det).__name__}, expected a Detector"

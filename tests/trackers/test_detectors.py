@@ -1,0 +1,217 @@
+"""Detectors: every registered one on a frame it should find something in, the Detections record,
+the registry's errors, ORB coverage of the rim, navlights' heading convention, torch models."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from estimators.errors import ConfigError, InputError
+from tests.trackers.conftest import SphereScene, equidistant
+from trackers.detectors import Detections, Detector, available_detectors, make_detector
+from trackers.detectors.navlights import heading_from_lights
+from trackers.features import lens_mask
+
+BUILTINS = ("orb", "navlights", "kornia", "torch")
+
+
+def lights_image(red_u: float, green_u: float, white: bool = True, size=(240, 320)) -> np.ndarray:
+    """Dark BGR frame with a red, a green and (optionally) a white light on one row."""
+    img = np.full(size + (3,), 20, np.uint8)
+    cv2.circle(img, (int(red_u), 120), 3, (0, 0, 255), -1)
+    cv2.circle(img, (int(green_u), 120), 3, (0, 255, 0), -1)
+    if white:
+        cv2.circle(img, (int((red_u + green_u) / 2), 118), 3, (255, 255, 255), -1)
+    return img
+
+
+@pytest.fixture
+def torchscript_model(tmp_path):
+    torch = pytest.importorskip("torch")
+
+    class Boxes(torch.nn.Module):
+        """Two fixed boxes [x1, y1, x2, y2, score, class] in the input's pixels; the second weak."""
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            z = x.mean() * 0.0
+            return (
+                torch.stack(
+                    [
+                        torch.tensor([10.0, 20.0, 50.0, 60.0, 0.9, 1.0]),
+                        torch.tensor([0.0, 0.0, 5.0, 5.0, 0.1, 0.0]),
+                    ]
+                )
+                + z
+            )
+
+    p = tmp_path / "boxes.pt"
+    torch.jit.script(Boxes()).save(str(p))
+    return p
+
+
+def setup_for(name: str, tmp_path, request):
+    """(options, image, mask) under which detector ``name`` must find something."""
+    model = equidistant()
+    mask = lens_mask(model)
+    textured = SphereScene(model).render()
+    if name == "orb":
+        return {}, textured, mask, "keypoints"
+    if name == "kornia":
+        pytest.importorskip("torch")
+        pytest.importorskip("kornia")
+        return {"device": "cpu"}, textured, mask, "keypoints"
+    if name == "navlights":
+        return {}, lights_image(200, 120), mask, "boxes"
+    if name == "torch":
+        return {"model_path": request.getfixturevalue("torchscript_model")}, textured, None, "boxes"
+    pytest.skip(f"no test setup for plug-in detector {name!r}")
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_each_registered_detector_finds_something(name, tmp_path, request):
+    assert name in available_detectors()
+    opts, img, mask, kind = setup_for(name, tmp_path, request)
+    det = make_detector(name, **opts)
+    assert isinstance(det, Detector) and det.name == name
+    d = det.detect(img, mask)
+    assert isinstance(d, Detections)
+    if kind == "keypoints":
+        assert len(d) >= 50
+        u = np.round(d.keypoints[:, 0]).astype(int)
+        v = np.round(d.keypoints[:, 1]).astype(int)
+        assert np.all(mask[v, u] > 0), "keypoints outside the mask"
+    else:
+        assert len(d.boxes) >= 1
+        assert np.all(d.boxes[:, 2] >= d.boxes[:, 0]) and np.all(d.boxes[:, 3] >= d.boxes[:, 1])
+        assert len(d.labels) == len(d.boxes) == len(d.attributes)
+
+
+def test_orb_covers_the_rim_like_the_centre():
+    """On a uniformly textured world the outer ring of the lens circle (beyond 70 % of its radius,
+    > 70 deg off-axis here) gets keypoints in proportion to its area (within a factor of 2)."""
+    model = equidistant(640, 480)
+    img = SphereScene(model).render()
+    mask = lens_mask(model)
+    d = make_detector("orb", max_features=500).detect(img, mask)
+    cx, cy, r = model.image_circle()
+    rr = np.hypot(d.keypoints[:, 0] - cx, d.keypoints[:, 1] - cy) / r
+    frac_outer = float(np.mean(rr > 0.7))
+    area_outer = 1 - 0.7**2
+    assert frac_outer > area_outer / 2, (
+        f"{frac_outer:.2f} of keypoints in the outer ring (area {area_outer:.2f})"
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs,exc",
+    [
+        ({"keypoints": np.zeros((3, 3))}, InputError),
+        ({"keypoints": np.zeros((3, 2)), "scores": np.zeros(2)}, InputError),
+        ({"keypoints": [[np.nan, 1.0]], "scores": [1.0]}, InputError),
+        (
+            {"keypoints": np.zeros((2, 2)), "scores": np.zeros(2), "descriptors": np.zeros((3, 32))},
+            InputError,
+        ),
+        ({"boxes": [[10, 10, 5, 20]]}, InputError),
+        ({"boxes": [[0, 0, 5, 5]], "labels": ("a", "b")}, InputError),
+        ({"boxes": [[0, 0, 5, 5]]}, None),
+        ({}, None),
+    ],
+)
+def test_detections_validation(kwargs, exc):
+    if exc is None:
+        d = Detections(**kwargs)
+        assert len(d.labels) == len(d.boxes) == len(d.box_scores) == len(d.attributes)
+    else:
+        with pytest.raises(exc):
+            Detections(**kwargs)
+
+
+def test_detections_empty_and_select():
+    e = Detections.empty()
+    assert len(e) == 0 and e.boxes.shape == (0, 4)
+    d = Detections(keypoints=[[1, 2], [3, 4], [5, 6]], scores=[0.1, 0.2, 0.3])
+    s = d.select(d.scores > 0.15)
+    np.testing.assert_array_equal(s.keypoints, [[3, 4], [5, 6]])
+
+
+def test_unknown_detector_lists_installed_ones():
+    with pytest.raises(ConfigError) as ei:
+        make_detector("nosuch")
+    for n in ("orb", "navlights", "kornia", "torch"):
+        assert n in str(ei.value)
+
+
+def test_bad_detector_option_is_config_error():
+    with pytest.raises(ConfigError, match="bogus"):
+        make_detector("orb", bogus=3)
+
+
+# ------------------------------------------------------------------------------------ navlights
+@pytest.mark.parametrize(
+    "red_u,green_u,expected",
+    [(200, 120, "towards"), (120, 200, "away")],
+)
+def test_navlights_heading_follows_the_thesis(red_u, green_u, expected):
+    """Thesis 5.2: red on the drone's left wingtip, green on its right; "green navigation light on
+    the left and red light on the right, that means the drone is flying towards" us."""
+    d = make_detector("navlights").detect(lights_image(red_u, green_u), None)
+    assert len(d.boxes) == 1 and d.labels == ("drone",)
+    a = d.attributes[0]
+    assert a["heading"] == expected
+    assert heading_from_lights(red_u, green_u) == expected
+    x1, y1, x2, y2 = d.boxes[0]
+    assert x1 <= min(red_u, green_u) and x2 >= max(red_u, green_u) and y1 <= 120 <= y2
+
+
+def test_navlights_needs_the_white_light_unless_told_otherwise():
+    img = lights_image(200, 120, white=False)
+    assert len(make_detector("navlights").detect(img).boxes) == 0
+    d = make_detector("navlights", require_white=False).detect(img)
+    assert len(d.boxes) == 1 and d.attributes[0]["white_uv"] is None
+
+
+def test_navlights_rejects_grey_frames():
+    with pytest.raises(InputError, match="BGR"):
+        make_detector("navlights").detect(np.zeros((240, 320), np.uint8))
+
+
+# ---------------------------------------------------------------------------------------- torch
+def test_torchscript_boxes_scaled_filtered_and_labelled(torchscript_model):
+    det = make_detector(
+        "torch",
+        model_path=torchscript_model,
+        input_size=(160, 120),
+        min_score=0.5,
+        class_names=("person", "drone"),
+    )
+    d = det.detect(np.zeros((240, 320, 3), np.uint8))
+    assert d.labels == ("drone",)
+    np.testing.assert_allclose(d.boxes, [[20, 40, 100, 120]])  # x2 from 160x120 to 320x240
+    np.testing.assert_allclose(d.box_scores, [0.9], rtol=1e-6)
+
+
+def test_torch_missing_or_broken_model_file(tmp_path):
+    with pytest.raises(ConfigError, match="not a file"):
+        make_detector("torch", model_path=tmp_path / "nothing.onnx")
+    with pytest.raises(ConfigError, match="not a file"):
+        make_detector("torch")
+    broken = tmp_path / "broken.onnx"
+    broken.write_bytes(b"not an onnx model")
+    with pytest.raises(ConfigError, match="ONNX"):
+        make_detector("torch", model_path=broken)
+
+
+def test_kornia_responses_run_on_cpu():
+    pytest.importorskip("torch")
+    pytest.importorskip("kornia")
+    model = equidistant()
+    img = SphereScene(model).render()
+    for resp in ("gftt", "harris", "hessian", "dog"):
+        d = make_detector("kornia", response=resp, device="cpu", max_features=100).detect(
+            img, lens_mask(model)
+        )
+        assert 10 <= len(d) <= 100, resp
+    with pytest.raises(ConfigError, match="response"):
+        make_detector("kornia", response="sift9000")

@@ -1,0 +1,105 @@
+"""FrontEnd: bad input (table-driven), grey and BGR frames, timings, options."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators.cameras import Equidistant
+from estimators.errors import ConfigError, InputError
+from estimators.records import ObstacleObservation
+from estimators.rig import mono_forward_rig
+from tests.trackers.conftest import SphereScene
+from trackers.frontend import STAGES, FrontEnd
+
+H, W = 240, 320
+
+
+def good_grey(model) -> np.ndarray:
+    return SphereScene(model).render()
+
+
+BAD = [
+    # (case, images builder, expected exception or None for "empty result, no crash")
+    ("empty array", lambda g: {"cam0": np.zeros((0, 0), np.uint8)}, InputError),
+    ("tiny frame", lambda g: {"cam0": np.zeros((8, 8), np.uint8)}, InputError),
+    ("wrong size", lambda g: {"cam0": np.zeros((H, W + 2), np.uint8)}, InputError),
+    ("transposed", lambda g: {"cam0": np.ascontiguousarray(g.T)}, InputError),
+    ("four channels", lambda g: {"cam0": np.zeros((H, W, 4), np.uint8)}, InputError),
+    ("two channels", lambda g: {"cam0": np.zeros((H, W, 2), np.uint8)}, InputError),
+    ("float image", lambda g: {"cam0": g.astype(np.float32)}, InputError),
+    ("not an array", lambda g: {"cam0": [[0, 1], [2, 3]]}, InputError),
+    ("unknown camera", lambda g: {"cam9": g}, InputError),
+    ("not a mapping", lambda g: [g], InputError),
+    ("black", lambda g: {"cam0": np.zeros((H, W), np.uint8)}, None),
+    ("saturated", lambda g: {"cam0": np.full((H, W), 255, np.uint8)}, None),
+    ("saturated BGR", lambda g: {"cam0": np.full((H, W, 3), 255, np.uint8)}, None),
+    ("flat grey", lambda g: {"cam0": np.full((H, W), 90, np.uint8)}, None),
+    ("camera missing (dropped)", lambda g: {}, None),
+    ("one-channel 3-D", lambda g: {"cam0": g[:, :, None]}, None),
+]
+
+
+@pytest.mark.parametrize("case,build,exc", BAD, ids=[b[0] for b in BAD])
+def test_bad_input(model, rig, case, build, exc):
+    """Each bad frame either raises the expected error with a message naming the problem, or gives
+    an empty/non-crashing result; after it the front end keeps working on good frames."""
+    fe = FrontEnd(rig)
+    g = good_grey(model)
+    for k in range(3):
+        fe.process({"cam0": g}, k, k / 30)
+    if exc is not None:
+        with pytest.raises(exc) as ei:
+            fe.process(build(g), 3, 0.1)
+        assert "cam" in str(ei.value) or "mapping" in str(ei.value)
+    else:
+        out = fe.process(build(g), 3, 0.1)
+        assert all(isinstance(o, ObstacleObservation) for o in out)
+        if case in ("black", "saturated", "saturated BGR", "flat grey", "camera missing (dropped)"):
+            assert [o for o in out if o.status != "lost"] == []
+    out = fe.process({"cam0": g}, 4, 4 / 30)  # recovers
+    assert isinstance(out, list)
+
+
+def test_wrong_size_message_names_both_sizes(rig):
+    fe = FrontEnd(rig)
+    with pytest.raises(InputError, match=r"640x480.*320x240"):
+        fe.process({"cam0": np.zeros((480, 640), np.uint8)}, 0, 0.0)
+
+
+def test_lens_circle_that_does_not_fit_is_an_error():
+    bad = Equidistant(fx=60, fy=60, cx=-40.0, cy=120, width=W, height=H, max_angle_rad=1.7)
+    with pytest.raises(InputError, match="lens circle"):
+        FrontEnd(mono_forward_rig(bad))
+
+
+def test_grey_and_bgr_give_the_same_tracks(model, rig):
+    scene = SphereScene(model)
+    frames = [scene.render(np.eye(3)) for _ in range(6)]
+    a, b = FrontEnd(rig), FrontEnd(rig)
+    for k, g in enumerate(frames):
+        oa = a.process({"cam0": g}, k, k / 30)
+        ob = b.process({"cam0": np.repeat(g[:, :, None], 3, axis=2)}, k, k / 30)
+    assert [o.track_id for o in oa] == [o.track_id for o in ob]
+    assert set(a.timings) == set(STAGES)
+    assert all(v >= 0 for v in a.timings.values())
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [
+        {"bogus": 1},
+        {"features": {"nope": 1}},
+        {"grouping": {"link_px": -1}},
+        {"association": {"x": 1}},
+        {"detector_options": {"max_features": 0}},
+    ],
+)
+def test_bad_options_are_config_errors(rig, opts):
+    with pytest.raises(ConfigError):
+        FrontEnd(rig, **opts)
+
+
+def test_non_finite_time_is_an_error(model, rig):
+    with pytest.raises(InputError, match="t_s"):
+        FrontEnd(rig).process({"cam0": good_grey(model)}, 0, float("nan"))
