@@ -301,3 +301,26 @@ def test_bench_quick_everything_end_to_end(tmp_path):
     doc = json.loads((tmp_path / "o" / "bench.json").read_text())
     assert set(doc["sections"]) >= {"throughput", "live", "scaling", "memory", "detectors"}
     assert doc["sections"]["live"][0]["result"].get("latency", {}).get("n", 0) > 0
+
+
+def test_memory_sampler_streams_its_samples_to_disk(tmp_path):
+    m = bench.MemorySampler([1, 2], path=tmp_path / "memory.json")
+    m.after_frame(1)
+    first = json.loads((tmp_path / "memory.json").read_text())
+    assert list(first["rss_bytes_at_frames"]) == ["1"]
+    m.after_frame(2)
+    assert list(json.loads((tmp_path / "memory.json").read_text())["rss_bytes_at_frames"]) == ["1", "2"]
+
+
+def test_looping_source_feeds_the_run_loop_with_bgr_frame_sets(tmp_path):
+    a = write_video(tmp_path / "cam0.mkv", [0, 50, 100])
+    b = write_video(tmp_path / "cam1.mkv", [200, 150, 100])
+    src = bench.LoopingSource({"cam0": a, "cam1": b}, 7, fps=10.0, checkpoints=[2, 7], warmup=2)
+    sets = list(src)
+    assert [s.frame for s in sets] == list(range(7)) and sets[6].t_s == pytest.approx(0.6)
+    assert list(sets[0].frames) == ["cam0", "cam1"]
+    assert sets[4].images["cam1"].shape == (48, 64, 3)  # BGR, as VideoSource yields it
+    assert int(sets[4].images["cam1"][0, 0, 0]) == 150  # frame 4 = clip frame 1
+    assert sorted(src.memory.samples) == [2, 7]
+    assert src.steady_fps() > 0 and src.steady_cpu_fps() > 0
+    assert [s.camera for s in src.sources] == ["cam0", "cam1"] and src.error is None
