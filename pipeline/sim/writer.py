@@ -6,9 +6,10 @@ Output folder (docs/ARCHITECTURE.md "Simulator output"):
 ``gt.jsonl`` (one flushed line per written frame).
 
 Frame numbering: frame ``k`` of the scenario is at ``t_s = k / fps``. Dropped frames (realism
-``frame_drop_prob``) are dropped for the whole rig: not rendered, not written, absent from the
-timestamps and gt.jsonl. ``frame`` in the sidecar and gt.jsonl is the index of the frame in the
-video file (0, 1, 2, ... as OpenCV reads it); gt.jsonl also carries ``sim_frame`` = k.
+``frame_drop_prob``) are dropped for the whole rig: not rendered, not written, and skipped in the
+timestamps and gt.jsonl, like a camera whose frame counter jumps. ``frame`` in the sidecar and
+gt.jsonl is k (with gaps where frames were dropped); the n-th line of the sidecar belongs to the
+n-th frame of the video, and gt.jsonl also carries that ``video_frame`` index n.
 """
 
 from __future__ import annotations
@@ -171,10 +172,10 @@ def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seco
                 t_render += time.perf_counter() - a
                 for name, img in imgs.items():
                     writers[name].write(img)
-                    stamps[name].write(f"{written} {t:.9f}\n")
+                    stamps[name].write(f"{k} {t:.9f}\n")
                     stamps[name].flush()
                 T_W_B, obs = sim.truth(t)
-                rec = {"frame": written, "sim_frame": k, "t_s": round(t, 9), "T_W_B": pose_record(T_W_B),
+                rec = {"frame": k, "video_frame": written, "t_s": round(t, 9), "T_W_B": pose_record(T_W_B),
                        "obstacles": obs}
                 gt.write(json.dumps(rec) + "\n")
                 gt.flush()
