@@ -93,3 +93,60 @@ def match_features(
     good = np.isfinite(best) & (i_back[j] == np.arange(len(b0))) & (best <= ratio * second + 1e-9)
     i = np.flatnonzero(good)
     return np.stack([i, j[i]], axis=1)
+
+
+def stereo_klt(
+    grey_a: np.ndarray,
+    grey_b: np.ndarray,
+    b_a: np.ndarray,
+    uv_a: np.ndarray,
+    model_b,
+    R_b_a: np.ndarray,
+    t_b_a: np.ndarray,
+    epipolar_rad: float = np.radians(1.0),
+    win_px: int = 15,
+    levels: int = 4,
+    fb_max_px: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Find camera a's features in camera b's image by KLT, starting from their infinite-depth
+    projection, checked forward-backward and by the epipolar constraint.
+
+    Args:
+        grey_a, grey_b: (H, W) uint8 frames of cameras a and b (same time).
+        b_a: (N, 3) unit bearings in C_a; uv_a: (N, 2) their pixels in a.
+        model_b: camera b's CameraModel; R_b_a (3, 3), t_b_a (3,) m: p_Cb = R p_Ca + t.
+    Returns:
+        (idx (K,) rows of b_a found, uv_b (K, 2) pixels in b, b_b (K, 3) unit bearings in C_b).
+    """
+    import cv2
+
+    empty = (np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 3)))
+    if not len(b_a):
+        return empty
+    # a point far away is seen along R b_a from camera b: the start of the search
+    guess, ok = model_b.bearing_to_pixel(b_a @ np.asarray(R_b_a).T)
+    idx = np.flatnonzero(ok)
+    if not len(idx):
+        return empty
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+    p0 = uv_a[idx].reshape(-1, 1, 2).astype(np.float32)
+    p1, st, _ = cv2.calcOpticalFlowPyrLK(
+        grey_a,
+        grey_b,
+        p0,
+        guess[idx].reshape(-1, 1, 2).astype(np.float32),
+        winSize=(win_px, win_px),
+        maxLevel=levels,
+        criteria=crit,
+        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
+        grey_b, grey_a, p1, None, winSize=(win_px, win_px), maxLevel=levels, criteria=crit
+    )
+    good = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1)
+    good &= np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1) <= fb_max_px
+    uv_b = p1.reshape(-1, 2).astype(float)
+    bb, okb = model_b.pixel_to_bearing(uv_b)
+    good &= okb
+    good &= epipolar_residual(b_a[idx], bb, R_b_a, t_b_a) < np.sin(epipolar_rad)
+    return idx[good], uv_b[good], bb[good]

@@ -18,7 +18,7 @@ import numpy as np
 
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
-from trackers.association import match_features
+from trackers.association import match_features, stereo_klt
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -259,11 +259,13 @@ class FrontEnd:
         return self._gid.get(tid, tid)
 
     def _associate(self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]) -> list[int]:
-        """Link tracks of different cameras that share epipolar-consistent descriptor matches.
+        """Link tracks of different cameras that share epipolar-consistent feature correspondences
+        (ORB descriptor matches, and members found by KLT in the other camera's image).
 
         Returns the global ids absorbed into another this frame (to be reported lost once)."""
         names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
         data = {}
+        members: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # uv, b_C, owner track id
         for n in names:
             ft = self.trackers[n]
             pos = {int(i): k for k, i in enumerate(ft.ids)}
@@ -277,7 +279,9 @@ class FrontEnd:
                         owner.append(tr.id)
             if not rows:
                 continue
-            des, got = ft.describe(greys[n], np.asarray(rows, np.intp))
+            rows_a = np.asarray(rows, np.intp)
+            members[n] = (ft.uv[rows_a].astype(float), ft.b_C[rows_a], np.asarray(owner, np.int64))
+            des, got = ft.describe(greys[n], rows_a)
             own = dict(zip(rows, owner, strict=True))
             data[n] = (ft.b_C[got], des, np.array([own[int(g)] for g in got], np.int64))
         absorbed: list[int] = []
@@ -286,13 +290,26 @@ class FrontEnd:
             T_b_a = T_b @ T_a.inverse()  # T_Cb_Ca = T_Cb_B T_B_Ca
             ba, da, oa = data[a]
             bb, db, ob = data[b]
-            m = match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming)
-            if not len(m):
-                continue
             pairs: dict[tuple[int, int], int] = {}
-            for i, j in m:
+            # votes 1: ORB descriptors of members matched under the epipolar constraint
+            for i, j in match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming):
                 key = (int(oa[i]), int(ob[j]))
                 pairs[key] = pairs.get(key, 0) + 1
+            # votes 2: a's members found in b's image by KLT from their infinite-depth projection;
+            # the vote goes to b's track whose member is nearest (within the grouping link distance)
+            ua, ub = members[a], members[b]
+            idx, uv_b, _ = stereo_klt(
+                greys[a], greys[b], ua[1], ua[0], self.cams[b].model, T_b_a.R, T_b_a.t, self.epipolar_rad
+            )
+            if len(idx) and len(ub[0]):
+                d2 = ((uv_b[:, None, :] - ub[0][None, :, :]) ** 2).sum(-1)
+                j = np.argmin(d2, axis=1)
+                near = d2[np.arange(len(idx)), j] <= self.groupers[b].link_px ** 2
+                for i, jj in zip(idx[near], j[near], strict=True):
+                    key = (int(ua[2][i]), int(ub[2][jj]))
+                    pairs[key] = pairs.get(key, 0) + 1
+            if not pairs:
+                continue
             best_a: dict[int, tuple[int, int]] = {}
             best_b: dict[int, tuple[int, int]] = {}
             for (ta, tb), v in pairs.items():

@@ -1,0 +1,110 @@
+"""Cross-camera association: the spherical epipolar constraint (closed form), descriptor matching
+under it, and a simulated stereo flight where an obstacle seen by both cameras is one track."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators.rig import stereo_forward_rig
+from tests.trackers.conftest import equidistant, rot_axis
+from trackers.association import epipolar_residual, match_features
+
+
+def unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@pytest.fixture
+def stereo():
+    rig = stereo_forward_rig(equidistant(), baseline_m=0.3)
+    c0, c1 = rig.cameras
+    T = c1.T_C_B @ c0.T_C_B.inverse()  # T_C1_C0
+    return rig, c0, c1, T
+
+
+def test_epipolar_residual_zero_for_true_pairs_and_sine_of_offset(stereo):
+    rig, c0, c1, T = stereo
+    rng = np.random.default_rng(0)
+    p_B = rng.uniform([-8, -8, -3], [8, 8, 3], (50, 3))  # includes points behind and beside
+    p_B = p_B[np.linalg.norm(p_B, axis=1) > 1.0]
+    b0 = unit(c0.T_C_B.apply(p_B))
+    b1 = unit(c1.T_C_B.apply(p_B))
+    np.testing.assert_array_less(epipolar_residual(b0, b1, T.R, T.t), 1e-12)
+    # tilt b1 out of its epipolar plane by 1 degree: the residual is sin(1 deg)
+    n = unit(np.cross(T.t, b0 @ T.R.T))
+    tilted = np.array([rot_axis(np.cross(n_i, b_i), np.radians(1.0)) @ b_i for n_i, b_i in zip(n, b1, strict=True)])
+    np.testing.assert_allclose(epipolar_residual(b0, tilted, T.R, T.t), np.sin(np.radians(1.0)), rtol=1e-6)
+
+
+def test_matching_keeps_epipolar_pairs_and_rejects_a_lookalike_off_the_plane(stereo):
+    rig, c0, c1, T = stereo
+    rng = np.random.default_rng(1)
+    p_B = np.column_stack([rng.uniform(3, 10, 30), rng.uniform(-3, 3, 30), rng.uniform(-1, 1, 30)])
+    b0 = unit(c0.T_C_B.apply(p_B))
+    b1 = unit(c1.T_C_B.apply(p_B))
+    d = rng.integers(0, 256, (30, 32), dtype=np.uint8)
+    # camera 1 sees the same points in another order, plus a lookalike of point 0 off its plane
+    perm = rng.permutation(30)
+    decoy_b = rot_axis([1, 0, 0], np.radians(8)) @ b1[0]
+    b1x = np.vstack([b1[perm], decoy_b])
+    d1x = np.vstack([d[perm], d[0]])
+    m = match_features(b0, d, b1x, d1x, T.R, T.t, epipolar_rad=np.radians(1.0))
+    got = {int(i): int(j) for i, j in m}
+    inv = {int(p): k for k, p in enumerate(perm)}
+    assert len(got) >= 28
+    assert all(j == inv[i] for i, j in got.items())
+    assert 30 not in got.values()
+
+
+@pytest.fixture(scope="module")
+def stereo_scene(tmp_path_factory):
+    """The stereo_flying preset rendered at 384x216 for 24 frames by the simulator."""
+    from pathlib import Path
+
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.writer import simulate
+
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path_factory.mktemp("stereo_flying")
+    simulate(load_scenario(root / "configs" / "scenarios" / "stereo_flying.yaml"), out, frames=24,
+             resolution=(384, 216))
+    return out
+
+
+def test_stereo_obstacle_is_one_track_with_two_views(stereo_scene):
+    """Every simulated camera pair frame goes through the FrontEnd; by the end most confirmed
+    tracks carry a view from each camera, and both views of a track point at the same obstacle
+    (the simulator's shapes; ground counts as 'no obstacle')."""
+    from trackers.benchmark import open_scene, ray_hit_distance, shapes_for_frame
+    from trackers.frontend import FrontEnd
+
+    rig, caps, stamps, gt, specs = open_scene(stereo_scene)
+    fe = FrontEnd(rig)
+    out = []
+    for f in sorted(stamps["cam0"]):
+        imgs = {n: caps[n].read()[1] for n in ("cam0", "cam1")}
+        out = fe.process(imgs, f, stamps["cam0"][f])
+    conf = [o for o in out if o.status == "confirmed"]
+    two = [o for o in conf if len(o.views) == 2]
+    assert len(conf) >= 5
+    assert len(two) >= 0.4 * len(conf), f"{len(two)} of {len(conf)} confirmed tracks have both views"
+    # both views on the same obstacle (or both on none)
+    line = gt[max(gt)]
+    v = line["T_W_B"]
+    from estimators.se3 import Pose, quat_to_rot
+
+    T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
+    shapes = shapes_for_frame(specs, line["obstacles"])
+    agree = 0
+    for o in two:
+        hits = []
+        for view in o.views:
+            cam = rig[view.camera]
+            oW = T_W_B.apply(cam.centre_B)
+            dW = T_W_B.rotate(cam.T_C_B.R.T @ view.b_C)
+            best = min(((ray_hit_distance(oW, dW, s, 0.05) or np.inf, k) for k, s in shapes.items()), default=(np.inf, None))
+            hits.append(best[1] if np.isfinite(best[0]) else None)
+        agree += hits[0] == hits[1]
+    assert agree >= 0.8 * len(two)
