@@ -286,24 +286,28 @@ def triangulate(
 # --------------------------------------------------------------------------- moving obstacle bounds
 
 
-def _quad_le0(A: float, B: float, C: float) -> tuple[float, float] | None:
-    """Solution set {r : A r^2 + B r + C <= 0} (A >= 0) as (lo, hi) with +-inf, or None if empty."""
-    if A <= 1e-15 * (abs(B) + abs(C) + 1.0):
-        if abs(B) <= 1e-15 * (abs(C) + 1.0):
-            return (-math.inf, math.inf) if C <= 0 else None
-        root = -C / B
-        return (-math.inf, root) if B > 0 else (root, math.inf)
-    disc = B * B - 4 * A * C
-    if disc < 0:
-        # tangent to within rounding: a single point
-        if disc > -1e-12 * (B * B + abs(4 * A * C)):
-            disc = 0.0
-        else:
-            return None
+def _within(w: np.ndarray, u: np.ndarray, D: float, tol: float) -> tuple[float, float] | None:
+    """Solution set {r : |w + r u| <= D} as (lo, hi) (may be +-inf), or None if empty.
+
+    w, u: (3,) vectors. The quadratic A r^2 + 2 beta r + (|w|^2 - D^2) <= 0 with A = |u|^2,
+    beta = w.u has the reduced discriminant beta^2 - A(|w|^2 - D^2) = A D^2 - |w x u|^2 (Lagrange's
+    identity), computed from the cross product so that tangent cases (D = the closest distance
+    |w x u| / |u|) keep full precision; a closest distance within ``tol`` of D counts as touching.
+    """
+    A = float(u @ u)
+    ww = float(w @ w)
+    if A <= 1e-30:  # u = 0: constant distance |w|
+        return (-math.inf, math.inf) if math.sqrt(ww) <= D + tol else None
+    beta = float(w @ u)
+    miss = float(np.linalg.norm(np.cross(w, u))) / math.sqrt(A)  # closest distance of the line to 0
+    if miss > D + tol:
+        return None
+    disc = max(A * (D * D - miss * miss), 0.0)
     sq = math.sqrt(disc)
-    q = -0.5 * (B + math.copysign(sq, B))  # numerically stable roots q/A and C/q
+    q = -(beta + math.copysign(sq, beta))  # stable roots q / A and c / q
+    c = ww - D * D
     r1 = q / A
-    r2 = C / q if q != 0 else r1
+    r2 = c / q if q != 0.0 else r1
     return (min(r1, r2), max(r1, r2))
 
 
@@ -349,8 +353,7 @@ def moving_obstacle_bounds(
         w0 = c_b - c_a
         k = float(b_a @ b_b)
         s0 = float(b_a @ w0)
-        bw = float(b_b @ w0)
-        ww = float(w0 @ w0)
+        tol = 1e-9 * max(1.0, float(np.linalg.norm(c_a)), float(np.linalg.norm(c_b)))
         # region where the foot on line a has s(r) = s0 + k r >= 0
         if abs(k) <= 1e-15:
             reg_line = (-math.inf, math.inf) if s0 >= 0 else None
@@ -358,11 +361,11 @@ def moving_obstacle_bounds(
             reg_line = (-s0 / k, math.inf)
         else:
             reg_line = (-math.inf, -s0 / k)
-        # |w|^2 - s^2 = (1 - k^2) r^2 + 2 (b_b.w0 - s0 k) r + |w0|^2 - s0^2
-        A1 = float(np.sum(np.cross(b_a, b_b) ** 2))  # 1 - k^2, accurately
-        sol_line = _quad_le0(A1, 2 * (bw - s0 * k), ww - s0 * s0 - D * D)
-        # |w|^2 = r^2 + 2 b_b.w0 r + |w0|^2
-        sol_pt = _quad_le0(1.0, 2 * bw, ww - D * D)
+        # distance to the line a: |w_perp + r b_perp| <= D, the components orthogonal to b_a of
+        # w(r) = w0 + r b_b (w_perp = w0 - s0 b_a, b_perp = b_b - k b_a)
+        sol_line = _within(w0 - s0 * b_a, b_b - k * b_a, D, tol)
+        # distance to the centre c_a: |w0 + r b_b| <= D
+        sol_pt = _within(w0, b_b, D, tol)
         pieces = []
         if reg_line is not None:
             pieces.append(_intersect(sol_line, max(0.0, reg_line[0]), reg_line[1]))

@@ -1,0 +1,279 @@
+"""Tests of estimators.geometry: closed forms by hand, degenerate cases, input errors.
+
+Expected values are worked out by hand here (3-4-5 triangles, equilateral and isosceles triangles,
+the law of sines with math.sin), never taken from the code under test. Property tests (hypothesis)
+are in test_geometry_properties.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from estimators import geometry as g
+from estimators.errors import InputError
+
+SQ3 = math.sqrt(3.0)
+
+
+# --------------------------------------------------------------------------- triangulate: hand-worked
+
+
+def test_triangulate_345_triangle():
+    # A = 0, B = (3,0,0), P = (3,4,0): |AP| = 5, |BP| = 4, angle between the rays acos(4/5)
+    r = g.triangulate([0, 0, 0], [0.6, 0.8, 0], [3, 0, 0], [0, 1, 0])
+    assert isinstance(r, g.Triangulation)
+    np.testing.assert_allclose(r.p, [3, 4, 0], atol=1e-12)
+    assert r.range_m == pytest.approx(4.0, abs=1e-12)  # from c_b by default
+    assert r.depth_a_m == pytest.approx(5.0, abs=1e-12)
+    assert r.depth_b_m == pytest.approx(4.0, abs=1e-12)
+    assert r.parallax_rad == pytest.approx(math.acos(0.8), abs=1e-12)
+    assert r.miss_m == pytest.approx(0.0, abs=1e-12)
+    assert r.range_sigma_m == 0.0
+
+
+def test_triangulate_origin_and_unnormalised_bearings():
+    r = g.triangulate([0, 0, 0], [3, 4, 0], [3, 0, 0], [0, 7, 0], origin=[0, 0, 0])
+    assert r.range_m == pytest.approx(5.0, abs=1e-12)
+    r = g.triangulate([0, 0, 0], [0.6, 0.8, 0], [3, 0, 0], [0, 1, 0], origin=[3, 0, 4])
+    assert r.range_m == pytest.approx(math.hypot(4, 4), abs=1e-12)  # P - origin = (0, 4, -4)
+
+
+def test_triangulate_skew_rays_midpoint_and_miss():
+    # ray a: the x axis at z = 0; ray b: from (5, -5, 2) along +y (skew, 2 m apart in z).
+    # closest points (5, 0, 0) and (5, 0, 2): midpoint (5, 0, 1), miss 2, depths 5 and 5.
+    r = g.triangulate([0, 0, 0], [1, 0, 0], [5, -5, 2], [0, 1, 0])
+    np.testing.assert_allclose(r.p, [5, 0, 1], atol=1e-12)
+    assert r.miss_m == pytest.approx(2.0)
+    assert r.depth_a_m == pytest.approx(5.0)
+    assert r.depth_b_m == pytest.approx(5.0)
+    assert r.range_m == pytest.approx(math.sqrt(25 + 1))  # from (5,-5,2) to (5,0,1)
+    assert r.parallax_rad == pytest.approx(math.pi / 2)
+
+
+def test_triangulate_beyond_90_degrees_off_an_axis():
+    # camera looks along +z, the obstacle is behind the image plane (100 deg off axis): the bearings
+    # are plain 3-vectors, so this is an ordinary triangulation. P = (0, 4, -1): from (0,0,0) and (0,2,0)
+    p = np.array([0.0, 4.0, -1.0])
+    c_a, c_b = np.zeros(3), np.array([0.0, 2.0, 0.0])
+    r = g.triangulate(c_a, p - c_a, c_b, p - c_b)
+    np.testing.assert_allclose(r.p, p, atol=1e-12)
+    assert r.range_m == pytest.approx(math.hypot(2, 1))
+
+
+@pytest.mark.parametrize(
+    "th1_deg, th2_deg, d, range_b, range_a, z",
+    [
+        # equilateral: all sides d, height d sqrt(3)/2
+        (60, 60, 2.0, 2.0, 2.0, SQ3),
+        # right angle at A: AC = d tan(th2) = 2, BC = d / cos(45) = 2 sqrt(2), height 2
+        (90, 45, 2.0, 2 * math.sqrt(2), 2.0, 2.0),
+        # obtuse at A (thesis eq. 3.9 case): 120/30/30 isosceles, AC = d = 1, BC = sqrt(3), height sqrt(3)/2
+        (120, 30, 1.0, SQ3, 1.0, SQ3 / 2),
+        # obtuse at B (eq. 3.10 case): mirror image
+        (30, 120, 1.0, 1.0, SQ3, SQ3 / 2),
+    ],
+)
+def test_planar_triangulate_hand_triangles(th1_deg, th2_deg, d, range_b, range_a, z):
+    t1, t2 = math.radians(th1_deg), math.radians(th2_deg)
+    rb = g.planar_triangulate(d, t1, t2)
+    ra = g.planar_triangulate(d, t1, t2, origin="a")
+    assert rb.range_m == pytest.approx(range_b, rel=1e-12)
+    assert ra.range_m == pytest.approx(range_a, rel=1e-12)
+    assert rb.p[1] == pytest.approx(z, rel=1e-12)  # eq. 3.1's Z: distance from the baseline
+    # eq. 3.2's CF, from the midpoint (d/2, 0): C = A + AC (cos th1, sin th1)
+    cx, cy = range_a * math.cos(t1), range_a * math.sin(t1)
+    cf = g.planar_triangulate(d, t1, t2, origin="mid")
+    assert cf.range_m == pytest.approx(math.hypot(cx - d / 2, cy), rel=1e-12)
+
+
+def test_planar_triangulate_law_of_sines_table_4_2():
+    # Table 4.2's inputs: d = 165.1 cm, th1 = 72.5, th2 = 80 deg -> |BC| = d sin th1 / sin(th1 + th2)
+    d = 1.651
+    expect = d * math.sin(math.radians(72.5)) / math.sin(math.radians(152.5))
+    r = g.planar_triangulate(d, math.radians(72.5), math.radians(80))
+    assert r.range_m == pytest.approx(expect, rel=1e-12)
+    assert 100 * expect == pytest.approx(341.005, abs=1e-3)
+
+
+# --------------------------------------------------------------------------- degenerate -> Unobservable
+
+
+@pytest.mark.parametrize(
+    "args, reason",
+    [
+        (([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0]), "parallel rays"),
+        (([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1e-6, 0]), "parallel rays"),  # below min parallax
+        (([0, 0, 0], [1, 0, 0], [5, 0, 0], [-1, 0, 0]), "parallel rays"),  # anti-parallel, collinear
+        (([1, 2, 3], [1, 0, 0], [1, 2, 3], [0, 1, 0]), "zero baseline"),
+        # lines meet at (2, 2, 0): depth -2 sqrt(2) on ray a, +2 on ray b
+        (([0, 0, 0], [-1, -1, 0], [2, 0, 0], [0, 1, 0]), "point behind camera a"),
+        # lines meet at (2, -2, 0): depth +2 sqrt(2) on ray a, -2 on ray b
+        (([0, 0, 0], [1, -1, 0], [2, 0, 0], [0, 1, 0]), "point behind camera b"),
+        (([0, 0, 0], [-1, 1, 0], [2, 0, 0], [1, 1, 0]), "point behind both cameras"),
+    ],
+)
+def test_triangulate_degenerate(args, reason):
+    r = g.triangulate(*args)
+    assert isinstance(r, g.Unobservable)
+    assert reason in r.reason
+    assert not r  # Unobservable is falsy
+
+
+@pytest.mark.parametrize(
+    "th1, th2, reason",
+    [(100, 80, "angles sum to >= 180 deg"), (120, 75, "angles sum to >= 180 deg"), (0, 45, "interior angle")],
+)
+def test_planar_degenerate(th1, th2, reason):
+    r = g.planar_triangulate(1.0, math.radians(th1), math.radians(th2))
+    assert isinstance(r, g.Unobservable) and reason in r.reason
+    assert isinstance(g.planar_triangulate(0.0, 1.0, 1.0), g.Unobservable)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"c_a": [0, 0]},
+        {"c_a": [0, 0, float("nan")]},
+        {"b_a": [0, 0, 0]},
+        {"b_b": [float("inf"), 0, 0]},
+        {"origin": [1, 2]},
+        {"bearing_sigma_rad": -1.0},
+        {"bearing_sigma_rad": float("nan")},
+        {"c_b": "abc"},
+    ],
+)
+def test_triangulate_malformed_input_raises(kwargs):
+    base = dict(c_a=[0, 0, 0], b_a=[0.6, 0.8, 0], c_b=[3, 0, 0], b_b=[0, 1, 0])
+    base.update(kwargs)
+    extra = {k: base.pop(k) for k in ("origin", "bearing_sigma_rad") if k in base}
+    with pytest.raises(InputError):
+        g.triangulate(base["c_a"], base["b_a"], base["c_b"], base["b_b"], **extra)
+
+
+# --------------------------------------------------------------------------- range sigma
+
+
+def _noisy(rng, b, sigma, n):
+    """n unit vectors around unit b with isotropic tangent-plane noise of std sigma (radians)."""
+    e = np.eye(3)[np.argmin(np.abs(b))]
+    u1 = np.cross(b, e)
+    u1 /= np.linalg.norm(u1)
+    u2 = np.cross(b, u1)
+    z = rng.standard_normal((n, 2)) * sigma
+    v = b + z[:, :1] * u1 + z[:, 1:] * u2
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize(
+    "c_a, c_b, p, sigma",
+    [
+        ([0, 0, 0], [0, 0.3, 0], [5.0, 1.0, 0.5], 2e-3),  # stereo-like, 0.3 m baseline, 5 m
+        ([0, 0, 0], [1.5, 0, 0], [3.0, 2.5, -0.5], 5e-3),  # mono parallax, 1.5 m of motion
+    ],
+)
+def test_range_sigma_matches_monte_carlo(c_a, c_b, p, sigma):
+    c_a, c_b, p = map(np.asarray, (c_a, c_b, p))
+    b_a = (p - c_a) / np.linalg.norm(p - c_a)
+    b_b = (p - c_b) / np.linalg.norm(p - c_b)
+    r0 = g.triangulate(c_a, b_a, c_b, b_b, bearing_sigma_rad=sigma)
+    rng = np.random.default_rng(7)
+    n = 2000
+    BA, BB = _noisy(rng, b_a, sigma, n), _noisy(rng, b_b, sigma, n)
+    ranges = []
+    for i in range(n):
+        r = g.triangulate(c_a, BA[i], c_b, BB[i])
+        assert isinstance(r, g.Triangulation)
+        ranges.append(r.range_m)
+    std = float(np.std(ranges))
+    assert r0.range_sigma_m == pytest.approx(std, rel=0.15)
+    assert r0.range_sigma_m > 0
+
+
+# --------------------------------------------------------------------------- moving-obstacle bounds
+
+
+def test_bounds_zero_displacement_is_the_triangulation():
+    # 3-4-5: the only consistent depth on ray b is 4
+    b = g.moving_obstacle_bounds([0, 0, 0], [0.6, 0.8, 0], [3, 0, 0], [0, 1, 0], 0.0)
+    assert b.range_min_m == pytest.approx(4.0, abs=1e-6)
+    assert b.range_max_m == pytest.approx(4.0, abs=1e-6)
+
+
+def test_bounds_hand_worked_right_angle():
+    # ray a: from the origin along +x; ray b: from (3, -4, 0) along +y, meets ray a at (3,0,0) (depth 4).
+    # dist(c_b + r y, ray a) = |r - 4| (foot at x = 3 >= 0), so with D = 1: depths [3, 5].
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [3, -4, 0], [0, 1, 0], 1.0)
+    assert (b.depth_min_m, b.depth_max_m) == pytest.approx((3.0, 5.0), abs=1e-12)
+    assert (b.range_min_m, b.range_max_m) == pytest.approx((3.0, 5.0), abs=1e-12)
+    # ranges from another origin (0, 0, 0): |(3, r - 4)| over r in [3, 5]: interior minimum 3 at r = 4,
+    # maximum sqrt(9 + 1) at both ends
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [3, -4, 0], [0, 1, 0], 1.0, origin=[0, 0, 0])
+    assert b.range_min_m == pytest.approx(3.0, abs=1e-12)
+    assert b.range_max_m == pytest.approx(math.sqrt(10), abs=1e-12)
+
+
+def test_bounds_half_line_uses_distance_to_the_camera_centre():
+    # ray a from the origin along +x; ray b from (-3, -4, 0) along +y passes the *line* a at (-3, 0, 0),
+    # behind camera a: the distance to the half-line is the distance to c_a = sqrt(9 + (r - 4)^2).
+    # D = 5: (r - 4)^2 <= 16 -> r in [0, 8].  D = 3: only r = 4.  D = 2.9: empty -> inconsistent.
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [-3, -4, 0], [0, 1, 0], 5.0)
+    assert (b.depth_min_m, b.depth_max_m) == pytest.approx((0.0, 8.0), abs=1e-12)
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [-3, -4, 0], [0, 1, 0], 3.0)
+    assert (b.depth_min_m, b.depth_max_m) == pytest.approx((4.0, 4.0), abs=1e-6)
+    r = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [-3, -4, 0], [0, 1, 0], 2.9)
+    assert isinstance(r, g.Unobservable) and "inconsistent with max speed" in r.reason
+
+
+def test_bounds_unbounded_for_parallel_rays_and_infinite_speed():
+    # same direction, 1 m apart: any depth is within D = 2 of ray a -> [0, None)
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], 2.0)
+    assert b.range_min_m == pytest.approx(0.0) and b.range_max_m is None and b.depth_max_m is None
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 1, 0], math.inf)
+    assert b.range_min_m == 0.0 and b.range_max_m is None
+    # same direction, 1 m apart, D = 0.5: inconsistent
+    r = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], 0.5)
+    assert isinstance(r, g.Unobservable)
+
+
+def test_bounds_malformed_input_raises():
+    with pytest.raises(InputError):
+        g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [3, -4, 0], [0, 1, 0], -1.0)
+    with pytest.raises(InputError):
+        g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [3, -4, 0], [0, 1, 0], float("nan"))
+    with pytest.raises(InputError):
+        g.moving_obstacle_bounds([0, 0, 0], [0, 0, 0], [3, -4, 0], [0, 1, 0], 1.0)
+
+
+# --------------------------------------------------------------------------- velocity
+
+
+def test_velocity_345():
+    v = g.velocity_from_fixes([1, 1, 1], 10.0, [4, 5, 1], 12.0, sigma_1=0.3, sigma_2=0.4)
+    np.testing.assert_allclose(v.v, [1.5, 2.0, 0.0])
+    assert v.speed_mps == pytest.approx(2.5)
+    assert v.heading_rad == pytest.approx(math.atan2(4, 3))
+    assert v.speed_sigma_mps == pytest.approx(0.5 / 2.0)  # sqrt(0.09 + 0.16) / dt
+    assert g.velocity_from_fixes([0, 0, 0], 0, [0, -1, 0], 1).heading_rad == pytest.approx(-math.pi / 2)
+    assert g.velocity_from_fixes([0, 0, 0], 0, [0, -1, 0], 1).speed_sigma_mps is None
+
+
+def test_velocity_covariance_along_the_motion():
+    S = np.diag([0.04, 1.0, 1.0])  # only the x variance matters for motion along x
+    v = g.velocity_from_fixes([0, 0, 0], 0.0, [2, 0, 0], 0.5, sigma_1=S)
+    assert v.speed_sigma_mps == pytest.approx(0.2 / 0.5)
+
+
+def test_velocity_degenerate_and_malformed():
+    r = g.velocity_from_fixes([0, 0, 0], 1.0, [1, 0, 0], 1.0)
+    assert isinstance(r, g.Unobservable) and "zero time interval" in r.reason
+    with pytest.raises(InputError):
+        g.velocity_from_fixes([0, 0, 0], 2.0, [1, 0, 0], 1.0)
+    with pytest.raises(InputError):
+        g.velocity_from_fixes([0, 0, 0], float("nan"), [1, 0, 0], 1.0)
+    with pytest.raises(InputError):
+        g.velocity_from_fixes([0, 0], 0.0, [1, 0, 0], 1.0)
+    with pytest.raises(InputError):
+        g.velocity_from_fixes([0, 0, 0], 0.0, [1, 0, 0], 1.0, sigma_1=np.ones((2, 2)))
