@@ -51,6 +51,7 @@ __all__ = [
     "along_baseline_distances",
     "percentage_error",
     "reproduce",
+    "table_summary",
     "inconsistencies",
 ]
 
@@ -782,6 +783,26 @@ def inconsistencies() -> list[str]:
         "127.0 and 101.6 cm"
     )
     return out
+
+
+def table_summary(rows: list[Row]) -> dict[str, str]:
+    """Per table: "reproduces" when every compared quantity does, else the quantities that do not."""
+    out: dict[str, list[str]] = {}
+    for r in rows:
+        if r.thesis is None:  # informational rows (our bounds), nothing to compare
+            continue
+        out.setdefault(r.table, [])
+        if r.verdict != "reproduces":
+            out[r.table].append(r.quantity)
+
+    def order(k: str) -> tuple:
+        major, minor = k.split(".")
+        return (major == "A", int(minor) if major == "A" else int(major) * 100 + int(minor))
+
+    return {
+        k: "reproduces" if not out[k] else "does not reproduce: " + ", ".join(out[k])
+        for k in sorted(out, key=order)
+    }
 
 
 def rows_as_dicts(rows: list[Row]) -> list[dict]:

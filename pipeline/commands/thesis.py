@@ -18,33 +18,13 @@ def _fmt(x: float | None, nd: int = 2) -> str:
     return "-" if x is None else f"{x:.{nd}f}"
 
 
-def table_summary(rows) -> dict[str, str]:
-    """Per table: "reproduces" when every compared quantity does, else the quantities that do not."""
-    out: dict[str, list[str]] = {}
-    for r in rows:
-        if r.thesis is None:  # informational rows (our bounds), nothing to compare
-            continue
-        out.setdefault(r.table, [])
-        if r.verdict != "reproduces":
-            out[r.table].append(r.quantity)
-
-    def order(k: str) -> tuple:
-        major, minor = k.split(".")
-        return (major == "A", int(minor) if major == "A" else int(major) * 100 + int(minor))
-
-    return {
-        k: "reproduces" if not out[k] else "does not reproduce: " + ", ".join(out[k])
-        for k in sorted(out, key=order)
-    }
-
-
 def run(json_path: Path | None = None, echo=print) -> dict:
     """Compute the reproduction, print it with ``echo`` and return it as a JSON-ready dict."""
     from estimators import thesis
 
     rows = thesis.reproduce()
     notes = thesis.inconsistencies()
-    summary = table_summary(rows)
+    summary = thesis.table_summary(rows)
     echo("Reproduction of the thesis's chapter 4 and appendix A tables (lengths in cm, as printed)")
     echo(
         "conventions: theta1/theta2 = interior angles at the first/second camera (pose); distance = "
