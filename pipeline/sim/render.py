@@ -26,6 +26,10 @@ class _CamRays:
     b_C: np.ndarray  # (M,3) float32 unit bearings of those pixels, C
     pix_rad: float  # angular size of a pixel near the image centre, rad
     sub_b_C: list[np.ndarray]  # supersampling: (M,3) bearings at s x s sub-pixel offsets (empty: s = 1)
+    tile_start: np.ndarray  # (T,) first ray of each pixel tile (rays are ordered by tile)
+    tile_len: np.ndarray  # (T,) rays per tile
+    tile_axis_C: np.ndarray  # (T,3) unit mean bearing of each tile, C
+    tile_half_rad: np.ndarray  # (T,) largest angle between a tile's axis and its rays (+ a pixel)
 
 
 def _camera_rays(cam, supersample: int = 1) -> _CamRays:
@@ -42,6 +46,17 @@ def _camera_rays(cam, supersample: int = 1) -> _CamRays:
     cx, cy, _ = m.image_circle()
     bb, okc = m.pixel_to_bearing(np.array([[cx, cy], [cx + 1.0, cy]]))
     pix = float(np.arccos(np.clip(bb[0] @ bb[1], -1, 1))) if okc.all() else 1.0 / max(W, H)
+    # pixel tiles for culling: order the rays tile by tile so that each tile is a contiguous range
+    T = TILE_PX
+    ntx = (W + T - 1) // T
+    tile = (idx // W) // T * ntx + (idx % W) // T
+    order = np.argsort(tile, kind="stable")
+    idx, b_C, tile = idx[order], b_C[order], tile[order]
+    _, start, count = np.unique(tile, return_index=True, return_counts=True)
+    axis = np.add.reduceat(b_C.astype(np.float64), start, axis=0)
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    cosang = np.einsum("ij,ij->i", b_C, np.repeat(axis, count, axis=0).astype(np.float32))
+    half = np.arccos(np.clip(np.minimum.reduceat(cosang, start), -1.0, 1.0)) + 2.0 * pix
     subs = []
     if supersample > 1:
         offs = (np.arange(supersample) + 0.5) / supersample - 0.5  # sub-pixel centres in (-0.5, 0.5)
@@ -51,7 +66,34 @@ def _camera_rays(cam, supersample: int = 1) -> _CamRays:
                 bs = bs.astype(np.float32)
                 bs[~oks] = b_C[~oks]
                 subs.append(bs)
-    return _CamRays(cam.name, W, H, cam.T_C_B, idx, b_C, pix, subs)
+    return _CamRays(cam.name, W, H, cam.T_C_B, idx, b_C, pix, subs, start, count, axis, half)
+
+
+TILE_PX = 16  # side of the pixel tiles used to cull objects
+
+
+def _tile_culler(cr: _CamRays, T_W_C: Pose):
+    """``cull(c_W, r)`` for World.cast: the rays of the tiles whose cone (axis, half angle) meets
+    the cone of the sphere seen from the camera centre: angle(axis, c - o) <= half + asin(r/|c - o|)."""
+    axes_W = cr.tile_axis_C @ T_W_C.R.T
+    o = T_W_C.t
+
+    def cull(c_W: np.ndarray, r: float):
+        v = np.asarray(c_W, float) - o
+        dist = float(np.linalg.norm(v))
+        if dist <= r * 1.0001:
+            return None  # the camera is inside the bounding sphere: every ray
+        lim = cr.tile_half_rad + np.arcsin(r / dist)
+        ok = axes_W @ (v / dist) >= np.cos(np.minimum(lim, np.pi))
+        sel = np.nonzero(ok)[0]
+        if len(sel) == 0:
+            return np.zeros(0, np.int64)
+        lens = cr.tile_len[sel]
+        # concatenated ranges [start, start + len) of the selected tiles
+        offs = np.repeat(cr.tile_start[sel] - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens)
+        return offs + np.arange(int(lens.sum()))
+
+    return cull
 
 
 class Renderer:
@@ -77,7 +119,8 @@ class Renderer:
         T_W_C = T_W_B @ cr.T_C_B.inverse()
         d_W = cr.b_C @ T_W_C.R.T.astype(np.float32)  # d_W = R_W_C b_C for each row
         o_W = T_W_C.t
-        hits, flat = self.world.cast(t_s, o_W, d_W, light_halo_rad=cr.pix_rad if halo else 0.0)
+        hits, flat = self.world.cast(t_s, o_W, d_W, light_halo_rad=cr.pix_rad if halo else 0.0,
+                                     cull=_tile_culler(cr, T_W_C))
         return hits, o_W, d_W, flat
 
     def render_float(self, name: str, T_W_B: Pose, t_s: float) -> np.ndarray:
@@ -87,11 +130,13 @@ class Renderer:
             T_W_C = T_W_B @ cr.T_C_B.inverse()
             R = T_W_C.R.T.astype(np.float32)
             placed = self.world.place(t_s)
+            cull = _tile_culler(cr, T_W_C)
             col = None
             sub_pix = cr.pix_rad / len(cr.sub_b_C) ** 0.5  # a sub-sample's angular size
             for b_C in cr.sub_b_C:
                 d_W = b_C @ R
-                hits, flat = self.world.cast(t_s, T_W_C.t, d_W, placed=placed, light_halo_rad=cr.pix_rad)
+                hits, flat = self.world.cast(t_s, T_W_C.t, d_W, placed=placed, light_halo_rad=cr.pix_rad,
+                                             cull=cull)
                 c = self.world.shade(t_s, T_W_C.t, d_W, hits, flat, pix_rad=sub_pix)
                 col = c if col is None else col + c
             col /= np.float32(len(cr.sub_b_C))

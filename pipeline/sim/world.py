@@ -219,12 +219,16 @@ class World:
 
     # -- ray casting
     def cast(self, t_s: float, o_W: np.ndarray, d_W: np.ndarray,
-             placed: list[_Placed] | None = None, light_halo_rad: float = 0.0) -> tuple[Hits, list]:
+             placed: list[_Placed] | None = None, light_halo_rad: float = 0.0,
+             cull=None) -> tuple[Hits, list]:
         """Nearest hit along rays ``o_W + t d_W`` (d_W unit, (N,3); o_W (3,) or (N,3)), at ``t_s``.
 
         light_halo_rad: rendering only (shared origin): emissive parts (navigation lights) are
         enlarged to subtend at least this angle in radius, so that a light smaller than a pixel
         still lights a pixel, like the bloom of a real light. 0 for ground truth.
+        cull: optional ``cull(centre_W (3,), radius_m) -> ray indices or None`` (shared origin):
+        a superset of the rays that can meet that sphere (None: all rays), e.g. the renderer's
+        pixel tiles; the exact per-ray test then runs on those rays only.
         Returns the hits and the flat list of (placed object, part) that ``Hits.part`` indexes."""
         placed = self.place(t_s) if placed is None else placed
         N = len(d_W)
@@ -239,10 +243,15 @@ class World:
             halo = light_halo_rad > 0 and shared_origin and any(p.emissive for p in pl.parts)
             if shared_origin:
                 dist_c = float(np.linalg.norm(oc))
-                b = d_W @ oc
-                perp2 = dist_c * dist_c - b * b
                 r = pl.bound_r + (light_halo_rad * (dist_c + pl.bound_r) if halo else 0.0)
-                cand = np.nonzero((perp2 <= r * r) & (b + r > 0) & (b - r < best))[0]
+                pre = None if cull is None else cull(pl.bound_c_W, r)
+                dd = d_W if pre is None else d_W[pre]
+                b = dd @ oc
+                perp2 = dist_c * dist_c - b * b
+                bb = best if pre is None else best[pre]
+                cand = np.nonzero((perp2 <= r * r) & (b + r > 0) & (b - r < bb))[0]
+                if pre is not None:
+                    cand = pre[cand]
             else:
                 b = np.einsum("ij,ij->i", d_W, oc)
                 perp2 = np.einsum("ij,ij->i", oc, oc) - b * b

@@ -291,3 +291,44 @@ def test_stereo_right_camera_sees_from_its_own_centre():
     mask = ids == 1
     assert mask.sum() > 20 and np.all(ang[mask] <= half + 1e-9)
     assert np.all(mask[ang < half - 2 * _pixel_angle(cam.model)[0]])
+
+
+def test_tile_culling_loses_no_hit():
+    # the renderer culls objects per pixel tile; its ids and depths must equal uncut ray casting
+    rng = np.random.default_rng(3)
+    obs = [
+        {
+            "id": i + 1,
+            "kind": "sphere",
+            "radius_m": float(rng.uniform(0.05, 1.0)),
+            "position_m": [float(rng.uniform(-6, 12)), float(rng.uniform(-8, 8)), float(rng.uniform(0.5, 5))],
+        }
+        for i in range(25)
+    ]
+    obs += [
+        {"id": 40, "kind": "pole", "radius_m": 0.1, "height_m": 9.0, "position_m": [0.8, 0.6, 0.0]},
+        {"id": 41, "kind": "wall", "position_m": [-0.5, -3.0, 2.0]},
+        {"id": 42, "kind": "drone", "position_m": [3.0, -0.4, 2.1], "light_radius_m": 0.01},
+    ]
+    scn = scenario_from_dict(
+        {
+            "name": "c",
+            "obstacles": obs,
+            "rig": {"resolution": [200, 150]},
+            "observer": {"kind": "turning", "speed_mps": 2, "yaw_rate_deg_s": 40},
+        }
+    )
+    sim = Simulation(scn, n_frames=20)
+    cam = sim.rig[0]
+    for t in (0.0, 0.4):
+        T_W_B = sim.traj.pose_at(t)
+        depth, ids = sim.renderer.depth("cam0", T_W_B, t)
+        T_W_C = T_W_B @ cam.T_C_B.inverse()
+        H, W = ids.shape
+        u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+        b_C, ok = cam.model.pixel_to_bearing(np.stack([u.ravel(), v.ravel()], 1))
+        d_ref, id_ref = raycast(sim.world, t, T_W_C.t, T_W_C.rotate(b_C[ok]))
+        assert len(np.unique(id_ref)) > 10
+        np.testing.assert_array_equal(ids.ravel()[ok], id_ref)
+        fin = np.isfinite(d_ref)
+        np.testing.assert_allclose(depth.ravel()[ok][fin], d_ref[fin], rtol=1e-4)
