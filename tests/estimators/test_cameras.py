@@ -327,7 +327,7 @@ def _random_kb(rng):
 
 def test_kannala_brandt_equals_cv2_fisheye_project_points():
     rng = np.random.default_rng(7)
-    for _ in range(20):
+    for _ in range(60):
         K, D, m = _random_kb(rng)
         theta = rng.uniform(0, math.radians(85), 500)
         phi = rng.uniform(0, 2 * np.pi, 500)
@@ -335,17 +335,21 @@ def test_kannala_brandt_equals_cv2_fisheye_project_points():
         p = dist * np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=1)
         uv_cv, _ = cv2.fisheye.projectPoints(p.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, D)
         uv, valid = m.bearing_to_pixel(p, within_image=False)
-        assert valid.all()
-        assert np.abs(uv - uv_cv.reshape(-1, 2)).max() < 1e-6
+        # valid exactly up to the lens limit (where theta_d stops increasing, for some draws < 85 deg)
+        np.testing.assert_array_equal(valid, theta <= m.max_angle_rad)
+        assert valid.mean() > 0.8
+        assert np.abs(uv - uv_cv.reshape(-1, 2))[valid].max() < 1e-6
 
 
 def test_kannala_brandt_equals_cv2_fisheye_undistort_points():
     rng = np.random.default_rng(8)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
-    for _ in range(20):
+    for _ in range(60):
         K, D, m = _random_kb(rng)
-        theta = rng.uniform(0, math.radians(80), 500)
-        phi = rng.uniform(0, 2 * np.pi, 500)
+        theta = rng.uniform(0, min(math.radians(80), m.max_angle_rad - 0.02), 500)
+        # cv2.fisheye.undistortPoints clamps theta_d to [-pi/2, pi/2]: compare where it is valid
+        theta = theta[m._theta_d(theta)[0] < np.pi / 2 - 1e-9]
+        phi = rng.uniform(0, 2 * np.pi, theta.size)
         b = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=1)
         uv, _ = m.bearing_to_pixel(b, within_image=False)
         # cv2 returns the pinhole (undistorted) pixel K [x/z, y/z, 1] with P = K
