@@ -362,10 +362,9 @@ def _thesis_from_dict(d: dict, src: str) -> Rig:
         raise _err(src, cam, "model 'thesis_linear' needs deg_per_px (degrees per pixel about the centre)")
     w, h = _image_size_from(d, src, cam)
     deg = _floats(src, cam, "deg_per_px", d["deg_per_px"], 1)[0]
-    max_deg = d.get("max_angle_deg")
-    max_rad = None
-    if max_deg is not None:
-        max_rad = float(np.radians(_floats(src, cam, "max_angle_deg", max_deg, 1)[0]))
+    # Default lens limit: the thesis measured a 180-degree horizontal field of view (sec. 4.1.3).
+    max_deg = d.get("max_angle_deg", 90.0)
+    max_rad = float(np.radians(_floats(src, cam, "max_angle_deg", max_deg, 1)[0]))
     model = _model(src, cam, lambda: Equidistant.from_deg_per_px(
         deg, w, h, cx=d.get("cx"), cy=d.get("cy"), max_angle_rad=max_rad))
     return Rig((Camera(cam, model, forward_T_C_B()),))
@@ -374,8 +373,9 @@ def _thesis_from_dict(d: dict, src: str) -> Rig:
 def load_thesis_linear(path: str | Path) -> Rig:
     """Read the thesis's linear model: ``model: thesis_linear``, ``deg_per_px``, image size.
 
-    Optional: ``cx``, ``cy`` (default: the image centre), ``max_angle_deg`` (lens half-FOV),
-    ``camera_name``. One forward-looking camera.
+    Optional: ``cx``, ``cy`` (default: the image centre), ``max_angle_deg`` (lens half-FOV;
+    default 90, the thesis's measured 180-degree field of view), ``camera_name``. One
+    forward-looking camera.
     """
     p = Path(path)
     return _thesis_from_dict(_read_yaml(p), str(p))

@@ -163,6 +163,7 @@ class Rig:
 
     @property
     def names(self) -> tuple[str, ...]:
+        """Camera names in rig order."""
         return tuple(c.name for c in self.cameras)
 
     def __len__(self) -> int:

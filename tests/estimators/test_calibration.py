@@ -211,6 +211,9 @@ def test_thesis_linear(tmp_path):
     # 90 degrees is 90/0.09375 = 960 px from the centre
     uv, valid = m.bearing_to_pixel(np.array([[1.0, 0.0, 0.0]]), within_image=False)
     assert uv[0, 0] == pytest.approx(959.5 + 960.0)
+    # without max_angle_deg: the thesis's 180-degree field of view
+    p2 = _write(tmp_path, "thesis2.yaml", "model: thesis_linear\ndeg_per_px: 0.1\nresolution: [1920, 1080]\n")
+    assert load_rig(p2)["cam0"].model.max_angle_rad == pytest.approx(math.pi / 2)
 
 
 KALIBR_HEAD = textwrap.dedent("""\
