@@ -100,7 +100,9 @@ class FusionSettings:
         max_speed_mps: largest obstacle speed (m/s) the bounds allow; None = the drone's own speed at
             the two sightings (the thesis's assumption, sec. 3.3.2). Default None.
         max_accel_mps2: largest obstacle acceleration (m/s^2), the process noise of moving
-            (stereo-fed) tracks. Default 2.0.
+            (stereo-fed) tracks. Default 1.0. Measured on random stereo scenes (constant-velocity
+            obstacles at 1.5-9 m, 0.5 px): median speed error 13.6 % / 8.7 % / 5.2 % for 2 / 1 /
+            0.5 m/s^2 with the same NEES; lower values lag behind manoeuvring obstacles.
         accel_time_s: time scale tau (s) of the process noise, q = a^2 tau. Default 0.1.
         static_accel_mps2: process noise (m/s^2) of the stationary hypothesis of mono-only tracks.
             Default 0.005. Small on purpose: a bearing-only track's lateral sigma is millimetres, so
@@ -131,7 +133,7 @@ class FusionSettings:
     """
 
     max_speed_mps: float | None = None
-    max_accel_mps2: float = 2.0
+    max_accel_mps2: float = 1.0
     accel_time_s: float = 0.1
     static_accel_mps2: float = 0.005
     static_velocity_sigma_mps: float = 0.002
