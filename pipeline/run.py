@@ -153,8 +153,8 @@ def build_egomotion(cfg: PipelineConfig) -> Any:
     if em.speed_mps is not None:
         return ConstantVelocity(speed_mps=em.speed_mps, t0_s=em.t0_s)
     raise ConfigError(
-        "no ego-motion: give a trajectory (--trajectory PATH, TUM T_W_B) or a constant speed "
-        "(--set ego_motion.speed_mps=5.0, m/s along body x)"
+        "no ego-motion: give --trajectory PATH (TUM file of T_W_B) or --speed-mps V (constant speed along "
+        "body x, m/s), or ego_motion.trajectory / ego_motion.speed_mps in the config"
     )
 
 
@@ -266,13 +266,18 @@ def run(
         KeyboardInterrupt: re-raised after every output so far has been written.
     """
     out = Path(out_dir) if out_dir is not None else (cfg.outputs.dir or Path("runs") / "run")
-    out.mkdir(parents=True, exist_ok=True)
-    write_resolved(cfg, out, source=config_source, overrides=overrides)
+    # bad input fails here, before anything is written
     rig = rig if rig is not None else build_rig(cfg)
     egomotion = egomotion if egomotion is not None else build_egomotion(cfg)
-    frontend = frontend if frontend is not None else build_frontend(cfg, rig)
-    fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
     source = source if source is not None else open_inputs(cfg, rig)
+    try:
+        frontend = frontend if frontend is not None else build_frontend(cfg, rig)
+        fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
+    except BaseException:
+        source.close()
+        raise
+    out.mkdir(parents=True, exist_ok=True)
+    write_resolved(cfg, out, source=config_source, overrides=overrides)
     show = cfg.outputs.progress if progress is None else progress
 
     total = None
@@ -451,10 +456,18 @@ def run_batch(
         used.add(name)
         jobs.append((d, str(out_root / name), str(config_source) if config_source else None))
 
+    def names_for(folder: Path) -> list[str]:
+        calib = folder / "camchain.yaml"
+        if camera_names is None and cfg.rig.calibration is None and not cfg.rig.cameras and calib.is_file():
+            from estimators.calibration import load_rig
+
+            return list(load_rig(calib).names)  # the recording's own rig
+        return names
+
     for item in items:
         item = Path(item)
         if item.is_dir():
-            rec = find_recording(item, names)
+            rec = find_recording(item, names_for(item))
             if rec is not None:
                 add(rec, item.name, item)
                 continue

@@ -345,6 +345,7 @@ class ImageFolderSource(Source):
                 "give inputs.fps (Hz) or a timestamps file"
             )
         self.fps = float(fps) if fps else None
+        self.frame_count = len(self.files)
 
     def __iter__(self) -> Iterator[Frame]:
         flag = cv2.IMREAD_GRAYSCALE if self.grey else cv2.IMREAD_COLOR

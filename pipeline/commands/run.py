@@ -81,7 +81,7 @@ def register(app: typer.Typer) -> None:
         overrides = list(set_ or [])
         cfg = load_config(config, overrides, cli)
         if batch:
-            names = ["cam0"]
+            names = None  # each recording folder's own camchain.yaml, else cam0
             if cfg.rig.calibration is not None or cfg.rig.cameras:
                 from pipeline.run import build_rig
 

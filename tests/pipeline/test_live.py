@@ -176,3 +176,21 @@ def test_growing_trajectory_is_reread_when_time_passes_its_end(tmp_path):
 def test_camera_index_that_does_not_exist(tmp_path):
     with pytest.raises(SourceError, match="camera index 97: cannot be opened"):
         _live(tmp_path, [make_reader_factory(97, "cam0")])
+
+
+def test_cli_live_replays_a_video_with_stub_stages(tmp_path, monkeypatch, capsys):
+    from pipeline import live as live_mod
+    from pipeline.cli import main
+
+    monkeypatch.setattr(live_mod, "build_rig", lambda cfg: mono_rig())
+    monkeypatch.setattr(live_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig))
+    monkeypatch.setattr(live_mod, "build_fusion", lambda cfg, rig, ego: FakeFusion())
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    rc = main(
+        ["live", "--camera", str(v), "--speed-mps", "2", "--out", str(tmp_path / "o"), "--preview", "file"]
+    )
+    assert rc == 0
+    assert len((tmp_path / "o" / "tracks.jsonl").read_text().splitlines()) == 6
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["mode"] == "live" and s["latency"]["n"] == 6 and (tmp_path / "o" / "preview.mp4").is_file()
+    assert "latency median" in capsys.readouterr().err

@@ -283,3 +283,54 @@ def test_end_to_end_run_over_a_simulated_video(tmp_path):
     assert {"decode", "detect", "track", "estimate", "fuse", "write"} <= set(s["timings"])
     resolved = yaml.safe_load((out / "config.resolved.yaml").read_text())
     assert resolved["ego_motion"]["trajectory"] == str(sim / "trajectory.tum")
+
+
+def test_batch_in_parallel_worker_processes(tmp_path):
+    """Two simulated recordings (folders with cam0.mkv, camchain.yaml, trajectory.tum) in 2 processes."""
+    pytest.importorskip("trackers.frontend")
+    sim_writer = pytest.importorskip("pipeline.sim.writer")
+    from pipeline.run import run_batch
+    from pipeline.sim.scene import load_scenario
+
+    scn = load_scenario(
+        run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "ci_small.yaml"
+    )
+    for name in ("recA", "recB"):
+        sim_writer.simulate(scn, tmp_path / "in" / name, frames=4)
+    res = run_batch(
+        load_config(None), [tmp_path / "in" / "recA", tmp_path / "in" / "recB"], tmp_path / "out", workers=2
+    )
+    assert [r["frames"] for r in res] == [4, 4] and [r["error"] for r in res] == [None, None]
+    pids = set()
+    for name in ("recA", "recB"):
+        s = json.loads((tmp_path / "out" / name / "summary.json").read_text())
+        assert s["frames"] == 4 and len(_lines(tmp_path / "out" / name / "tracks.jsonl")) == 4
+        pids.add(s["pid"])
+    assert len(pids) == 2 and run_mod.os.getpid() not in pids  # two worker processes
+
+
+@pytest.mark.parametrize(
+    ("what", "content", "expect"),
+    [
+        ("calibration", "cam0:\n  camera_model: pinhole\n  intrinsics: [1, 2]\n", "bad_calib.yaml"),
+        ("trajectory", "0.0 0 0 0 0 0 0 1\n0.1 1 0 0 zero 0 0 1\n", "bad.tum:2"),
+    ],
+)
+def test_cli_calibration_or_trajectory_that_will_not_parse(
+    tmp_path, monkeypatch, capsys, what, content, expect
+):
+    from pipeline.cli import main
+
+    monkeypatch.setattr(run_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig))
+    monkeypatch.setattr(run_mod, "build_fusion", lambda cfg, rig, ego: FakeFusion())
+    if what == "trajectory":
+        monkeypatch.setattr(run_mod, "build_rig", lambda cfg: mono_rig())
+    bad = tmp_path / expect.split(":")[0]
+    bad.write_text(content)
+    v = write_video(tmp_path / "cam0.mkv", 2)
+    args = ["run", "--video", str(v), "--out", str(tmp_path / "o"), "--no-progress", f"--{what}", str(bad)]
+    if what == "calibration":
+        args += ["--speed-mps", "3"]
+    rc = main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and expect in err[0] and "Traceback" not in err[0]
