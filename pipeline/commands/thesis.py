@@ -47,7 +47,8 @@ def run(json_path: Path | None = None, echo=print) -> dict:
     echo("")
     echo("Per table:")
     for k, v in summary.items():
-        echo(f"  Table {k}: {v}")
+        label = f"Section {k[4:]}" if k.startswith("sec ") else f"Table {k}"
+        echo(f"  {label}: {v}")
     echo("")
     echo(f"Where the thesis is not self-consistent ({len(notes)}):")
     for line in notes:

@@ -184,6 +184,7 @@ TABLE_INPUTS = {
 }
 
 EXPECTED_TABLE_VERDICTS = {
+    "sec 4.1.2": "reproduces",
     "4.2": "reproduces",
     "4.3": "reproduces",
     "4.6": "reproduces",
