@@ -36,6 +36,8 @@ __all__ = [
     "RangeBounds",
     "Velocity",
     "triangulate",
+    "TriangulationBatch",
+    "triangulate_batch",
     "moving_obstacle_bounds",
     "velocity_from_fixes",
     "planar_rays",
@@ -283,6 +285,165 @@ def triangulate(
     )
 
 
+@dataclass(frozen=True)
+class TriangulationBatch:
+    """``triangulate`` over N ray pairs; row i equals ``triangulate`` of the i-th inputs.
+
+    p: (N, 3); range_m, range_sigma_m, depth_a_m, depth_b_m, parallax_rad, miss_m: (N,) as in
+    ``Triangulation``. valid: (N,) bool; rows that are not valid are zeros (never NaN) and
+    ``reason[i]`` says why (the ``Unobservable`` reason; "" for valid rows).
+    """
+
+    p: np.ndarray
+    range_m: np.ndarray
+    range_sigma_m: np.ndarray
+    depth_a_m: np.ndarray
+    depth_b_m: np.ndarray
+    parallax_rad: np.ndarray
+    miss_m: np.ndarray
+    valid: np.ndarray
+    reason: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return int(self.valid.shape[0])
+
+    def row(self, i: int) -> Triangulation | Unobservable:
+        """Row ``i`` as the scalar API's result."""
+        if not self.valid[i]:
+            return Unobservable(self.reason[i])
+        return Triangulation(
+            p=self.p[i].copy(),
+            range_m=float(self.range_m[i]),
+            range_sigma_m=float(self.range_sigma_m[i]),
+            depth_a_m=float(self.depth_a_m[i]),
+            depth_b_m=float(self.depth_b_m[i]),
+            parallax_rad=float(self.parallax_rad[i]),
+            miss_m=float(self.miss_m[i]),
+        )
+
+
+def _rows3(name: str, x, n: int | None) -> np.ndarray:
+    """(N, 3) or (3,) finite float64 -> (N, 3) (a (3,) input is repeated); InputError otherwise."""
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name}: expected an (N, 3) or (3,) array of finite numbers") from e
+    if a.shape == (3,):
+        a = np.broadcast_to(a, (1 if n is None else n, 3))
+    if a.ndim != 2 or a.shape[1] != 3 or (n is not None and a.shape[0] != n):
+        want = "(N, 3) or (3,)" if n is None else f"({n}, 3) or (3,)"
+        raise InputError(f"{name}: expected an array of shape {want}, got {np.shape(x)}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: expected finite values (no NaN/inf)")
+    return a
+
+
+def triangulate_batch(
+    c_a,
+    b_a,
+    c_b,
+    b_b,
+    *,
+    origin=None,
+    bearing_sigma_rad: float = 0.0,
+    min_parallax_rad: float = 1e-4,
+) -> TriangulationBatch:
+    """Vectorised ``triangulate`` over N ray pairs (same method, same degenerate cases).
+
+    c_a, b_a, c_b, b_b, origin: (N, 3) arrays, or (3,) shared by all rows, in one common frame
+    (metres, directions normalised here); origin defaults to c_b. A zero direction or NaN anywhere
+    is an InputError (as in the scalar API); degenerate rows are ``valid = False`` with a reason.
+    """
+    n = None
+    for x in (c_a, b_a, c_b, b_b, origin):
+        if x is not None and np.ndim(x) == 2:
+            n = int(np.shape(x)[0])
+            break
+    c_a = _rows3("c_a", c_a, n)
+    n = c_a.shape[0]
+    c_b = _rows3("c_b", c_b, n)
+    b_a = _rows3("b_a", b_a, n)
+    b_b = _rows3("b_b", b_b, n)
+    o = c_b if origin is None else _rows3("origin", origin, n)
+    sigma = _scalar("bearing_sigma_rad", bearing_sigma_rad, min_value=0.0)
+    min_par = _scalar("min_parallax_rad", min_parallax_rad, min_value=0.0)
+    na, nb = np.linalg.norm(b_a, axis=1), np.linalg.norm(b_b, axis=1)
+    if np.any(na <= 1e-12) or np.any(nb <= 1e-12):
+        raise InputError("b_a, b_b: expected non-zero directions (unit bearings) in every row")
+    b_a, b_b = b_a / na[:, None], b_b / nb[:, None]
+
+    scale = np.maximum(1.0, np.maximum(np.linalg.norm(c_a, axis=1), np.linalg.norm(c_b, axis=1)))
+    baseline = np.linalg.norm(c_b - c_a, axis=1)
+    sin_par = np.linalg.norm(np.cross(b_a, b_b), axis=1)
+    parallax = np.arctan2(sin_par, np.sum(b_a * b_b, axis=1))
+    reasons = np.full(n, "", dtype=object)
+    zero_base = baseline <= 1e-12 * scale
+    parallel = ~zero_base & ((parallax < min_par) | (sin_par**2 <= _PARALLEL_SIN2))
+    anti = ~zero_base & ~parallel & (np.pi - parallax < min_par)
+    reasons[zero_base] = "zero baseline"
+    reasons[parallel] = "parallel rays"
+    reasons[anti] = "parallel rays (opposite directions)"
+    ok = ~(zero_base | parallel | anti)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s, t = _closest_depths(c_a, b_a, c_b, b_b)
+    s = np.where(ok, s, 0.0)
+    t = np.where(ok, t, 0.0)
+    tol = 1e-12 * scale
+    behind_a, behind_b = ok & (s <= tol), ok & (t <= tol)
+    reasons[behind_a & behind_b] = "point behind both cameras (rays diverge)"
+    reasons[behind_a & ~behind_b] = "point behind camera a"
+    reasons[behind_b & ~behind_a] = "point behind camera b"
+    ok &= ~(behind_a | behind_b)
+
+    q_a = c_a + s[:, None] * b_a
+    q_b = c_b + t[:, None] * b_b
+    p = 0.5 * (q_a + q_b)  # midpoint of the common perpendicular
+    rng = np.linalg.norm(p - o, axis=1)
+    sig = np.zeros(n)
+    if sigma > 0.0 and np.any(ok):
+        sig[ok] = _range_sigma_batch(c_a[ok], b_a[ok], c_b[ok], b_b[ok], o[ok], sigma)
+    z = ~ok
+    p[z] = 0.0
+    for arr in (rng, s, t, parallax, sig):
+        arr[z] = 0.0
+    miss = np.where(ok, np.linalg.norm(q_a - q_b, axis=1), 0.0)
+    return TriangulationBatch(
+        p=p,
+        range_m=rng,
+        range_sigma_m=sig,
+        depth_a_m=s,
+        depth_b_m=t,
+        parallax_rad=parallax,
+        miss_m=miss,
+        valid=ok,
+        reason=tuple(str(r) for r in reasons),
+    )
+
+
+def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> np.ndarray:
+    """Vectorised ``_range_sigma`` for (M, 3) inputs -> (M,)."""
+    h = 1e-6
+    m = c_a.shape[0]
+    J = np.zeros((m, 4))
+    for k, which in enumerate(("a", "a", "b", "b")):
+        b = b_a if which == "a" else b_b
+        e = np.zeros_like(b)
+        e[np.arange(m), np.argmin(np.abs(b), axis=1)] = 1.0
+        u1 = np.cross(b, e)
+        u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
+        u = u1 if k % 2 == 0 else np.cross(b, u1)
+        r = []
+        for sgn in (1.0, -1.0):
+            v = b + sgn * h * u
+            v /= np.linalg.norm(v, axis=1, keepdims=True)
+            ba, bb = (v, b_b) if which == "a" else (b_a, v)
+            s, t = _closest_depths(c_a, ba, c_b, bb)
+            P = 0.5 * ((c_a + s[:, None] * ba) + (c_b + t[:, None] * bb))
+            r.append(np.linalg.norm(P - origin, axis=1))
+        J[:, k] = (r[0] - r[1]) / (2 * h)
+    return sigma_rad * np.linalg.norm(J, axis=1)
+
+
 # --------------------------------------------------------------------------- moving obstacle bounds
 
 
@@ -409,8 +570,9 @@ def _cov(name: str, sigma) -> np.ndarray | None:
         s = _scalar(name, float(a), min_value=0.0)
         return np.eye(3) * s * s
     if a.shape != (3, 3) or not np.all(np.isfinite(a)):
-        raise InputError(f"{name}: expected a per-axis std (m) or a finite (3, 3) covariance (m^2), "
-                         f"got shape {a.shape}")
+        raise InputError(
+            f"{name}: expected a per-axis std (m) or a finite (3, 3) covariance (m^2), got shape {a.shape}"
+        )
     return a
 
 

@@ -277,3 +277,49 @@ def test_velocity_degenerate_and_malformed():
         g.velocity_from_fixes([0, 0], 0.0, [1, 0, 0], 1.0)
     with pytest.raises(InputError):
         g.velocity_from_fixes([0, 0, 0], 0.0, [1, 0, 0], 1.0, sigma_1=np.ones((2, 2)))
+
+
+# --------------------------------------------------------------------------- batch == scalar
+
+
+def test_triangulate_batch_equals_scalar_rowwise():
+    rng = np.random.default_rng(3)
+    n = 300
+    c_a = rng.uniform(-5, 5, (n, 3))
+    c_b = rng.uniform(-5, 5, (n, 3))
+    p = rng.uniform(-10, 10, (n, 3))
+    b_a, b_b = p - c_a, p - c_b
+    b_a[::5] = -b_a[::5]  # behind camera a
+    b_b[1::7] = b_a[1::7]  # parallel
+    c_b[2::11] = c_a[2::11]  # zero baseline
+    b_b[3::13] = -b_b[3::13]  # behind camera b
+    batch = g.triangulate_batch(c_a, b_a, c_b, b_b, origin=[0.5, -1.0, 2.0], bearing_sigma_rad=1e-3)
+    assert len(batch) == n and 0 < batch.valid.sum() < n
+    assert np.all(np.isfinite(batch.p)) and np.all(np.isfinite(batch.range_sigma_m))
+    for i in range(n):
+        ref = g.triangulate(c_a[i], b_a[i], c_b[i], b_b[i], origin=[0.5, -1.0, 2.0], bearing_sigma_rad=1e-3)
+        got = batch.row(i)
+        assert type(got) is type(ref)
+        if isinstance(ref, g.Unobservable):
+            assert got.reason == ref.reason and not batch.valid[i]
+            assert np.all(batch.p[i] == 0) and batch.range_m[i] == 0
+        else:
+            np.testing.assert_allclose(got.p, ref.p, rtol=1e-12, atol=1e-12)
+            for f in ("range_m", "depth_a_m", "depth_b_m", "parallax_rad", "miss_m"):
+                assert getattr(got, f) == pytest.approx(getattr(ref, f), rel=1e-12, abs=1e-12)
+            assert got.range_sigma_m == pytest.approx(ref.range_sigma_m, rel=1e-6)
+    reasons = {r for r in batch.reason if r}
+    assert {"zero baseline", "parallel rays", "point behind camera a"} <= reasons
+
+
+def test_triangulate_batch_broadcast_and_errors():
+    # one shared camera pair, two points: 3-4-5 and its mirror in z
+    b = g.triangulate_batch([0, 0, 0], [[0.6, 0.8, 0], [0.6, 0, 0.8]], [3, 0, 0], [[0, 1, 0], [0, 0, 1]])
+    np.testing.assert_allclose(b.range_m, [4.0, 4.0])
+    np.testing.assert_allclose(b.p, [[3, 4, 0], [3, 0, 4]], atol=1e-12)
+    with pytest.raises(InputError):
+        g.triangulate_batch(np.zeros((2, 3)), np.ones((3, 3)), [1, 0, 0], [0, 1, 0])
+    with pytest.raises(InputError):
+        g.triangulate_batch(np.zeros((2, 3)), [[1, 0, 0], [0, 0, 0]], [1, 0, 0], [0, 1, 0])
+    with pytest.raises(InputError):
+        g.triangulate_batch([[0, 0, float("nan")]], [1, 0, 0], [1, 0, 0], [0, 1, 0])
