@@ -39,6 +39,7 @@ def register(app: typer.Typer) -> None:
             typer.Option("--resolution", help="WIDTHxHEIGHT; the lens is scaled to it (same aspect)."),
         ] = None,
         progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")] = True,
+        grey: Annotated[bool, typer.Option("--grey", help="Write greyscale videos instead of BGR.")] = False,
     ) -> None:
         """Render raw fisheye video of a scenario and write videos, camchain.yaml, trajectory.tum,
         scene.yaml and gt.jsonl into OUT."""
@@ -47,7 +48,7 @@ def register(app: typer.Typer) -> None:
 
         scn = load_scenario(scenario)
         res = simulate(scn, out, frames=frames, seconds=seconds, resolution=_parse_resolution(resolution),
-                       progress=progress)
+                       progress=progress, grey=grey)
         w, h = res.resolution
         typer.echo(
             f"{scn.name}: wrote {res.frames_written} frames ({res.frames_dropped} dropped) of "

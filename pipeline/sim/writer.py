@@ -116,9 +116,12 @@ class SimulateResult:
 
 
 def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seconds: float | None = None,
-             resolution: tuple[int, int] | None = None, progress: bool = False) -> SimulateResult:
+             resolution: tuple[int, int] | None = None, progress: bool = False,
+             grey: bool = False) -> SimulateResult:
     """Render ``scn`` into ``out_dir`` (created). ``frames`` or ``seconds`` shorten/lengthen the run;
-    ``resolution`` (W, H) renders at another size with the same lens scaled."""
+    ``resolution`` (W, H) renders at another size with the same lens scaled; ``grey`` writes
+    single-channel videos (``cv2.cvtColor`` BGR2GRAY of the colour frames; OpenCV reads them back
+    as three equal channels)."""
     if frames is not None and seconds is not None:
         raise ConfigError("simulate: give frames or seconds, not both")
     n = frames if frames is not None else (int(np.floor(seconds * scn.fps + 1e-9)) if seconds else None)
@@ -146,7 +149,7 @@ def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seco
     for cam in sim.rig:
         path = out / f"{cam.name}{VIDEO_EXT}"
         w = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*VIDEO_FOURCC), float(scn.fps),
-                            (cam.model.width, cam.model.height), True)
+                            (cam.model.width, cam.model.height), not grey)
         if not w.isOpened():
             raise SourceError(f"{path}: OpenCV cannot open an {VIDEO_FOURCC} writer (FFmpeg backend needed)")
         writers[cam.name] = w
@@ -171,7 +174,7 @@ def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seco
                 imgs = {c.name: sim.render(c.name, t, rng_noise) for c in sim.rig}
                 t_render += time.perf_counter() - a
                 for name, img in imgs.items():
-                    writers[name].write(img)
+                    writers[name].write(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if grey else img)
                     stamps[name].write(f"{k} {t:.9f}\n")
                     stamps[name].flush()
                 T_W_B, obs = sim.truth(t)

@@ -86,6 +86,18 @@ def test_simulate_round_trip(tmp_path):
     assert load_scenario(tmp_path / "scene.yaml") == scn.model_copy(update={"duration_s": 0.3})
 
 
+def test_grey_videos_round_trip(tmp_path):
+    scn = _small()
+    simulate(scn, tmp_path, frames=3, grey=True)
+    sim = Simulation(scn)
+    frames = _read_video(tmp_path / "cam1.mkv")
+    assert len(frames) == 3
+    for k, f in enumerate(frames):
+        expect = cv2.cvtColor(sim.render_clean("cam1", k / 20), cv2.COLOR_BGR2GRAY)
+        for c in range(3):
+            np.testing.assert_array_equal(f[..., c], expect)
+
+
 def test_frame_drops_skip_timestamps_and_truth(tmp_path):
     scn = _small(frame_drop_prob=0.4).model_copy(update={"duration_s": 1.0})
     res = simulate(scn, tmp_path, frames=20)
