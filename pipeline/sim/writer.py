@@ -188,4 +188,11 @@ def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seco
             w.release()
         for f in stamps.values():
             f.close()
+    for cam in sim.rig:  # OpenCV only warns when it skips a frame: check the container's count
+        path = out / f"{cam.name}{VIDEO_EXT}"
+        cap = cv2.VideoCapture(str(path))
+        n_file = int(round(cap.get(cv2.CAP_PROP_FRAME_COUNT))) if cap.isOpened() else -1
+        cap.release()
+        if written and n_file != written:
+            raise SourceError(f"{path}: holds {n_file} frames; {written} were written (the writer failed)")
     return SimulateResult(out, written, dropped, sim.rig.names, res, t_render / max(written, 1))
