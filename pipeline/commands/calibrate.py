@@ -1,6 +1,7 @@
 """``fisheye-des calibrate``: Kannala-Brandt calibration from checkerboard images or a video.
 
 ``fisheye-des calibrate IMAGES_OR_VIDEO... --board COLSxROWS --square-m S --out camchain.yaml``
+(stereo: ``--right RIGHT_IMAGES_OR_VIDEO...``, frames paired in sorted order)
 
 Inputs may be image files, folders of images, glob patterns (quoted, so that the shell leaves them
 alone) or video files (every ``--every``-th frame is used). Corners are found with
@@ -9,7 +10,9 @@ alone) or video files (every ``--every``-th frame is used). Corners are found wi
 finds ill-conditioned, are rejected with the reason. The result is written as a Kalibr camchain
 (``estimators.calibration.save_kalibr``; one camera ``cam0``, assumed to look forward from the
 body origin: the extrinsics are not calibrated here), and the per-view and overall RMS
-reprojection errors (px) are printed.
+reprojection errors (px) are printed. With ``--right`` both cameras are calibrated, then their
+relative pose with ``cv2.fisheye.stereoCalibrate`` (intrinsics fixed); the camchain then holds
+cam0 (left) and cam1 (right) with ``T_cn_cnm1``, the body origin midway between them.
 """
 
 from __future__ import annotations
@@ -299,10 +302,10 @@ def calibrate_views(
     return FisheyeCalibration(model, K, D, rms, views, list(rvecs), list(tvecs), board)
 
 
-def calibrate_inputs(
-    inputs: list[str], board: Board, every: int = 10, max_angle_rad: float | None = None, echo=None
-) -> FisheyeCalibration:
-    """Read the inputs, detect the board in every frame and calibrate (see :func:`calibrate_views`)."""
+def detect_views(
+    inputs: list[str], board: Board, every: int = 10, echo=None
+) -> tuple[list[ViewResult], tuple[int, int]]:
+    """Read the inputs and detect the board in every frame -> (views, (width, height) px)."""
     views: list[ViewResult] = []
     size: tuple[int, int] | None = None
     for name, grey in iter_frames(inputs, every):
@@ -319,7 +322,127 @@ def calibrate_inputs(
             echo(f"  {name}: {'board found' if c is not None else 'board not found'}")
     if size is None:
         raise SourceError("calibrate: no frames were read from the inputs")
+    return views, size
+
+
+def calibrate_inputs(
+    inputs: list[str], board: Board, every: int = 10, max_angle_rad: float | None = None, echo=None
+) -> FisheyeCalibration:
+    """Read the inputs, detect the board in every frame and calibrate (see :func:`calibrate_views`)."""
+    views, size = detect_views(inputs, board, every, echo)
     return calibrate_views(views, board, size, max_angle_rad=max_angle_rad)
+
+
+@dataclass
+class StereoCalibration:
+    """Result of :func:`calibrate_stereo_views`.
+
+    Attributes:
+        left, right: the per-camera calibrations (cam0, cam1).
+        T_c1_c0: pose of cam0 in cam1, ``p_c1 = R p_c0 + t`` (Kalibr's ``T_cn_cnm1`` of cam1), metres.
+        rms_px: RMS reprojection error of ``cv2.fisheye.stereoCalibrate`` (intrinsics fixed), px.
+        pairs: names of the (left, right) pairs used.
+        rig: the stereo rig; B is centred between the cameras with the axes of cam0's forward mount.
+    """
+
+    left: FisheyeCalibration
+    right: FisheyeCalibration
+    T_c1_c0: object
+    rms_px: float
+    pairs: list[tuple[str, str]]
+    rig: object
+
+    @property
+    def baseline_m(self) -> float:
+        return float(np.linalg.norm(self.T_c1_c0.t))
+
+
+def _flip_board_pose(rvec: np.ndarray, tvec: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray]:
+    """Board pose for the corners numbered from the other end (the board turned 180 deg about its z)."""
+    import cv2
+
+    R, _ = cv2.Rodrigues(rvec)
+    # reversed numbering: p_board = F p_board', F = Rz(180 deg) p' + ((cols-1) s, (rows-1) s, 0)
+    Rf = np.diag([-1.0, -1.0, 1.0])
+    tf = np.array([(board.cols - 1) * board.square_m, (board.rows - 1) * board.square_m, 0.0])
+    R2 = R @ Rf
+    t2 = R @ tf + tvec.reshape(3)
+    return cv2.Rodrigues(R2)[0], t2
+
+
+def calibrate_stereo_views(
+    left_views: list[ViewResult],
+    right_views: list[ViewResult],
+    board: Board,
+    size_left: tuple[int, int],
+    size_right: tuple[int, int],
+    max_angle_rad: float | None = None,
+) -> StereoCalibration:
+    """Calibrate both cameras, then their relative pose with ``cv2.fisheye.stereoCalibrate``.
+
+    ``left_views[i]`` and ``right_views[i]`` are simultaneous frames. Pairs where both cameras'
+    views were used by their own calibration feed the stereo step. The detector may number a
+    board's corners from either end; per pair the right camera's numbering is flipped when that
+    makes the relative rotation smaller (the cameras of a stereo pair look roughly the same way).
+    """
+    import cv2
+
+    from estimators.rig import Camera, Rig, forward_T_C_B
+    from estimators.se3 import Pose
+
+    if len(left_views) != len(right_views):
+        raise InputError(
+            f"calibrate --right: expected as many right frames as left frames (pairs in sorted order); "
+            f"got {len(left_views)} left and {len(right_views)} right"
+        )
+    left = calibrate_views(left_views, board, size_left, max_angle_rad=max_angle_rad)
+    right = calibrate_views(right_views, board, size_right, max_angle_rad=max_angle_rad)
+    pose_l = {v.name: (r, t) for v, r, t in zip(left.used, left.rvecs, left.tvecs, strict=True)}
+    pose_r = {v.name: (r, t) for v, r, t in zip(right.used, right.rvecs, right.tvecs, strict=True)}
+    objp, img_l, img_r, pairs = [], [], [], []
+    obj = board.object_points()
+    for vl, vr in zip(left_views, right_views, strict=True):
+        if not (vl.used and vr.used):
+            continue
+        rl, tl = pose_l[vl.name]
+        Rl = cv2.Rodrigues(rl)[0]
+        best = None
+        for flip in (False, True):
+            rr, tr = pose_r[vr.name]
+            if flip:
+                rr, tr = _flip_board_pose(rr, tr, board)
+            # relative rotation R_c1_c0 = R_c1_board R_board_c0
+            Rrel = cv2.Rodrigues(rr)[0] @ Rl.T
+            ang = float(np.arccos(np.clip((np.trace(Rrel) - 1) / 2, -1.0, 1.0)))
+            if best is None or ang < best[0]:
+                best = (ang, flip)
+        corners_r = vr.corners[::-1] if best[1] else vr.corners
+        objp.append(obj.reshape(1, -1, 3).astype(np.float64))
+        img_l.append(vl.corners.reshape(1, -1, 2).astype(np.float64))
+        img_r.append(corners_r.reshape(1, -1, 2).astype(np.float64))
+        pairs.append((vl.name, vr.name))
+    if len(pairs) < 3:
+        raise CalibrationError(
+            f"calibrate --right: the board was usable in both cameras in {len(pairs)} pairs; "
+            "at least 3 are needed"
+        )
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+    try:
+        out = cv2.fisheye.stereoCalibrate(
+            objp, img_l, img_r, left.K, left.D.reshape(4, 1), right.K, right.D.reshape(4, 1),
+            tuple(size_left), flags=cv2.fisheye.CALIB_FIX_INTRINSIC, criteria=crit,
+        )
+    except cv2.error as e:
+        msg = str(e).strip()
+        raise CalibrationError(f"calibrate --right: cv2.fisheye.stereoCalibrate failed: {msg}") from None
+    rms, R, T = float(out[0]), np.asarray(out[5], dtype=float), np.asarray(out[6], dtype=float).reshape(3)
+    T_c1_c0 = Pose(R, T)
+    # B: axes of cam0's forward mount, origin midway between the camera centres.
+    R_B_C0 = forward_T_C_B().R.T
+    d_B = R_B_C0 @ T_c1_c0.inverse().t  # cam1's centre relative to cam0's, in B
+    T_C0_B = forward_T_C_B(-0.5 * d_B)
+    rig = Rig((Camera("cam0", left.model, T_C0_B), Camera("cam1", right.model, T_c1_c0 @ T_C0_B)))
+    return StereoCalibration(left, right, T_c1_c0, rms, pairs, rig)
 
 
 # ------------------------------------------------------------------------------------ command
@@ -342,6 +465,14 @@ def register(app: typer.Typer) -> None:
         verbose: Annotated[
             bool, typer.Option("--verbose", "-v", help="Print every frame's detection.")
         ] = False,
+        right: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--right",
+                help="Stereo: the right camera's images/folder/glob/video (repeatable); frames pair "
+                "with the inputs in sorted order. Writes a 2-camera camchain with T_cn_cnm1.",
+            ),
+        ] = None,
     ) -> None:
         """Calibrate a fisheye camera (Kannala-Brandt, cv2.fisheye) and write a Kalibr camchain."""
         from estimators.calibration import save_kalibr
@@ -351,19 +482,37 @@ def register(app: typer.Typer) -> None:
             raise InputError(f"--model: {model!r} cannot be calibrated here; expected: kannala_brandt")
         b = Board.parse(board, square_m)
         max_rad = None if max_angle_deg is None else float(np.radians(max_angle_deg))
-        res = calibrate_inputs(inputs, b, every=every, max_angle_rad=max_rad,
-                               echo=typer.echo if verbose else None)
-        typer.echo(f"views: {len(res.views)} read, {len(res.used)} used")
-        for v in res.views:
-            if v.used:
-                typer.echo(f"  {v.name}: rms {v.rms_px:.3f} px")
-            else:
-                typer.echo(f"  {v.name}: rejected ({v.reason})")
-        m = res.model
-        typer.echo(
-            f"kannala_brandt: fx {m.fx:.3f} fy {m.fy:.3f} cx {m.cx:.3f} cy {m.cy:.3f} "
-            f"k1..k4 {m.k1:.6f} {m.k2:.6f} {m.k3:.6f} {m.k4:.6f} ({m.width}x{m.height} px)"
-        )
-        typer.echo(f"overall RMS reprojection error: {res.rms_px:.3f} px")
-        save_kalibr(Rig((Camera("cam0", m, forward_T_C_B()),)), out)
+        echo = typer.echo if verbose else None
+        if right:
+            lv, ls = detect_views(inputs, b, every, echo)
+            rv, rs = detect_views(right, b, every, echo)
+            st = calibrate_stereo_views(lv, rv, b, ls, rs, max_angle_rad=max_rad)
+            for label, res in (("cam0 (left)", st.left), ("cam1 (right)", st.right)):
+                typer.echo(f"{label}:")
+                _report(res)
+            typer.echo(
+                f"stereo: {len(st.pairs)} pairs, RMS {st.rms_px:.3f} px, "
+                f"baseline {st.baseline_m * 1000:.1f} mm, "
+                f"t_c1_c0 {np.array2string(st.T_c1_c0.t, precision=4)} m"
+            )
+            save_kalibr(st.rig, out)
+        else:
+            res = calibrate_inputs(inputs, b, every=every, max_angle_rad=max_rad, echo=echo)
+            _report(res)
+            save_kalibr(Rig((Camera("cam0", res.model, forward_T_C_B()),)), out)
         typer.echo(f"wrote {out}")
+
+
+def _report(res: FisheyeCalibration) -> None:
+    typer.echo(f"views: {len(res.views)} read, {len(res.used)} used")
+    for v in res.views:
+        if v.used:
+            typer.echo(f"  {v.name}: rms {v.rms_px:.3f} px")
+        else:
+            typer.echo(f"  {v.name}: rejected ({v.reason})")
+    m = res.model
+    typer.echo(
+        f"kannala_brandt: fx {m.fx:.3f} fy {m.fy:.3f} cx {m.cx:.3f} cy {m.cy:.3f} "
+        f"k1..k4 {m.k1:.6f} {m.k2:.6f} {m.k3:.6f} {m.k4:.6f} ({m.width}x{m.height} px)"
+    )
+    typer.echo(f"overall RMS reprojection error: {res.rms_px:.3f} px")

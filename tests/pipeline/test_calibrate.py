@@ -12,11 +12,14 @@ import pytest
 from estimators.calibration import load_rig
 from estimators.cameras import KannalaBrandt
 from estimators.errors import CalibrationError, InputError, SourceError
+from estimators.rig import forward_T_C_B
+from estimators.se3 import Pose, rot_y
 from pipeline.cli import main
 from pipeline.commands.calibrate import (
     Board,
     ViewResult,
     calibrate_inputs,
+    calibrate_stereo_views,
     calibrate_views,
     detect_corners,
     iter_frames,
@@ -149,6 +152,42 @@ def test_calibration_with_noise_and_bad_views():
     assert np.abs(r_ours - r_true).max() < 0.3
 
 
+def test_stereo_calibration_recovers_a_known_baseline_with_flipped_corner_numbering():
+    # cam1 8 cm to the right of cam0 (+x of C), turned 2 degrees about y: p_c1 = R p_c0 + t,
+    # t = -R c1 with c1 = (0.08, 0, 0) in cam0.
+    R = rot_y(np.radians(2.0))
+    T_c1_c0 = Pose(R, -R @ np.array([0.08, 0.0, 0.0]))
+    right_model = KannalaBrandt(fx=192.0, fy=191.7, cx=318.9, cy=241.2, width=640, height=480,
+                                k1=-0.015, k2=0.008, k3=-0.003, k4=0.0004)
+    left, right = [], []
+    for i, (r, t) in enumerate(POSES):
+        left.append(ViewResult(f"l{i}", true_corners(TRUE, r, t)))
+        Rb, _ = cv2.Rodrigues(np.asarray(r, dtype=float))
+        p_c1 = T_c1_c0.apply(BOARD.object_points() @ Rb.T + np.asarray(t, dtype=float))
+        uv, valid = right_model.bearing_to_pixel(p_c1)
+        assert valid.all()
+        # the detector may number the right camera's corners from the other end
+        right.append(ViewResult(f"r{i}", uv[::-1] if i % 3 == 1 else uv))
+    st = calibrate_stereo_views(left, right, BOARD, (640, 480), (640, 480))
+    assert len(st.pairs) == len(POSES)
+    assert st.rms_px < 1e-6
+    np.testing.assert_allclose(st.T_c1_c0.R, T_c1_c0.R, atol=1e-8)
+    np.testing.assert_allclose(st.T_c1_c0.t, T_c1_c0.t, atol=1e-8)
+    assert st.baseline_m == pytest.approx(0.08, abs=1e-8)
+    # the rig: B midway between the cameras, cam0 forward, cam1 at its right (body -y)
+    cam0, cam1 = st.rig["cam0"], st.rig["cam1"]
+    np.testing.assert_allclose(cam0.centre_B, [0.0, 0.04, 0.0], atol=1e-8)
+    np.testing.assert_allclose(cam1.centre_B, [0.0, -0.04, 0.0], atol=1e-8)
+    np.testing.assert_allclose(cam0.T_C_B.R, forward_T_C_B().R, atol=1e-12)
+    np.testing.assert_allclose((cam1.T_C_B @ cam0.T_C_B.inverse()).t, T_c1_c0.t, atol=1e-8)
+
+
+def test_stereo_needs_as_many_right_frames_as_left():
+    v = [ViewResult("a", None)]
+    with pytest.raises(InputError, match=r"got 1 left and 2 right"):
+        calibrate_stereo_views(v, v + v, BOARD, (640, 480), (640, 480))
+
+
 def test_cli_writes_a_kalibr_file_and_reports_rms(board_images, tmp_path, capsys):
     out = tmp_path / "camchain.yaml"
     rc = main(["calibrate", str(board_images / "*.png"), "--board", "9x6", "--square-m", "0.03",
@@ -272,3 +311,23 @@ def _assert_matches_cv2(res):
         uv, valid = res.model.bearing_to_pixel(obj @ R.T + t.reshape(1, 3), within_image=False)
         assert valid.all()
         assert np.abs(uv - proj.reshape(-1, 2)).max() < 1e-6
+
+
+@pytest.mark.realdata
+def test_real_stereopi_stereo_cli(tmp_path, capsys):
+    pairs = _need(DATA / "stereopi_fisheye" / "pairs")
+    out = tmp_path / "stereopi.yaml"
+    rc = main(["calibrate", str(pairs / "left_0*.png"), "--right", str(pairs / "right_0*.png"),
+               "--board", "9x6", "--square-m", "0.025", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    rig = load_rig(out)
+    assert rig.kind == "stereo" and rig.names == ("cam0", "cam1")
+    # README (upstream corners, stereoCalibrate): |T| = 2.589 squares = 64.7 mm, R = 0.94 deg
+    d = rig["cam0"].centre_B - rig["cam1"].centre_B
+    assert np.linalg.norm(d) == pytest.approx(0.0647, abs=0.002)
+    assert d[1] > 0.06  # cam0 (left) is on the body's left, +y
+    R = (rig["cam1"].T_C_B @ rig["cam0"].T_C_B.inverse()).R
+    assert np.degrees(np.arccos((np.trace(R) - 1) / 2)) == pytest.approx(0.94, abs=0.3)
+    stereo_rms = float(re.search(r"stereo: \d+ pairs, RMS ([\d.]+) px", text).group(1))
+    assert stereo_rms < 0.3  # measured 0.11 px
