@@ -1,7 +1,8 @@
 """``fisheye-des demo [--out DIR]``: the whole system in about a minute, with nothing but this package.
 
-1. simulates a short flight with stationary and moving obstacles (``configs/scenarios/moving_crossing.yaml``
-   at 640x360 by default) -> ``DIR/sim/`` (video, timestamps, camchain.yaml, trajectory.tum, gt.jsonl);
+1. simulates a short flight with stationary and moving obstacles (``configs/scenarios/stereo_flying.yaml``,
+   a 0.30 m forward stereo pair, 3 s at 640x360 by default; ``--scenario`` picks another) -> ``DIR/sim/``
+   (videos, timestamps, camchain.yaml, trajectory.tum, gt.jsonl);
 2. runs the full pipeline on the rendered video -> ``DIR/run/`` (tracks.jsonl, summary.json,
    config.resolved.yaml, annotated.mp4, range/polar plots);
 3. evaluates it against the ground truth -> ``DIR/eval/`` (metrics.json, metrics.txt, plots);
@@ -16,7 +17,7 @@ from typing import Annotated, Any
 
 import typer
 
-DEFAULT_SCENARIO = "moving_crossing.yaml"
+DEFAULT_SCENARIO = "stereo_flying.yaml"  # stereo: ranges, bounds and obstacle velocity
 DEFAULT_RESOLUTION = (640, 360)
 
 
@@ -45,7 +46,7 @@ def run_demo(
 
     Args:
         out: output folder (sim/, run/, eval/, report.md).
-        scenario: scenario YAML (default ``configs/scenarios/moving_crossing.yaml``); a bare name is
+        scenario: scenario YAML (default ``configs/scenarios/stereo_flying.yaml``); a bare name is
             looked up in ``configs/scenarios``.
         resolution: (width, height) to render at (the lens scaled), None = the scenario's own.
         seconds: shorten the flight (None = the scenario's duration).
