@@ -654,9 +654,13 @@ def planar_triangulate(
     origin: "b" (range from B: eq. 3.8, 3.9, 3.10, the mono range and the stereo "Y"),
     "a" (range from A), or "mid" (from the baseline's midpoint: eq. 3.2's CF). ``p[1]`` is the
     perpendicular distance to the baseline (eq. 3.1's Z). Angles summing to >= 180 deg, or outside
-    (0, 180) deg, or d <= 0 give Unobservable.
+    (0, 180) deg, or d = 0 give Unobservable; NaN or a negative d raise InputError.
     """
-    bad = _planar_check(float(d_m), float(theta1_rad), float(theta2_rad))
+    bad = _planar_check(
+        _scalar("d_m", d_m, min_value=0.0),
+        _scalar("theta1_rad", theta1_rad),
+        _scalar("theta2_rad", theta2_rad),
+    )
     if bad is not None:
         return bad
     c_a, b_a, c_b, b_b = planar_rays(d_m, theta1_rad, theta2_rad)
@@ -672,7 +676,11 @@ def planar_moving_obstacle_bounds(
     d_m: float, theta1_rad: float, theta2_rad: float, max_displacement_m: float
 ) -> RangeBounds | Unobservable:
     """``moving_obstacle_bounds`` for the thesis's planar configuration (range from B)."""
-    if float(d_m) < 0 or not (0 < float(theta1_rad) < math.pi and 0 < float(theta2_rad) < math.pi):
-        return Unobservable("zero baseline" if float(d_m) < 0 else "interior angle outside (0, 180) deg")
+    if _scalar("d_m", d_m, min_value=0.0) == 0.0:
+        return Unobservable("zero baseline")
+    if not (
+        0 < _scalar("theta1_rad", theta1_rad) < math.pi and 0 < _scalar("theta2_rad", theta2_rad) < math.pi
+    ):
+        return Unobservable("interior angle outside (0, 180) deg")
     c_a, b_a, c_b, b_b = planar_rays(d_m, theta1_rad, theta2_rad)
     return moving_obstacle_bounds(c_a, b_a, c_b, b_b, max_displacement_m)

@@ -320,3 +320,15 @@ def test_triangulate_batch_broadcast_and_errors():
         g.triangulate_batch(np.zeros((2, 3)), [[1, 0, 0], [0, 0, 0]], [1, 0, 0], [0, 1, 0])
     with pytest.raises(InputError):
         g.triangulate_batch([[0, 0, float("nan")]], [1, 0, 0], [1, 0, 0], [0, 1, 0])
+
+
+def test_planar_malformed_input_raises():
+    with pytest.raises(InputError):
+        g.planar_triangulate(1.0, float("nan"), 1.0)
+    with pytest.raises(InputError):
+        g.planar_triangulate(-1.0, 1.0, 1.0)
+    with pytest.raises(InputError):
+        g.planar_moving_obstacle_bounds(-1.0, 1.0, 1.0, 0.5)
+    with pytest.raises(InputError):
+        g.planar_moving_obstacle_bounds(1.0, float("nan"), 1.0, 0.5)
+    assert isinstance(g.planar_moving_obstacle_bounds(0.0, 1.0, 1.0, 0.5), g.Unobservable)
