@@ -67,14 +67,17 @@ def render_board(model: KannalaBrandt, rvec, tvec, board: Board = BOARD, ss: int
     R, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float))
     t = np.asarray(tvec, dtype=float)
     b, valid = _rays(model, ss)
-    n = R[:, 2]  # board normal in C; the plane is n . p = n . t
+    # Board axes r0, r1 and normal n (columns of R) in C; the plane is n . p = n . t. The ray
+    # lam b meets it at lam = (n . t)/(n . b); board coordinates x = r0 . (lam b - t), y likewise.
+    proj = np.einsum("ni,ij->nj", b, R)  # (N,3): b . r0, b . r1, b . n (einsum: BLAS matmul is slow here)
     with np.errstate(divide="ignore", invalid="ignore"):
-        lam = (n @ t) / (b @ n)
+        lam = (R[:, 2] @ t) / proj[:, 2]
     hit = valid & (lam > 0)
-    p = (np.where(hit, lam, 0.0)[:, None] * b - t) @ R  # board coordinates R^T (p_C - t)
+    lam = np.where(hit, lam, 0.0)
     # squares span [-s, cols*s) x [-s, rows*s), so the inner corners are at (i s, j s); a white
     # margin of one more square around them
-    x, y = p[:, 0] / board.square_m, p[:, 1] / board.square_m
+    x = (lam * proj[:, 0] - R[:, 0] @ t) / board.square_m
+    y = (lam * proj[:, 1] - R[:, 1] @ t) / board.square_m
     on_board = hit & (x >= -1) & (x < board.cols) & (y >= -1) & (y < board.rows)
     margin = hit & (x >= -2) & (x < board.cols + 1) & (y >= -2) & (y < board.rows + 1)
     val = np.full(b.shape[0], 110.0)
