@@ -53,5 +53,6 @@ def register(app: typer.Typer) -> None:
         typer.echo(
             f"{scn.name}: wrote {res.frames_written} frames ({res.frames_dropped} dropped) of "
             f"{', '.join(res.cameras)} at {w}x{h} to {res.out_dir}; "
-            f"render {res.render_s_per_frame * 1000:.0f} ms per frame"
+            f"render {res.render_s_per_frame * 1000:.0f} ms per frame "
+            f"({res.render_cpu_s_per_frame * 1000:.0f} ms CPU)"
         )
