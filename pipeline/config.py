@@ -675,14 +675,27 @@ def write_resolved(
 
 
 def describe_config(model: type[BaseModel] = PipelineConfig, prefix: str = "") -> str:
-    """A reference of every key: ``section.key  description`` lines (for docs and ``--help``)."""
+    """Every key as ``section.key: type, unit: meaning [default]`` lines (docs, ``--describe-config``)."""
     rows = []
     for name, f in model.model_fields.items():
         key = f"{prefix}{name}"
-        subs = [a for a in _unwrap(f.annotation) if isinstance(a, type) and issubclass(a, BaseModel)]
-        if subs:
+        subs: list[tuple[type[BaseModel], str]] = []
+        for a in _unwrap(f.annotation):
+            if isinstance(a, type) and issubclass(a, BaseModel):
+                subs.append((a, key + "."))
+            elif typing.get_origin(a) in (list, tuple):
+                subs += [
+                    (t, key + "[].")
+                    for inner in typing.get_args(a)
+                    for t in _unwrap(inner)
+                    if isinstance(t, type) and issubclass(t, BaseModel)
+                ]
+        if subs and typing.get_origin(f.annotation) is None and not f.is_required() and f.default_factory:
             rows.append(f"{key}: {f.description}")
-            rows.append(describe_config(subs[0], prefix=key + "."))
-        else:
-            rows.append(f"  {key}: {f.description}")
+            rows.append(describe_config(subs[0][0], prefix=subs[0][1]))
+            continue
+        default = "" if f.is_required() else f" [default: {f.get_default(call_default_factory=True)!r}]"
+        rows.append(f"  {key}: {f.description}{default}")
+        for sub, pre in subs:
+            rows.append(describe_config(sub, prefix=pre))
     return "\n".join(r for r in rows if r)

@@ -49,12 +49,19 @@ def register(app: typer.Typer) -> None:
         ] = None,
         jobs: Annotated[int | None, typer.Option("--jobs", help="Worker processes for --batch.")] = None,
         no_progress: Annotated[bool, typer.Option("--no-progress", help="No progress bar.")] = False,
+        describe: Annotated[
+            bool, typer.Option("--describe-config", help="Print every config key and exit.")
+        ] = False,
     ) -> None:
         """Range obstacles in recorded fisheye videos: tracks.jsonl, summary.json, config.resolved.yaml."""
         import sys
 
-        from pipeline.config import load_config
+        from pipeline.config import describe_config, load_config
         from pipeline.run import run, run_batch
+
+        if describe:
+            print(describe_config())
+            return
 
         cli: dict = {}
         if video:
