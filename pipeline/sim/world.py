@@ -70,12 +70,13 @@ def checker_value(q: np.ndarray, cell_m: float, seed: int, contrast: float,
     c1 = np.floor(q * np.float32(1.0 / cell_m) + off).astype(np.int32)
     c2 = np.floor(q * np.float32(3.0 / cell_m) + off).astype(np.int32)
     c0 = np.floor(q * np.float32(1.0 / (3.0 * cell_m)) + off).astype(np.int32)
-    if q.shape[1] == 2:  # planar texture: the third lattice index is 0
-        z = np.zeros((len(q), 1), np.int32)
-        c1, c2, c0 = (np.concatenate([c, z], axis=1) for c in (c1, c2, c0))
-    coarse = hash01(c1[:, 0], c1[:, 1], c1[:, 2], seed) > 0.5
-    flip = hash01(c2[:, 0], c2[:, 1], c2[:, 2], seed + 1) > 0.75
-    slow = 0.8 + 0.2 * hash01(c0[:, 0], c0[:, 1], c0[:, 2], seed + 2)
+
+    def h(c: np.ndarray, sd: int) -> np.ndarray:  # planar textures (2 columns): third index 0
+        return hash01(c[:, 0], c[:, 1], c[:, 2] if c.shape[1] == 3 else np.int32(0), sd)
+
+    coarse = h(c1, seed) > 0.5
+    flip = h(c2, seed + 1) > 0.75
+    slow = 0.8 + 0.2 * h(c0, seed + 2)
     bright = coarse ^ flip
     k = np.float32(contrast) if fade is None else np.float32(contrast) * fade.astype(np.float32)
     return (0.5 + np.where(bright, 0.5, -0.5).astype(np.float32) * k) * slow
@@ -294,7 +295,9 @@ class World:
         """BGR colour in [0, 1] (N,3) float32 of each ray: texture x Lambert at hits, sky otherwise.
 
         pix_rad: angular size of a pixel (rad), used to fade far textures against aliasing."""
-        col = self._sky(d_W)  # everywhere first (cheaper than gathering the sky rays), then overwritten
+        col = np.empty((len(d_W), 3), np.float32)
+        sky = np.nonzero(hits.part == -1)[0]
+        col[sky] = self._sky(d_W[sky])
         shared_origin = o_W.ndim == 1
         on_obj = np.nonzero(hits.part >= 0)[0]  # objects usually cover a small share of the rays
         part_on = hits.part[on_obj]
