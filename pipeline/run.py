@@ -359,14 +359,14 @@ def run(
         }
         if video is not None and video.frames:
             summary["outputs"]["annotated_video"] = video.path.name
-        if cfg.outputs.plots and frames and not interrupted:
+        write_json(out / SUMMARY_NAME, summary)  # first: a second Ctrl-C during the plots loses nothing
+        if cfg.outputs.plots and frames:
             try:
-                summary["outputs"]["plots"] = [
-                    p.name for p in make_plots(out / TRACKS_NAME, out, cfg.outputs.max_plot_tracks)
-                ]
-            except FisheyeDesError as e:  # a plot is never worth losing the summary over
+                names = [p.name for p in make_plots(out / TRACKS_NAME, out, cfg.outputs.max_plot_tracks)]
+                summary["outputs"]["plots"] = names
+            except FisheyeDesError as e:  # a plot is never worth losing the run over
                 summary["outputs"]["plots_error"] = str(e)
-        write_json(out / SUMMARY_NAME, summary)
+            write_json(out / SUMMARY_NAME, summary)
     if interrupted:
         raise KeyboardInterrupt
     result = RunResult(

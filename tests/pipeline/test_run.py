@@ -19,10 +19,10 @@ def _lines(path):
     return [json.loads(x) for x in path.read_text().splitlines()]
 
 
-def _run(tmp_path, videos, rig=None, front=None, **kw):
+def _run(tmp_path, videos, rig=None, front=None, plots=False, **kw):
     cfg = load_config(
         None,
-        ["ego_motion.speed_mps=5", "outputs.progress=false"],
+        ["ego_motion.speed_mps=5", "outputs.progress=false", f"outputs.plots={str(plots).lower()}"],
         cli={"inputs.videos": [str(v) for v in videos]},
     )
     rig = rig or mono_rig()
@@ -93,12 +93,13 @@ def test_ctrl_c_keeps_outputs(tmp_path):
     v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
     rig = mono_rig()
     with pytest.raises(KeyboardInterrupt):
-        _run(tmp_path, [v], rig=rig, front=FakeFrontEnd(rig, interrupt_at=4))
+        _run(tmp_path, [v], rig=rig, front=FakeFrontEnd(rig, interrupt_at=4), plots=True)
     recs = _lines(tmp_path / "out" / "tracks.jsonl")
     assert [x["frame"] for x in recs] == [0, 1, 2, 3]
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["interrupted"] is True and s["frames"] == 4
     assert (tmp_path / "out" / "config.resolved.yaml").is_file()
+    assert s["outputs"]["plots"] == ["range_over_time.png", "polar_map.png"]  # plots of what was done
 
 
 def test_frame_size_mismatch_is_an_error_before_anything_runs(tmp_path):
