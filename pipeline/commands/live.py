@@ -64,7 +64,11 @@ def register(app: typer.Typer) -> None:
             cli["live.duration_s"] = duration
         cfg = load_config(config, list(set_ or []), cli)
         out_dir = cfg.outputs.dir or Path("runs") / "live"
-        r = run_live(cfg, out_dir, on_event=lambda m: print(m, file=sys.stderr))
+        try:
+            r = run_live(cfg, out_dir, on_event=lambda m: print(m, file=sys.stderr))
+        except KeyboardInterrupt:
+            print(f"stopped; tracks.jsonl and summary.json are in {out_dir}", file=sys.stderr)
+            raise typer.Exit(130) from None
         lat = r.latency
         print(
             f"{r.frames} frames, {r.stale} stale frames dropped, latency median "

@@ -114,7 +114,12 @@ def register(app: typer.Typer) -> None:
                 bad = sum(1 for r in results if r.get("error"))
                 raise SourceError(f"{bad} of {len(results)} batch runs reported an error (see above)")
             return
-        r = run(cfg, cfg.outputs.dir, config_source=config, overrides=overrides)
+        out_dir = cfg.outputs.dir or Path("runs") / "run"
+        try:
+            r = run(cfg, out_dir, config_source=config, overrides=overrides)
+        except KeyboardInterrupt:
+            print(f"interrupted; everything up to the last frame is in {out_dir}", file=sys.stderr)
+            raise typer.Exit(130) from None
         print(
             f"{r.frames} frames, {r.tracks} tracks, {r.frames_per_s:.1f} frames/s"
             f" -> {r.out_dir / 'tracks.jsonl'}",

@@ -335,3 +335,15 @@ def test_cli_calibration_or_trajectory_that_will_not_parse(
     rc = main(args)
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and expect in err[0] and "Traceback" not in err[0]
+
+
+def test_cli_ctrl_c_exits_130_with_a_note(tmp_path, monkeypatch, capsys):
+    from pipeline.cli import main
+
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
+    monkeypatch.setattr(run_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig, interrupt_at=3))
+    rc = main(["run", "--video", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 130
+    assert "interrupted; everything up to the last frame is in" in capsys.readouterr().err
+    assert len(_lines(tmp_path / "o" / "tracks.jsonl")) == 3
