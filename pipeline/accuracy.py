@@ -69,7 +69,7 @@ TARGETS: dict[str, tuple[str, float]] = {
 class AccuracyOptions:
     """Harness settings. pixel_sigma_px: pixel noise (px, 1-sigma per axis); seed: noise and random
     scenes; n_random: random scenes per family; quick: fewer, shorter scenes (CI smoke, < 1 min);
-    thesis_interval_s: the thesis method's frame interval (s)."""
+    thesis_interval_s: the thesis method's frame interval (s); scenes: only these scene names."""
 
     mode: str = "bearings"
     quick: bool = False
@@ -77,6 +77,7 @@ class AccuracyOptions:
     seed: int = 0
     n_random: int | None = None
     thesis_interval_s: float = 0.5
+    scenes: tuple[str, ...] | None = None
     settings: FusionSettings = field(default_factory=FusionSettings)
 
 
@@ -473,6 +474,8 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
     rng = np.random.default_rng(opts.seed)
     if opts.mode == "bearings":
         scenes = preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
+        if opts.scenes:
+            scenes = [s for s in scenes if s.name in opts.scenes]
         samples: list[Sample] = []
         per_scene = {}
         for scn in scenes:
@@ -532,6 +535,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
     names = PIPELINE_SCENES_QUICK if opts.quick else PIPELINE_SCENES
+    if opts.scenes:
+        names = tuple(opts.scenes)
     samples: list[Sample] = []
     per_scene: dict = {}
     for name in names:

@@ -44,6 +44,9 @@ def register(app: typer.Typer) -> None:
                 "--max-speed", help="Max obstacle speed (m/s) for the bounds; default: the drone's speed."
             ),
         ] = None,
+        scene: Annotated[
+            list[str] | None, typer.Option("--scene", help="Only this scene (repeat); default: all.")
+        ] = None,
     ) -> None:
         """Measure range, bounds, velocity and consistency of the fusion filter (and the thesis's method)."""
         from estimators.errors import ConfigError
@@ -54,7 +57,8 @@ def register(app: typer.Typer) -> None:
             raise ConfigError(f"accuracy --mode: expected 'bearings' or 'pipeline', got {mode!r}")
         opts = AccuracyOptions(
             mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
-            thesis_interval_s=thesis_interval, settings=FusionSettings(max_speed_mps=max_speed),
+            thesis_interval_s=thesis_interval, scenes=tuple(scene) if scene else None,
+            settings=FusionSettings(max_speed_mps=max_speed),
         )
         res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
         typer.echo(res["table"])
