@@ -58,10 +58,14 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as e:  # click usage errors and the like
         import click
 
-        if isinstance(e, click.exceptions.ClickException):
+        # typer >= 0.2x raises its own vendored click's exceptions (typer._click), which are not
+        # click's classes: recognise a usage error by its interface (show() and an int exit_code).
+        if isinstance(e, click.exceptions.ClickException) or (
+            callable(getattr(e, "show", None)) and isinstance(getattr(e, "exit_code", None), int)
+        ):
             e.show()
             return e.exit_code
-        if isinstance(e, click.exceptions.Abort):
+        if isinstance(e, click.exceptions.Abort | typer.Abort):
             return 130
         raise
     return rc if isinstance(rc, int) else 0

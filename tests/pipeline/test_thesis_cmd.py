@@ -48,3 +48,9 @@ def test_thesis_command_prints_and_writes_json(tmp_path, capsys):
 
 def test_thesis_command_help():
     assert main(["thesis", "--help"]) == 0
+
+
+def test_usage_errors_are_a_message_and_exit_code_2(capsys):
+    # typer raises its vendored click's exceptions; they must not escape as a traceback
+    assert main(["thesis", "--bogus"]) == 2
+    assert "No such option: --bogus" in capsys.readouterr().err
