@@ -13,7 +13,8 @@ a capsule, box/wall, drone as its bounding sphere; shapes from ``scene.yaml``, p
 ray wins (occlusion). An obstacle is *covered* in a frame when some reported track is on it; it
 counts from half a second after it first became visible (``visible`` in any camera). The id of an
 obstacle's track is sticky (kept while it stays on the obstacle); a change to another id while the
-obstacle is covered is an id switch.
+obstacle is covered is an id switch; the id stays while its track lives and is not on another
+obstacle, even if its representative point strays off for a frame (CLEAR-MOT style).
 """
 
 from __future__ import annotations
@@ -170,7 +171,6 @@ def run_benchmark(
     covered: dict[int, int] = {}
     sticky: dict[int, int] = {}
     switches: dict[int, int] = {}
-    cov_time: dict[int, float] = {}
     rim_feats, rim_old = 0, 0
     n_obs = 0
     for f in frames:
@@ -210,9 +210,11 @@ def run_benchmark(
         shapes = shapes_for_frame(specs, line["obstacles"])
         # which obstacle is each reported track on?
         on: dict[int, set[int]] = {}
+        alive_on: dict[int, int | None] = {}  # every live track id -> its obstacle or None
         for o in obs:
             if o.status == "lost":
                 continue
+            alive_on.setdefault(o.track_id, None)
             for v in o.views:
                 oW = T_W_B.apply(c_B[v.camera])
                 dW = T_W_B.rotate(R_B_C[v.camera] @ v.b_C)
@@ -224,6 +226,7 @@ def run_benchmark(
                         best, best_t = oid, hit
                 if best is not None:
                     on.setdefault(best, set()).add(o.track_id)
+                    alive_on[o.track_id] = best
         for o in line["obstacles"]:
             oid = int(o["id"])
             if not any(o.get("visible", {}).values()):
@@ -235,11 +238,14 @@ def run_benchmark(
             ids = on.get(oid, set())
             if ids:
                 covered[oid] = covered.get(oid, 0) + 1
-                cov_time[oid] = cov_time.get(oid, 0.0) + 1.0
-                if oid in sticky and sticky[oid] not in ids:
+            # the obstacle's track id is sticky while that track lives and is not on another
+            # obstacle (CLEAR-MOT style); changing it to another track is an id switch
+            st = sticky.get(oid)
+            keep = st is not None and st in alive_on and alive_on[st] in (None, oid)
+            if not keep and ids:
+                if st is not None:
                     switches[oid] = switches.get(oid, 0) + 1
-                if oid not in sticky or sticky[oid] not in ids:
-                    sticky[oid] = min(ids)
+                sticky[oid] = min(ids)
     nf = len(frames)
     fps_dt = (
         frames and (stamps[names[0]][frames[-1]] - stamps[names[0]][frames[0]]) / max(nf - 1, 1)
@@ -291,9 +297,21 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--frames", type=int, default=None)
     ap.add_argument("--poses", action="store_true", help="pass the true T_W_B (rotation compensation)")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="GROUP.KEY=VALUE",
+        help="a FrontEnd option, e.g. grouping.max_radius_px=30 (repeatable)",
+    )
     a = ap.parse_args(argv)
+    opts: dict[str, dict[str, Any]] = {}
+    for item in a.set:
+        key, _, val = item.partition("=")
+        group, _, name = key.partition(".")
+        opts.setdefault(group, {})[name] = yaml.safe_load(val)
     res = run_benchmark(
-        a.scene_dir, detector=a.detector, threads=a.threads, max_frames=a.frames, use_poses=a.poses
+        a.scene_dir, detector=a.detector, threads=a.threads, max_frames=a.frames, use_poses=a.poses, **opts
     )
     print(json.dumps(res, indent=2))
 

@@ -414,24 +414,17 @@ class FeatureTracker:
         reacq_all = np.full(len(uv), -1, np.intp)
         if desc_all is not None and len(self.lost_ids):
             reacq_all = self._match_lost(uv, desc_all)
-        # non-maximum spacing among the new ones (min_distance_px) by a coarse occupancy grid
+        # spacing among the new ones: at most one per min_distance_px cell of a coarse grid (the
+        # first in ``order`` wins), none in a cell of a re-acquired feature
         cell = max(1.0, self.min_distance_px)
-        occ: set[tuple[int, int]] = set()
-        keep = list(np.flatnonzero(reacq_all >= 0))
-        for i in keep:
-            occ.add((int(uv[i, 0] // cell), int(uv[i, 1] // cell)))
-        n_new = 0
-        for i in order:
-            if n_new >= free:
-                break
-            if reacq_all[i] >= 0:
-                continue
-            key = (int(uv[i, 0] // cell), int(uv[i, 1] // cell))
-            if key in occ:
-                continue
-            occ.add(key)
-            keep.append(i)
-            n_new += 1
+        gw = int(self.shape_hw[1] // cell) + 2
+        key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+        re = np.flatnonzero(reacq_all >= 0)
+        cand = order[reacq_all[order] < 0]
+        cand = cand[~np.isin(key[cand], key[re])]
+        _, first = np.unique(key[cand], return_index=True)
+        new_idx = cand[np.sort(first)][: max(free, 0)]
+        keep = list(re) + list(new_idx)
         keep = np.asarray(keep, np.intp)
         uv = uv[keep]
         desc = None if desc_all is None else desc_all[keep]
@@ -476,23 +469,36 @@ class FeatureTracker:
     def _match_lost(self, uv: np.ndarray, desc: np.ndarray) -> np.ndarray:
         """For each new keypoint, the index of the lost feature it re-acquires, or -1."""
         pred = self.lost_uv + self.lost_vel * self.lost_for[:, None].astype(np.float32)
-        d2 = ((uv[:, None, :] - pred[None, :, :]) ** 2).sum(-1)  # (n, L) squared px
-        near = d2 <= self.reacquire_radius_px**2
         out = np.full(len(uv), -1, np.intp)
+        # candidates: keypoints in a grid cell (of the search radius) next to a lost prediction
+        r = self.reacquire_radius_px
+        gw = int(self.shape_hw[1] // r) + 3
+        kc = (uv // r).astype(np.int64)
+        pc = (pred // r).astype(np.int64)
+        near_cells = {
+            int((y + dy) * gw + (x + dx)) for x, y in pc.tolist() for dx in (-1, 0, 1) for dy in (-1, 0, 1)
+        }
+        cand = np.flatnonzero(np.isin(kc[:, 1] * gw + kc[:, 0], np.fromiter(near_cells, np.int64)))
+        if not len(cand):
+            return out
+        d2 = ((uv[cand, None, :] - pred[None, :, :]) ** 2).sum(-1)  # (c, L) squared px
+        near = d2 <= r**2
         if not near.any():
             return out
         # Hamming distances of 32-byte descriptors (popcount of XOR), for the near pairs only
         ii, jj = np.nonzero(near)
         ham = np.full(near.shape, 10**6, np.int64)
-        ham[ii, jj] = POPCOUNT8[np.bitwise_xor(desc[ii], self.lost_desc[jj])].sum(axis=1)
+        ham[ii, jj] = POPCOUNT8[np.bitwise_xor(desc[cand[ii]], self.lost_desc[jj])].sum(axis=1)
         taken: set[int] = set()
         srt = np.sort(ham, axis=1)
         second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
-        for i in np.argsort(srt[:, 0]):
-            j = int(np.argmin(ham[i]))
+        best = np.argmin(ham, axis=1)
+        ok = (srt[:, 0] <= self.reacquire_max_hamming) & (srt[:, 0] < 0.8 * second)
+        for i in np.flatnonzero(ok)[np.argsort(srt[ok, 0], kind="stable")]:
+            j = int(best[i])
             # distinctive (Lowe's ratio 0.8 against the second-best lost feature) and close enough
             if ham[i, j] <= self.reacquire_max_hamming and ham[i, j] < 0.8 * second[i] and j not in taken:
-                out[i] = j
+                out[cand[i]] = j
                 taken.add(j)
         return out
 

@@ -208,6 +208,9 @@ class FrontEnd:
         absorbed: list[int] = []
         if len(self.cams) > 1 and self._n % self.assoc_every == 0:
             absorbed = self._associate(seen, greys)
+        if len(self.cams) > 1:
+            for name, extra in self._derive_views(seen, greys).items():
+                seen[name] = seen.get(name, []) + extra
         tm["associate"] = time.perf_counter() - t0
         self.timings = tm
         self._n += 1
@@ -334,6 +337,75 @@ class FrontEnd:
                 if drop in self._reported:
                     absorbed.append(drop)
         return absorbed
+
+    def _derive_views(
+        self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]
+    ) -> dict[str, list[ObstacleTrack]]:
+        """Views in the other cameras of reference-camera tracks that have none there yet.
+
+        The reference camera (the rig's first) tracks' members are found in each other camera's
+        image by KLT from their infinite-depth projection (epipolar-checked, trackers/association.py);
+        with >= 3 found, the track gets a view there: bearing = mean of the found members' bearings
+        plus the reference offset of the representative point from its members' mean, rotated into
+        that camera (R_b_a). These views carry the same feature ids as the reference members.
+        """
+        ref = self.rig.cameras[0].name
+        out: dict[str, list[ObstacleTrack]] = {}
+        if ref not in greys or ref not in self.trackers or not seen.get(ref):
+            return out
+        ft = self.trackers[ref]
+        order = np.argsort(ft.ids, kind="stable")
+        sids = ft.ids[order]
+        for b in self.cams:
+            if b == ref or b not in greys:
+                continue
+            have = {self._global(t.id) for t in seen.get(b, [])}
+            todo = [t for t in seen[ref] if self._global(t.id) not in have and len(t.members) >= 3]
+            if not todo:
+                continue
+            mem = np.concatenate([t.members for t in todo])
+            own = np.repeat(np.arange(len(todo)), [len(t.members) for t in todo])
+            k = np.minimum(np.searchsorted(sids, mem), len(sids) - 1)
+            ok = sids[k] == mem
+            rows, own, mem = order[k[ok]], own[ok], mem[ok]
+            T_b_a = self.cams[b].T_C_B @ self.cams[ref].T_C_B.inverse()
+            idx, _, bb = stereo_klt(
+                greys[ref],
+                greys[b],
+                ft.b_C[rows],
+                ft.uv[rows].astype(float),
+                self.cams[b].model,
+                T_b_a.R,
+                T_b_a.t,
+                self.epipolar_rad,
+            )
+            model_b = self.cams[b].model
+            for ti, tr in enumerate(todo):
+                sel = idx[own[idx] == ti]
+                if len(sel) < 3:
+                    continue
+                bsel = bb[np.searchsorted(idx, sel)]
+                # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a)))
+                offset = tr.b_C - ft.b_C[rows[sel]].mean(0)
+                rep = bsel.mean(0) + T_b_a.R @ offset
+                rep /= np.linalg.norm(rep)
+                uv, okp = model_b.bearing_to_pixel(rep[None])
+                if not okp[0]:
+                    continue
+                v = ObstacleTrack(
+                    tr.id,
+                    b,
+                    mem[sel],
+                    rep,
+                    uv=uv[0],
+                    sigma_rad=tr.sigma_rad,
+                    status=tr.status,
+                    label=tr.label,
+                    attributes=dict(tr.attributes),
+                    member_b_C=bsel,
+                )
+                out.setdefault(b, []).append(v)
+        return out
 
     def _members_of(self, gid: int, camera: str) -> bool:
         """Whether global track gid already has a live local track in ``camera``."""
