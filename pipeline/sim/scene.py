@@ -22,6 +22,7 @@ Example::
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -306,12 +307,32 @@ class Scenario(_Model):
         raise ConfigError(f"scenario {self.name!r}: no obstacle with id {obstacle_id}")
 
 
+def _known_keys() -> list[str]:
+    """Every field name of the scenario schema (for close-match suggestions on unknown keys)."""
+    return sorted({f for cls in _Model.__subclasses__() for f in cls.model_fields})
+
+
 def _format_errors(e: ValidationError, source: str) -> str:
-    lines = [f"{source}: invalid scenario:"]
+    """One line: ``SOURCE: invalid scenario: loc: message; loc: message`` (unknown keys with a
+    close-match suggestion)."""
+    parts = []
     for err in e.errors():
         loc = ".".join(str(p) for p in err["loc"])
-        lines.append(f"  {loc or '<top>'}: {err['msg']}")
-    return "\n".join(lines)
+        msg = err["msg"]
+        if err["type"] == "extra_forbidden" and err["loc"]:
+            msg = "unknown key"
+            close = difflib.get_close_matches(str(err["loc"][-1]), _known_keys(), n=1)
+            if close:
+                msg += f" (did you mean {close[0]!r}?)"
+        parts.append(f"{loc or '<top>'}: {msg}")
+    return f"{source}: invalid scenario: " + "; ".join(parts)
+
+
+def _yaml_problem(e: yaml.YAMLError) -> str:
+    """A YAML parse error as one line: ``line L, column C: problem``."""
+    mark = getattr(e, "problem_mark", None)
+    problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+    return (f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else "") + problem
 
 
 def scenario_from_dict(data: dict, source: str = "scenario") -> Scenario:
@@ -333,7 +354,7 @@ def load_scenario(path: str | Path, overrides: dict | None = None) -> Scenario:
     try:
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML: {e}") from None
+        raise ConfigError(f"{path}: not valid YAML: {_yaml_problem(e)}") from None
     if overrides:
         data = _merge(data or {}, overrides)
     scn = scenario_from_dict(data, source=str(path))

@@ -129,7 +129,11 @@ def simulate(scn: Scenario, out_dir: str | Path, frames: int | None = None, seco
     if n is not None and n < 1:
         raise ConfigError(f"simulate: expected at least 1 frame, got {n}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"{out}: cannot create the output folder ({e.strerror}); expected a "
+                          "writable folder path") from None
     sim = Simulation(scn, resolution, n)
     n = sim.n_frames
     # resolved scenario, with the run's actual span and resolution

@@ -159,6 +159,16 @@ def test_cli_simulate_and_errors(tmp_path, capsys):
     bad.write_text("name: b\nobstacles:\n  - {id: 1, kind: cone}\n")
     assert main(["simulate", str(bad), "--out", str(tmp_path / "y")]) == 2
     assert "obstacles.0.kind" in capsys.readouterr().err
+    # every error is one line: garbage YAML, a misspelt key (with a suggestion), --out on a file
+    bad.write_text("a: [1, 2\n b: ::\n")
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "y")]) == 2
+    bad.write_text("name: b\nduraton_s: 1.0\n")
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "y")]) == 2
+    assert main(["simulate", str(SCENARIOS / "ci_small.yaml"), "--out", str(bad)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and all(e.startswith("fisheye-des: error: ") for e in err), err
+    assert "line 2, column 3" in err[0] and "did you mean 'duration_s'" in err[1]
+    assert "cannot create the output folder" in err[2]
 
 
 @pytest.mark.heavy
