@@ -20,8 +20,11 @@ Units: SI everywhere (metres, seconds, m/s, m/s^2); degrees only where the key s
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
+import inspect
 import os
+import re
 import types
 import typing
 from pathlib import Path
@@ -35,6 +38,7 @@ from pydantic import (
     Field,
     ValidationError,
     ValidationInfo,
+    create_model,
     model_validator,
 )
 
@@ -203,83 +207,61 @@ class TrackerConfig(_Section):
         return {k: dict(v) for k, v in self.model_dump().items() if v}
 
 
-class FusionConfig(_Section):
-    """Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` (SI units, radians).
+def _attribute_docs(cls: type) -> dict[str, str]:
+    """``name -> text`` from the ``Attributes:`` section of a class docstring (Google style)."""
+    doc = inspect.getdoc(cls) or ""
+    out: dict[str, str] = {}
+    in_attrs = False
+    current = None
+    for line in doc.splitlines():
+        if line.strip() == "Attributes:":
+            in_attrs = True
+            continue
+        if not in_attrs:
+            continue
+        if line and not line.startswith(" "):
+            break  # the next section
+        m = re.match(r"^ {4}(\w+):\s*(.*)$", line)
+        if m:
+            current = m.group(1)
+            out[current] = m.group(2).strip()
+        elif current and line.strip():
+            out[current] += " " + line.strip()
+    return out
 
-    A key left out (null) takes FusionSettings' own default (see its docstring)."""
 
-    max_speed_mps: float | None = Field(
-        None,
-        description="float, m/s: largest obstacle speed the moving-obstacle bounds allow; null = the "
-        "drone's own speed at the two sightings (the thesis's assumption, sec. 3.3.2).",
-    )
-    max_accel_mps2: float | None = Field(
-        None,
-        description="float, m/s^2: largest obstacle acceleration (process noise of moving, stereo-fed "
-        "tracks).",
-    )
-    accel_time_s: float | None = Field(
-        None, description="float, s: time scale tau of the process noise, q = a^2 tau."
-    )
-    static_accel_mps2: float | None = Field(
-        None,
-        description="float, m/s^2: process noise of the stationary hypothesis of mono-only tracks.",
-    )
-    static_velocity_sigma_mps: float | None = Field(
-        None, description="float, m/s: velocity prior sigma of a mono-initialised track."
-    )
-    velocity_prior_sigma_mps: float | None = Field(
-        None,
-        description="float, m/s: velocity prior sigma of a stereo-initialised track (default: the max "
-        "speed, or the drone's speed, at least 1 m/s).",
-    )
-    bearing_sigma_floor_rad: float | None = Field(
-        None, description="float, rad: smallest bearing sigma used, whatever the front end says."
-    )
-    gate_probability: float | None = Field(
-        None, description="float, probability in (0, 1): chi-square gate of bearing / stereo updates."
-    )
-    min_parallax_rad: float | None = Field(
-        None, description="float, rad: parallax needed to initialise a mono track."
-    )
-    stereo_max_rel_sigma: float | None = Field(
-        None,
-        description="float, ratio: a stereo triangulation is used only when range_sigma / range is at most "
-        "this.",
-    )
-    stereo_update: Literal["bearings", "point"] | None = Field(
-        None,
-        description="str: how a stereo frame updates an initialised track: 'bearings' (each camera's "
-        "bearing) or 'point' (the triangulated point).",
-    )
-    baseline_max_age_s: float | None = Field(
-        None, description="float, s: oldest sighting a mono baseline / bound may use."
-    )
-    bounds_noise_sigmas: float | None = Field(
-        None, description="float, sigmas: bearing-noise margin of the moving-obstacle bounds."
-    )
-    bounds_pseudo_sigma_frac: float | None = Field(
-        None,
-        description="float, fraction: sigma of the bound pseudo-measurement relative to the bound.",
-    )
-    lost_after_s: float | None = Field(
-        None,
-        description="float, s: a track not observed for this long is ended, reported once as lost.",
-    )
-    reinit_after_gated: int | None = Field(
-        None, description="int: consecutive gated updates after which a track's filter restarts."
-    )
-    velocity_report_max_sigma_mps: float | None = Field(
-        None,
-        description="float, m/s: velocity is reported only when its largest sigma is at most this.",
+def _type_name(t: Any) -> str:
+    return getattr(t, "__name__", None) or str(t).replace("typing.", "")
+
+
+def _make_fusion_config() -> type[BaseModel]:
+    """``FusionConfig``: one key per field of ``estimators.fusion.FusionSettings``, generated from it so the
+    two never drift: same names, types and defaults; each key's description is the field's entry in
+    FusionSettings' docstring (units there)."""
+    from estimators.fusion import FusionSettings
+
+    hints = typing.get_type_hints(FusionSettings)
+    docs = _attribute_docs(FusionSettings)
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(FusionSettings):
+        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        text = docs.get(f.name, "")
+        fields[f.name] = (hints[f.name], Field(default, description=f"{_type_name(hints[f.name])}: {text}"))
+    model = create_model("FusionConfig", __base__=_Section, **fields)
+    model.__doc__ = (
+        "Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` "
+        "(SI units, radians), with its defaults."
     )
 
     def settings_kwargs(self) -> dict[str, Any]:
-        """The keys set in the config (``max_speed_mps`` also when null), as FusionSettings keywords."""
-        d = self.model_dump(exclude_unset=True)
-        return {
-            k: v for k, v in d.items() if v is not None or k in ("max_speed_mps", "velocity_prior_sigma_mps")
-        }
+        """All keys as FusionSettings keywords."""
+        return {k: getattr(self, k) for k in type(self).model_fields}
+
+    model.settings_kwargs = settings_kwargs
+    return model
+
+
+FusionConfig = _make_fusion_config()
 
 
 # -------------------------------------------------------------------------------------------- inputs
