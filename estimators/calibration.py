@@ -30,7 +30,7 @@ import numpy as np
 import yaml
 
 from estimators.cameras import CameraModel, DoubleSphere, Equidistant, Eucm, KannalaBrandt
-from estimators.errors import CalibrationError, FisheyeDesError
+from estimators.errors import CalibrationError, FisheyeDesError, InputError
 from estimators.rig import Camera, Rig, forward_T_C_B
 from estimators.se3 import Pose
 
@@ -131,7 +131,7 @@ def _kalibr_model(src: str, cam: str, d: dict) -> CameraModel:
     w, h = _size(src, cam, res[0], res[1])
     coeffs = d.get("distortion_coeffs") or []
     max_angle = d.get("max_angle_rad")
-    max_angle = None if max_angle is None else float(max_angle)
+    max_angle = None if max_angle is None else float(_floats(src, cam, "max_angle_rad", max_angle, 1)[0])
     if cm == "pinhole" and dm in ("equidistant", "equi"):
         fu, fv, pu, pv = _floats(src, cam, "intrinsics", d["intrinsics"], 4)
         k = np.asarray(coeffs, dtype=float).reshape(-1) if coeffs else np.zeros(0)
@@ -248,9 +248,14 @@ def save_kalibr(rig: Rig, path: str | Path) -> Path:
         out[f"cam{i}"] = e
         prev = cam.T_C_B
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with p.open("w") as f:
-        yaml.safe_dump(out, f, default_flow_style=None, sort_keys=False)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        with p.open("w") as f:
+            yaml.safe_dump(out, f, default_flow_style=None, sort_keys=False)
+    except OSError as e:
+        raise InputError(
+            f"{p}: cannot write the calibration ({e.strerror}); expected a writable file path"
+        ) from None
     return p
 
 
@@ -392,9 +397,15 @@ def _read_yaml(p: Path) -> dict:
     text = p.read_text(errors="replace")
     try:
         data = json.loads(text) if p.suffix.lower() == ".json" else yaml.safe_load(text)
-    except (yaml.YAMLError, json.JSONDecodeError) as e:
-        raise CalibrationError(f"{p}: does not parse as {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: "
-                               f"{e}") from None
+    except json.JSONDecodeError as e:
+        raise CalibrationError(
+            f"{p}: does not parse as JSON: line {e.lineno}, column {e.colno}: {e.msg}"
+        ) from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise CalibrationError(f"{p}: does not parse as YAML: {where}{problem}") from None
     if not isinstance(data, dict):
         raise CalibrationError(f"{p}: expected a mapping of calibration keys, got {type(data).__name__}")
     return data

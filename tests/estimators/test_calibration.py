@@ -11,7 +11,7 @@ import pytest
 
 from estimators.calibration import load_kalibr, load_rig, save_kalibr
 from estimators.cameras import DoubleSphere, Equidistant, Eucm, KannalaBrandt
-from estimators.errors import CalibrationError
+from estimators.errors import CalibrationError, InputError
 from estimators.rig import Camera, Rig, forward_T_C_B, stereo_forward_rig, top_bottom_rig
 from estimators.se3 import Pose, rot_z
 
@@ -265,7 +265,9 @@ KALIBR_HEAD = textwrap.dedent("""\
         ("model: thesis_linear\nwidth: 1920\nheight: 1080\n", r"needs deg_per_px"),
         ("foo: 1\nbar: [1, 2]\n",
          r"unrecognised calibration format \(top-level keys: foo, bar\); expected a Kalibr"),
-        ("cam0: [unclosed\n", r"does not parse as YAML"),
+        ("cam0: [unclosed\n", r"does not parse as YAML: line 2, column 1: expected ',' or ']'"),
+        (KALIBR_HEAD.format(cm="ds", dm="none", dc="[]", intr="[-0.2, 0.6, 300, 300, 320, 240]")
+         + "  max_angle_rad: wide\n", r"camera 'cam0': max_angle_rad must be a list of numbers"),
         ("- 1\n- 2\n", r"expected a mapping of calibration keys, got list"),
     ],
 )
@@ -291,3 +293,22 @@ def test_opencv_pinhole_radtan_is_rejected(tmp_path):
 def test_missing_file(tmp_path):
     with pytest.raises(CalibrationError, match=r"nope.yaml: calibration file not found"):
         load_rig(tmp_path / "nope.yaml")
+
+
+def test_errors_are_one_line(tmp_path):
+    p = _write(tmp_path, "calib.yaml", "a: [1, 2\n b: ::\n")
+    with pytest.raises(CalibrationError) as ei:
+        load_rig(p)
+    assert "\n" not in str(ei.value)
+    j = _write(tmp_path, "calib.json", '{"K": [1, 2,')
+    with pytest.raises(CalibrationError, match=r"does not parse as JSON: line 1, column 13"):
+        load_rig(j)
+
+
+def test_save_kalibr_to_an_unwritable_path_is_an_input_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    text = "model: thesis_linear\nwidth: 64\nheight: 48\ndeg_per_px: 0.1\n"
+    rig = load_rig(_write(tmp_path, "c.yaml", text))
+    with pytest.raises(InputError, match="cannot write the calibration"):
+        save_kalibr(rig, blocker / "camchain.yaml")
