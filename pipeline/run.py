@@ -298,6 +298,7 @@ def run(
     interrupted = False
     first_t = last_t = None
     t_start = time.perf_counter()
+    cpu_start = time.process_time()
     bar = _progress(total, show, out.name)
     it = iter(source)
     try:
@@ -337,6 +338,7 @@ def run(
         if video is not None:
             video.close()
         wall = time.perf_counter() - t_start
+        cpu = time.process_time() - cpu_start  # all threads of this process (OpenCV's too)
         error = source.error
         summary = {
             "frames": frames,
@@ -344,6 +346,8 @@ def run(
             "track_reports_by_status": statuses,
             "wall_s": wall,
             "frames_per_s": frames / wall if wall > 0 else None,
+            "cpu_s": cpu,
+            "cpu_s_per_frame": cpu / frames if frames else None,
             "t_s_first": first_t,
             "t_s_last": last_t,
             "interrupted": interrupted,
