@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 import yaml
 from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
@@ -347,3 +348,32 @@ def test_cli_ctrl_c_exits_130_with_a_note(tmp_path, monkeypatch, capsys):
     assert rc == 130
     assert "interrupted; everything up to the last frame is in" in capsys.readouterr().err
     assert len(_lines(tmp_path / "o" / "tracks.jsonl")) == 3
+
+
+def test_cli_run_over_image_folders(tmp_path, monkeypatch):
+    import cv2
+
+    from pipeline.cli import main
+
+    _fake_stages(monkeypatch)
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for k in range(4):
+        cv2.imwrite(str(d / f"{k:04d}.png"), np.full((H, W, 3), 4 * k, np.uint8))
+    rc = main(
+        [
+            "run",
+            "--images",
+            str(d),
+            "--set",
+            "inputs.fps=8",
+            "--speed-mps",
+            "1",
+            "--out",
+            str(tmp_path / "o"),
+            "--no-progress",
+        ]
+    )
+    assert rc == 0
+    recs = _lines(tmp_path / "o" / "tracks.jsonl")
+    assert [x["t_s"] for x in recs] == pytest.approx([0.0, 0.125, 0.25, 0.375])
