@@ -165,10 +165,8 @@ def score_reports(truth: ScenarioTruth, frames: list[dict], assoc_tol_deg: float
     tol = math.radians(assoc_tol_deg)
     ground_id = truth.scn.ground.id if truth.scn.ground.enabled else None
     for fr in frames:
-        if not isinstance(fr, dict) or "t_s" not in fr:
-            raise InputError(f"tracks.jsonl: expected objects with t_s and tracks, got {str(fr)[:80]!r}")
-        t = float(fr["t_s"])
-        tracks = [tr for tr in fr.get("tracks", []) if tr.get("status") != "lost"]
+        t, tracks = _check_frame(fr)
+        tracks = [tr for tr in tracks if tr.get("status") != "lost"]
         if not tracks or not truth.traj.covers(t):
             continue
         T_W_B = truth.traj.pose_at(t)
@@ -219,6 +217,37 @@ def score_reports(truth: ScenarioTruth, frames: list[dict], assoc_tol_deg: float
                 )
             )
     return rows
+
+
+def _check_frame(fr) -> tuple[float, list[dict]]:
+    """A tracks.jsonl line -> (t_s, tracks) after checking its shape (CONVENTIONS.md); InputError
+    naming the frame and the field otherwise."""
+    if not isinstance(fr, dict) or "t_s" not in fr:
+        raise InputError(f"tracks.jsonl: expected objects with t_s and tracks, got {str(fr)[:80]!r}")
+    where = f"tracks.jsonl frame {fr.get('frame')} (t_s {fr.get('t_s')!r})"
+    try:
+        t = float(fr["t_s"])
+    except (TypeError, ValueError):
+        t = math.nan
+    if not math.isfinite(t):
+        raise InputError(f"{where}: expected t_s a finite number of seconds")
+    tracks = fr.get("tracks", [])
+    if not isinstance(tracks, list) or not all(isinstance(tr, dict) for tr in tracks):
+        raise InputError(f"{where}: expected 'tracks' a list of track objects, got {str(tracks)[:80]!r}")
+    for tr in tracks:
+        if not isinstance(tr.get("id"), int) or isinstance(tr.get("id"), bool):
+            raise InputError(f"{where}: every track needs an integer 'id', got {str(tr)[:80]!r}")
+        for key in ("range_m", "range_sigma_m", "range_min_m", "range_max_m", "nis"):
+            v = tr.get(key)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)):
+                raise InputError(f"{where}: track {tr['id']}: expected {key} a number or null, got {v!r}")
+        v = tr.get("velocity_world_mps")
+        if v is not None and not (
+            isinstance(v, list) and len(v) == 3 and all(isinstance(x, int | float) for x in v)
+        ):
+            raise InputError(f"{where}: track {tr['id']}: expected velocity_world_mps [vx, vy, vz] or null, "
+                             f"got {v!r}")
+    return t, tracks
 
 
 def _bearing(tr: dict, fr: dict) -> list[float]:
@@ -608,7 +637,11 @@ def plot_ranges(ev: Evaluation, out_dir: str | Path) -> list[Path]:
 def write_outputs(ev: Evaluation, out_dir: str | Path, plots: bool = True) -> dict[str, Path]:
     """Write ``metrics.json``, ``metrics.txt``, ``reports.jsonl`` (scored rows) and the plots."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"{out_dir}: cannot create the output folder ({e.strerror}); expected a "
+                         "writable folder path") from None
     (out_dir / "metrics.json").write_text(json.dumps(_clean(ev.metrics), indent=2))
     (out_dir / "metrics.txt").write_text(format_table(ev.metrics) + "\n")
     with (out_dir / "reports.jsonl").open("w") as f:

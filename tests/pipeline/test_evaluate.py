@@ -316,3 +316,34 @@ def test_malformed_bearing_is_an_input_error(scen_dir, tmp_path):
     ]
     with pytest.raises(InputError, match="bearing_body"):
         evaluate([(_write_run(tmp_path, frames), scen_dir)])
+
+
+@pytest.mark.parametrize(
+    "track_line, match",
+    [
+        ({"frame": 0, "t_s": 0.0, "tracks": "x"}, "expected 'tracks' a list"),
+        ({"frame": 0, "t_s": "soon", "tracks": []}, "expected t_s a finite number"),
+        ({"frame": 0, "t_s": 0.0, "tracks": [{"status": "confirmed", "bearing_body": [1, 0, 0]}]},
+         "needs an integer 'id'"),
+        ({"frame": 0, "t_s": 0.0, "tracks": [{"id": 1, "bearing_body": [1, 0, 0], "range_m": "far"}]},
+         "expected range_m a number or null"),
+        ({"frame": 0, "t_s": 0.0, "tracks": [{"id": 1, "bearing_body": [1, 0, 0],
+                                                "velocity_world_mps": [1, 2]}]},
+         r"expected velocity_world_mps \[vx, vy, vz\]"),
+    ],
+)
+def test_malformed_tracks_are_input_errors(scen_dir, tmp_path, track_line, match):
+    from estimators.errors import InputError
+
+    with pytest.raises(InputError, match=match):
+        evaluate([(_write_run(tmp_path, [track_line]), scen_dir)])
+
+
+def test_unwritable_output_folder_is_an_input_error(scen_dir, tmp_path):
+    from estimators.errors import InputError
+
+    run = _write_run(tmp_path, [{"frame": 0, "t_s": 0.0, "tracks": []}])
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(InputError, match="cannot create the output folder"):
+        write_outputs(evaluate([(run, scen_dir)]), blocker, plots=False)
