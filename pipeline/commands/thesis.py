@@ -61,8 +61,15 @@ def run(json_path: Path | None = None, echo=print) -> dict:
     if json_path is not None:
         import json
 
-        json_path.parent.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(result, indent=2) + "\n")
+        from estimators.errors import InputError
+
+        try:
+            json_path.parent.mkdir(parents=True, exist_ok=True)
+            json_path.write_text(json.dumps(result, indent=2) + "\n")
+        except OSError as e:
+            raise InputError(
+                f"--json {json_path}: cannot write ({e.strerror}); expected a writable file path"
+            ) from None
         echo(f"\nwrote {json_path}")
     return result
 

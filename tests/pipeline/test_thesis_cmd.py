@@ -54,3 +54,10 @@ def test_usage_errors_are_a_message_and_exit_code_2(capsys):
     # typer raises its vendored click's exceptions; they must not escape as a traceback
     assert main(["thesis", "--bogus"]) == 2
     assert "No such option: --bogus" in capsys.readouterr().err
+
+
+def test_unwritable_json_path_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert main(["thesis", "--json", str(blocker / "t.json")]) == 2
+    assert capsys.readouterr().err.startswith("fisheye-des: error: --json")
