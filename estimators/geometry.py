@@ -480,7 +480,7 @@ def _intersect(a: tuple[float, float] | None, lo: float, hi: float) -> tuple[flo
 
 
 def moving_obstacle_bounds(
-    c_a, b_a, c_b, b_b, max_displacement_m: float, *, origin=None
+    c_a, b_a, c_b, b_b, max_displacement_m: float | None = None, *, origin=None
 ) -> RangeBounds | Unobservable:
     """Range interval of an obstacle that moved at most ``max_displacement_m`` between two sightings.
 
@@ -498,14 +498,17 @@ def moving_obstacle_bounds(
 
     c_a, c_b: (3,) centres in metres; b_a, b_b: (3,) directions (normalised here); origin: (3,),
     default c_b; all in one common frame. max_displacement_m >= 0 (may be +inf: then only the
-    half-line constraint remains). Returns RangeBounds, or Unobservable("inconsistent with max speed")
-    when R is empty. Raises InputError on malformed input.
+    half-line constraint remains); None (default) = the baseline |c_b - c_a|, i.e. the obstacle is
+    at most as fast as the drone (the thesis's assumption, eq. 3.11-3.13). Returns RangeBounds, or
+    Unobservable("inconsistent with max speed") when R is empty. Raises InputError on malformed input.
     """
     c_a = _vec3("c_a", c_a)
     c_b = _vec3("c_b", c_b)
     b_a = _unit3("b_a", b_a)
     b_b = _unit3("b_b", b_b)
     o = c_b if origin is None else _vec3("origin", origin)
+    if max_displacement_m is None:  # the obstacle moves at most as fast as the drone: D = |c_b - c_a|
+        max_displacement_m = float(np.linalg.norm(c_b - c_a))
     D = _scalar("max_displacement_m", max_displacement_m, min_value=0.0, allow_inf=True)
 
     if math.isinf(D):
@@ -673,9 +676,10 @@ def planar_triangulate(
 
 
 def planar_moving_obstacle_bounds(
-    d_m: float, theta1_rad: float, theta2_rad: float, max_displacement_m: float
+    d_m: float, theta1_rad: float, theta2_rad: float, max_displacement_m: float | None = None
 ) -> RangeBounds | Unobservable:
-    """``moving_obstacle_bounds`` for the thesis's planar configuration (range from B)."""
+    """``moving_obstacle_bounds`` for the thesis's planar configuration (range from B); the
+    displacement defaults to the baseline ``d_m`` (obstacle at most as fast as the drone)."""
     if _scalar("d_m", d_m, min_value=0.0) == 0.0:
         return Unobservable("zero baseline")
     if not (

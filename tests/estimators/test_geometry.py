@@ -224,6 +224,18 @@ def test_bounds_half_line_uses_distance_to_the_camera_centre():
     assert isinstance(r, g.Unobservable) and "inconsistent with max speed" in r.reason
 
 
+def test_bounds_default_speed_is_the_drones():
+    # no max displacement given: the obstacle moves at most as far as the drone, the baseline
+    # |(-3, -4, 0)| = 5; as worked above, D = 5 gives depths [0, 8]
+    b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [-3, -4, 0], [0, 1, 0])
+    assert (b.depth_min_m, b.depth_max_m) == pytest.approx((0.0, 8.0), abs=1e-12)
+    # planar: d = 1, angles 90/45 deg: the rays meet at (0, 1) (depth sqrt 2 from B = (1, 0));
+    # D = d = 1 allows every point of ray b within 1 of ray a (the +y axis): x = 1 - r/sqrt2 >= 0
+    # up to r = 2 sqrt 2 (x = -1 is distance 1 from the axis)
+    b = g.planar_moving_obstacle_bounds(1.0, math.pi / 2, math.pi / 4)
+    assert (b.depth_min_m, b.depth_max_m) == pytest.approx((0.0, 2 * math.sqrt(2)), abs=1e-12)
+
+
 def test_bounds_unbounded_for_parallel_rays_and_infinite_speed():
     # same direction, 1 m apart: any depth is within D = 2 of ray a -> [0, None)
     b = g.moving_obstacle_bounds([0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], 2.0)
