@@ -52,11 +52,12 @@ def test_paced_replay_latency_and_video_times(tmp_path):
     r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)])
     wall = time.monotonic() - t0
     assert wall >= 0.4  # real rate, not as fast as decoding
-    assert r.frames == 10 and r.stale == 0
+    assert r.frames + r.stale == 10 and r.frames >= 5  # stale only if this machine stalls for > 50 ms
     recs = [json.loads(x) for x in (tmp_path / "out" / "tracks.jsonl").read_text().splitlines()]
-    assert [x["t_s"] for x in recs] == pytest.approx(times)  # a replayed file keeps its own times
+    for x in recs:  # a replayed file keeps its own frame indices and times
+        assert x["t_s"] == pytest.approx(times[x["frame"]])
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert s["latency"]["n"] == 10 and 0 <= s["latency"]["median_s"] <= s["latency"]["p99_s"] < 1.0
+    assert s["latency"]["n"] == r.frames and 0 <= s["latency"]["median_s"] <= s["latency"]["p99_s"] < 1.0
 
 
 def test_slow_pipeline_takes_newest_frame_and_counts_stale(tmp_path):
