@@ -201,6 +201,9 @@ class Annotator:
                 if uv is None:
                     continue
                 colour = _STATUS_BGR.get(t.get("status", ""), (255, 255, 255))
+                if t.get("status") != "confirmed":  # tentative / lost: a small dot, no text (less clutter)
+                    cv2.circle(canvas, uv, 2 * scale, colour, -1, cv2.LINE_AA)
+                    continue
                 cv2.circle(canvas, uv, 6 * scale, colour, scale, cv2.LINE_AA)
                 rng = t.get("range_m")
                 txt = f"#{t.get('id')}"
@@ -220,12 +223,18 @@ class Annotator:
                 )
                 v_W = t.get("velocity_world_mps")
                 if v_W is not None and p_B is not None and R_B_W is not None:
-                    p2_B = np.asarray(p_B, dtype=float) + self.arrow_s * (
-                        R_B_W @ np.asarray(v_W, dtype=float)
-                    )
-                    uv2 = self._px(cam, self._point_C(cam, p2_B))
-                    if uv2 is not None:
-                        cv2.arrowedLine(canvas, uv, uv2, colour, scale, cv2.LINE_AA, tipLength=0.2)
+                    # where the obstacle will be after dt (its own motion, in B), projected; a straight
+                    # line is only faithful over a short stretch of a fisheye image: shorten dt until the
+                    # arrow is under a tenth of the image
+                    v_B = R_B_W @ np.asarray(v_W, dtype=float)
+                    max_len = 0.1 * max(canvas.shape[:2])
+                    dt = self.arrow_s
+                    for _ in range(6):
+                        uv2 = self._px(cam, self._point_C(cam, np.asarray(p_B, dtype=float) + dt * v_B))
+                        if uv2 is not None and np.hypot(uv2[0] - uv[0], uv2[1] - uv[1]) <= max_len:
+                            cv2.arrowedLine(canvas, uv, uv2, colour, scale, cv2.LINE_AA, tipLength=0.25)
+                            break
+                        dt /= 2
             if frame is not None:
                 label = f"{cam.name}  frame {frame}" + (f"  t={t_s:.2f}s" if t_s is not None else "")
                 cv2.putText(

@@ -88,3 +88,19 @@ def test_plots_written(tmp_path):
     assert [f.name for f in files] == ["range_over_time.png", "polar_map.png"]
     for f in files:
         assert f.stat().st_size > 1000 and f.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_velocity_arrow_points_where_the_obstacle_goes():
+    from test_run_support import small_model
+
+    from estimators.egomotion import ConstantVelocity
+    from estimators.rig import mono_forward_rig
+
+    rig = mono_forward_rig(small_model(640, 480))
+    t = to_plain(_report(1, 5.0))
+    t["velocity_world_mps"] = [0.0, 2.0, 0.0]  # to the body's left (+y): image left for a forward camera
+    out = Annotator(rig, ConstantVelocity(0.0)).draw({"cam0": np.zeros((480, 640), np.uint8)}, [t], t_s=0.0)
+    cx, cy = int(round(319.5)), int(round(239.5))
+    row = out[cy - 1 : cy + 2].max(axis=0).max(axis=1)  # brightest channel along the centre row
+    assert row[cx - 30 : cx - 10].min() > 0  # the arrow's shaft, left of the marker
+    assert row[cx + 10 : cx + 60].max() == 0  # nothing to the right
