@@ -123,6 +123,11 @@ class FusionSettings:
             the first half-second inconsistent: NEES 30+ right after initialisation).
         stereo_update: how a stereo frame updates an initialised track: ``"bearings"`` (each
             camera's bearing, default) or ``"point"`` (the triangulated point). Default "bearings".
+        feature_ranging: for static-hypothesis (mono) tracks whose observations list member
+            features, range from the features (below) instead of the representative bearing's
+            parallax. Default True.
+        feature_sigma_rad: bearing sigma of one member feature (rad). Default 1e-3.
+        feature_min_count: features with enough parallax needed for a feature range. Default 3.
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -147,6 +152,9 @@ class FusionSettings:
     stereo_max_rel_sigma: float = 0.3
     mono_init_max_rel_sigma: float = 0.1
     stereo_update: str = "bearings"
+    feature_ranging: bool = True
+    feature_sigma_rad: float = 1e-3
+    feature_min_count: int = 3
     baseline_max_age_s: float = 1.0
     bounds_noise_sigmas: float = 4.0
     bounds_pseudo_sigma_frac: float = 0.01
@@ -201,12 +209,66 @@ def tangent_basis(u: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _View:
-    """One camera's sighting in W: centre c_W (3,) m, unit bearing b_W (3,), sigma (rad)."""
+    """One camera's sighting in W: centre c_W (3,) m, unit bearing b_W (3,), sigma (rad), and the
+    member features: feature_ids (M,) and their unit bearings feature_b_W (M, 3)."""
 
     camera: str
     c_W: np.ndarray
     b_W: np.ndarray
     sigma_rad: float
+    feature_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    feature_b_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+class _FeatureRays:
+    """Per-feature multi-view triangulation of a track's member features (static points).
+
+    For feature f with rays (c_i, b_i) the least-squares point minimises sum_i |(I - b_i b_i^T)(p - c_i)|^2
+    (squared perpendicular distances), i.e. A_f p = y_f with the running sums
+        A_f = sum_i (I - b_i b_i^T),   y_f = sum_i (I - b_i b_i^T) c_i
+    (the midpoint of two rays generalised to N). Keyed by (camera, feature id); arrays grow as
+    features appear and are pruned when unseen for ``max_unseen_s``.
+    """
+
+    def __init__(self) -> None:
+        self.index: dict[tuple[str, int], int] = {}
+        self.A = np.zeros((0, 3, 3))
+        self.y = np.zeros((0, 3))
+        self.b0 = np.zeros((0, 3))  # first bearing (parallax reference)
+        self.last_t = np.zeros(0)
+
+    def add(self, camera: str, ids: np.ndarray, b_W: np.ndarray, c_W: np.ndarray, t_s: float) -> np.ndarray:
+        """Add one frame's rays; returns the row of each feature (M,)."""
+        rows = np.empty(len(ids), dtype=np.int64)
+        new = []
+        for k, fid in enumerate(ids):
+            key = (camera, int(fid))
+            r = self.index.get(key)
+            if r is None:
+                r = len(self.last_t) + len(new)
+                self.index[key] = r
+                new.append(k)
+            rows[k] = r
+        if new:
+            m = len(new)
+            self.A = np.concatenate([self.A, np.zeros((m, 3, 3))])
+            self.y = np.concatenate([self.y, np.zeros((m, 3))])
+            self.b0 = np.concatenate([self.b0, b_W[new]])
+            self.last_t = np.concatenate([self.last_t, np.zeros(m)])
+        Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
+        np.add.at(self.A, rows, Pm)
+        np.add.at(self.y, rows, Pm @ c_W)
+        self.last_t[rows] = t_s
+        return rows
+
+    def prune(self, t_s: float, max_unseen_s: float) -> None:
+        keep = t_s - self.last_t <= max_unseen_s
+        if np.all(keep):
+            return
+        remap = -np.ones(len(keep), dtype=np.int64)
+        remap[keep] = np.arange(int(keep.sum()))
+        self.index = {k: int(remap[r]) for k, r in self.index.items() if keep[r]}
+        self.A, self.y, self.b0, self.last_t = self.A[keep], self.y[keep], self.b0[keep], self.last_t[keep]
 
 
 @dataclass(frozen=True)
@@ -238,6 +300,8 @@ class _Track:
     reason: str | None = None
     bounded_now: bool = False
     attributes: dict = field(default_factory=dict)
+    features: _FeatureRays = field(default_factory=_FeatureRays)
+    feature_range: tuple[float, float, int] | None = None  # (range, sigma, n features) this frame
 
 
 class ObstacleFusion:
@@ -351,7 +415,10 @@ class ObstacleFusion:
             T_W_C = T_W_B @ self._T_C_B_inv[v.camera]  # p_W = T_W_B T_B_C p_C
             b_W = T_W_C.R @ v.b_C
             sigma = max(float(v.sigma_rad), self.settings.bearing_sigma_floor_rad)
-            views.append(_View(v.camera, T_W_C.t.copy(), b_W / np.linalg.norm(b_W), sigma))
+            fb = v.feature_b_C @ T_W_C.R.T if len(v.feature_ids) else np.zeros((0, 3))
+            views.append(
+                _View(v.camera, T_W_C.t.copy(), b_W / np.linalg.norm(b_W), sigma, v.feature_ids, fb)
+            )
         order = {n: i for i, n in enumerate(self.rig.names)}
         views.sort(key=lambda w: order[w.camera])
         return _Sighting(t_s, frame, T_W_B.t.copy(), tuple(views))
@@ -373,12 +440,15 @@ class ObstacleFusion:
             tr.history.popleft()
         self._update_bounds(tr, sg)
         stereo = self._stereo(sg) if len(sg.views) >= 2 else None
+        self._feature_ranging(tr, sg)
         init_pair = None
         if tr.kf is None and stereo is None:
             init_pair = self._mono_init_pair(tr, sg)
         t1 = time.perf_counter()
         tr.bounded_now = False
-        if tr.kf is None:
+        if stereo is None and not tr.moving and tr.feature_range is not None:
+            self._set_from_features(tr, sg)
+        elif tr.kf is None:
             if stereo is not None:
                 self._init_stereo(tr, sg, stereo)
             elif isinstance(init_pair, tuple):
@@ -476,6 +546,90 @@ class ObstacleFusion:
             tr.bounds = r
         else:
             tr.bounds_reason = f"bounds unobservable: {r.reason}"
+
+    def _feature_ranging(self, tr: _Track, sg: _Sighting) -> None:
+        """Range of a track from its member features' multi-view triangulations (static points).
+
+        Each present feature's least-squares point p_f (see _FeatureRays) counts when the angle
+        between its first and current bearing (parallax) is >= min_parallax_rad, p_f lies in front
+        of the camera, and its two-view relative sigma sqrt(2) sigma_f / sin(parallax) is at most
+        mono_init_max_rel_sigma. With >= feature_min_count of them:
+            z = median_f |p_f - o_W|,   sigma_z = max(1.4826 MAD, median_f sigma_f / sqrt(n))
+        (MAD: median absolute deviation). The spread of the features is mostly the obstacle's
+        depth extent and stray members, which do not average out, so it is not divided by sqrt(n).
+        """
+        s = self.settings
+        tr.feature_range = None
+        if not s.feature_ranging or tr.moving:
+            return
+        rows_all, b_all, c_all = [], [], []
+        for v in sg.views:
+            if len(v.feature_ids):
+                rows_all.append(tr.features.add(v.camera, v.feature_ids, v.feature_b_W, v.c_W, sg.t_s))
+                b_all.append(v.feature_b_W)
+                c_all.append(np.broadcast_to(v.c_W, v.feature_b_W.shape))
+        tr.features.prune(sg.t_s, s.lost_after_s)
+        if not rows_all:
+            return
+        # prune may have renumbered rows: look them up again
+        keys = [(v.camera, int(f)) for v in sg.views for f in v.feature_ids]
+        rows = np.array([tr.features.index.get(k, -1) for k in keys], dtype=np.int64)
+        b_now = np.concatenate(b_all)
+        c_now = np.concatenate(c_all)
+        ok = rows >= 0
+        rows, b_now, c_now = rows[ok], b_now[ok], c_now[ok]
+        if len(rows) < s.feature_min_count:
+            return
+        b0 = tr.features.b0[rows]
+        sin_par = np.linalg.norm(np.cross(b0, b_now), axis=1)
+        par = np.arctan2(sin_par, np.sum(b0 * b_now, axis=1))
+        good = par >= max(s.min_parallax_rad, 1e-6)
+        if int(good.sum()) < s.feature_min_count:
+            return
+        A = tr.features.A[rows[good]]
+        y = tr.features.y[rows[good]]
+        p = np.linalg.solve(A, y[:, :, None])[:, :, 0]  # A_f p_f = y_f
+        front = np.sum((p - c_now[good]) * b_now[good], axis=1) > 0
+        rel = np.sqrt(2.0) * s.feature_sigma_rad / np.maximum(np.sin(par[good]), 1e-9)
+        keep = front & (rel <= s.mono_init_max_rel_sigma)
+        n = int(keep.sum())
+        if n < s.feature_min_count:
+            return
+        r = np.linalg.norm(p[keep] - sg.o_W, axis=1)
+        z = float(np.median(r))
+        mad = float(np.median(np.abs(r - z)))
+        sig = max(1.4826 * mad, float(np.median(rel[keep] * r)) / math.sqrt(n))
+        tr.feature_range = (z, max(sig, 1e-3 * z), n)
+
+    def _set_from_features(self, tr: _Track, sg: _Sighting) -> None:
+        """(Re)set a static-hypothesis track's point on its representative ray at the feature range.
+
+        The feature estimate is cumulative (all rays of every feature), so it replaces the state
+        rather than being fused again each frame (no double counting). The point is where the ray
+        c + d b of the first view is at range z from the body origin o:
+            d = -(b.w) + sqrt((b.w)^2 - |w|^2 + z^2),  w = c - o.
+        """
+        z, sig, _n = tr.feature_range
+        v = sg.views[0]
+        w = v.c_W - sg.o_W
+        bw = float(v.b_W @ w)
+        disc = bw * bw - float(w @ w) + z * z
+        d = -bw + math.sqrt(disc) if disc > 0 else z
+        p = v.c_W + d * v.b_W
+        R = _ray_covariance(p - sg.o_W, sig, v.sigma_rad)
+        if tr.kf is None:
+            tr.kf = self._new_kf(p, R, self.settings.static_velocity_sigma_mps)
+            tr.t_kf = sg.t_s
+        else:
+            self._predict(tr, sg.t_s)
+            tr.kf.x[:3] = p
+            tr.kf.x[3:] = 0.0
+            tr.kf.P[:, :] = 0.0
+            tr.kf.P[:3, :3] = R
+            tr.kf.P[3:, 3:] = np.eye(3) * self.settings.static_velocity_sigma_mps**2
+        tr.gated_run = 0
+        tr.reason = None
+        tr.sources.add("mono")
 
     # ---------------------------------------------------------------------------------- filter
     def _new_kf(self, p_W: np.ndarray, P_pp: np.ndarray, v_sigma: float) -> ExtendedKalmanFilter:

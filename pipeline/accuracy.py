@@ -107,6 +107,7 @@ class Sample:
     stereo_fed: bool = False
     thesis_range_m: float | None = None
     thesis_speed_mps: float | None = None
+    hit: str = "obstacle"  # pipeline mode: the evaluator's association ("obstacle" | "near")
 
 
 # ------------------------------------------------------------------------------------- scenes
@@ -345,8 +346,15 @@ def _q(a: list[float], q: float) -> float | None:
 
 
 def summarize(samples: list[Sample]) -> dict:
-    """The metrics of the module docstring from the samples (JSON-ready)."""
+    """The metrics of the module docstring from the samples (JSON-ready).
+
+    Only samples whose reported bearing hits the obstacle count (pipeline mode also has "near"
+    associations: the ray misses the obstacle by < 2 deg and the track may be looking at the
+    background behind it; their share is ``near_share``)."""
     m: dict = {}
+    n_all = len(samples)
+    samples = [s for s in samples if s.hit == "obstacle"]
+    m["near_share"] = (n_all - len(samples)) / n_all if n_all else None
 
     def rel(s: Sample, r: float | None) -> float | None:
         return None if r is None else abs(r - s.range_true) / s.range_true
@@ -462,6 +470,7 @@ def format_table(m: dict, title: str = "") -> str:
         f" (upper bound in {_fmt(m.get('bounds_upper_share'), True)}; all obstacles "
         f"{_fmt(m.get('bounds_coverage_all'), True)})  stereo moving {m.get('stereo_vel_n')} (with velocity "
         f"{_fmt(m.get('stereo_vel_share'), True)})  NEES tracks {m.get('nees_n_tracks')}"
+        + (f"  near-miss reports left out {_fmt(m.get('near_share'), True)}" if m.get("near_share") else "")
     )
     return "\n".join(lines)
 
@@ -616,7 +625,7 @@ def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -
             n_views=len(cam) if isinstance(cam, list) else 1,
             range_m=r.range_m, range_sigma_m=r.range_sigma_m, range_min_m=r.range_min_m,
             range_max_m=r.range_max_m, source=str(tr.get("source", "")), speed_mps=tr.get("speed_mps"),
-            stereo_fed="stereo" in str(tr.get("source", "")),
+            stereo_fed="stereo" in str(tr.get("source", "")), hit=r.hit,
         )
         if r.v_est_W is not None and s.speed_true > 1e-6:
             ve = np.asarray(r.v_est_W, float)
