@@ -591,6 +591,26 @@ class KannalaBrandt(_ThetaModel):
         return theta
 
 
+# ------------------------------------------------------------------ models u = f (x, y) / D + c
+def _over_denominator(m: CameraModel, b: np.ndarray, den: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``(u, v) = (fx x / den + cx, fy y / den + cy)`` for rows of b (M,3); den replaced by 1 where
+    not valid (those rows are discarded by the caller)."""
+    den = np.where(valid, den, 1.0)
+    return np.stack([m.fx * b[:, 0] / den + m.cx, m.fy * b[:, 1] / den + m.cy], axis=1)  # type: ignore[attr-defined]
+
+
+def _over_denominator_jacobian(m: CameraModel, b: np.ndarray, D: np.ndarray, dD: np.ndarray) -> np.ndarray:
+    """d uv / d b (M,2,3) of ``u = fx x / D + cx``, ``v = fy y / D + cy`` given D (M,) and dD/db (M,3):
+    du/db = fx (e_x / D - x dD/db / D^2), dv/db = fy (e_y / D - y dD/db / D^2)."""
+    fx, fy = m.fx, m.fy  # type: ignore[attr-defined]
+    J = np.empty((b.shape[0], 2, 3))
+    J[:, 0, :] = -fx * (b[:, 0] / D**2)[:, None] * dD
+    J[:, 1, :] = -fy * (b[:, 1] / D**2)[:, None] * dD
+    J[:, 0, 0] += fx / D
+    J[:, 1, 1] += fy / D
+    return J
+
+
 # ----------------------------------------------------------------------------- double sphere
 @register_camera_model
 @dataclass(frozen=True, kw_only=True)
@@ -636,9 +656,7 @@ class DoubleSphere(CameraModel):
         d2 = np.sqrt(x * x + y * y + w * w)
         den = self.alpha * d2 + (1 - self.alpha) * w
         valid = (z > -self._w2 * d1 - 1e-12) & (den > 0)
-        den = np.where(valid, den, 1.0)
-        uv = np.stack([self.fx * x / den + self.cx, self.fy * y / den + self.cy], axis=1)
-        return uv, valid
+        return _over_denominator(self, b, den, valid), valid
 
     def _project_jacobian(self, b):
         # D = alpha d2 + (1-alpha) w, w = xi d1 + z: dd1/db = b/d1, dw/db = xi b/d1 + e_z,
@@ -653,12 +671,7 @@ class DoubleSphere(CameraModel):
         dw[:, 2] += 1.0
         dd2 = (np.stack([x, y, np.zeros_like(z)], axis=1) + w[:, None] * dw) / d2[:, None]
         dD = self.alpha * dd2 + (1 - self.alpha) * dw
-        J = np.empty((b.shape[0], 2, 3))
-        J[:, 0, :] = -self.fx * (x / D**2)[:, None] * dD
-        J[:, 1, :] = -self.fy * (y / D**2)[:, None] * dD
-        J[:, 0, 0] += self.fx / D
-        J[:, 1, 1] += self.fy / D
-        return J
+        return _over_denominator_jacobian(self, b, D, dD)
 
     def _unproject(self, uv):
         # m = ((u-cx)/fx, (v-cy)/fy), r^2 = mx^2 + my^2,
@@ -729,9 +742,7 @@ class Eucm(CameraModel):
         d = np.sqrt(self.beta * (x * x + y * y) + z * z)
         den = self.alpha * d + (1 - self.alpha) * z
         valid = (z > -self._w * d - 1e-12) & (den > 0)
-        den = np.where(valid, den, 1.0)
-        uv = np.stack([self.fx * x / den + self.cx, self.fy * y / den + self.cy], axis=1)
-        return uv, valid
+        return _over_denominator(self, b, den, valid), valid
 
     def _project_jacobian(self, b):
         # D = alpha d + (1-alpha) z, dd/db = (beta x, beta y, z)/d,
@@ -741,12 +752,7 @@ class Eucm(CameraModel):
         D = self.alpha * d + (1 - self.alpha) * z
         dD = self.alpha * np.stack([self.beta * x, self.beta * y, z], axis=1) / d[:, None]
         dD[:, 2] += 1 - self.alpha
-        J = np.empty((b.shape[0], 2, 3))
-        J[:, 0, :] = -self.fx * (x / D**2)[:, None] * dD
-        J[:, 1, :] = -self.fy * (y / D**2)[:, None] * dD
-        J[:, 0, 0] += self.fx / D
-        J[:, 1, 1] += self.fy / D
-        return J
+        return _over_denominator_jacobian(self, b, D, dD)
 
     def _unproject(self, uv):
         # m = ((u-cx)/fx, (v-cy)/fy), r^2 = mx^2 + my^2,
