@@ -51,6 +51,15 @@ Measurements
       bearings in between are replayed, so no sighting is wasted and none is used twice. After
       that every new bearing is fused directly, which accumulates the parallax of the whole flight
       (fusing the triangulation as well would count the same bearings twice).
+    * Member features (``feature_ranging``): when the front end lists a track's member features
+      (KLT corners: fixed physical points, unlike its representative bearing, a smoothed centroid
+      of members at different depths that slides over the object as members come and go), each
+      feature is triangulated from all its rays so far (least squares, ``_FeatureRays``) and a
+      static-hypothesis track's point is set on its representative ray at the median feature
+      range (sigma from the features' spread). This estimate is cumulative, so it replaces the
+      state instead of being fused each frame. On the simulator's mono_straight scene rendered and
+      tracked (pipeline mode) it raised the share of ranged reports from 10 % to 91 % and cut the
+      median range error from 19 % to 4 %.
     * Moving-obstacle bounds (thesis eq. 3.11-3.13 generalised: ``geometry.moving_obstacle_bounds``
       with max displacement = max speed * dt), widened for bearing noise (below), are reported as
       ``range_min_m`` / ``range_max_m`` and constrain the estimate: when the estimated range leaves
