@@ -34,12 +34,14 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
     return np.where(nn > 1e-9, res, 1.0)
 
 
+_POP8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
+
+
 def hamming(d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
     """(N0, 32) x (N1, 32) uint8 binary descriptors -> (N0, N1) Hamming distances."""
     if not len(d0) or not len(d1):
         return np.zeros((len(d0), len(d1)), np.int64)
-    x = np.bitwise_xor(d0[:, None, :], d1[None, :, :])
-    return np.unpackbits(x, axis=2).sum(axis=2)
+    return _POP8[np.bitwise_xor(d0[:, None, :], d1[None, :, :])].sum(axis=2)
 
 
 def match_features(
@@ -65,7 +67,6 @@ def match_features(
     """
     if not len(b0) or not len(b1):
         return np.zeros((0, 2), np.intp)
-    H = hamming(d0, d1).astype(float)
     # epipolar residual of every pair: |b1 . n_i| / |n_i|
     t = np.asarray(t_C1_C0, float)
     tn = np.linalg.norm(t)
@@ -74,13 +75,16 @@ def match_features(
         n = np.cross(t / tn, Rb0)
         nn = np.linalg.norm(n, axis=1)
         res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
-        # cheirality (for baselines much shorter than the range): both rays ahead of the baseline
-        # the same way, i.e. the ray from camera 1 is not pointing away from camera 0's ray
         res[nn <= 1e-9] = 1.0
+        # both rays on the same side (for baselines much shorter than the range)
         ok = (res < np.sin(epipolar_rad)) & ((Rb0 @ b1.T) > 0)
     else:
         ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
-    H[~ok] = np.inf
+    # descriptor distances only for the epipolar candidates
+    H = np.full(ok.shape, np.inf)
+    ii, jj = np.nonzero(ok)
+    if len(ii):
+        H[ii, jj] = _POP8[np.bitwise_xor(d0[ii], d1[jj])].sum(axis=1)
     H[H > max_hamming] = np.inf
     if not np.isfinite(H).any():
         return np.zeros((0, 2), np.intp)
@@ -104,7 +108,7 @@ def stereo_klt(
     R_b_a: np.ndarray,
     t_b_a: np.ndarray,
     epipolar_rad: float = np.radians(1.0),
-    win_px: int = 15,
+    win_px: int = 11,
     levels: int = 4,
     fb_max_px: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -128,7 +132,7 @@ def stereo_klt(
     idx = np.flatnonzero(ok)
     if not len(idx):
         return empty
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
     p0 = uv_a[idx].reshape(-1, 1, 2).astype(np.float32)
     p1, st, _ = cv2.calcOpticalFlowPyrLK(
         grey_a,

