@@ -437,10 +437,15 @@ def _bin_name(lo: float, hi: float) -> str:
 
 @dataclass
 class Evaluation:
+    """Result of :func:`evaluate`: ``metrics`` (metrics.json), the scored rows, and per
+    (RUN_DIR, SCENARIO_DIR) pair its truth, its tracks.jsonl lines and its key in ``by_scenario``
+    (the scenario's name, ``name#k`` when a name repeats; ``Row.scenario`` holds the same key)."""
+
     metrics: dict
     rows: list[Row]
     truths: list[ScenarioTruth]
     frames: list[list[dict]]
+    keys: list[str] = field(default_factory=list)
 
 
 def evaluate(
@@ -448,7 +453,7 @@ def evaluate(
 ) -> Evaluation:
     """Evaluate (RUN_DIR, SCENARIO_DIR) pairs. Returns metrics (the ``metrics.json`` mapping)."""
     all_rows: list[Row] = []
-    truths, frames_all = [], []
+    truths, frames_all, keys = [], [], []
     by_scenario, by_obstacle, sky_by = {}, {}, {}
     for run_dir, scen_dir in pairs:
         tracks = Path(run_dir) / "tracks.jsonl"
@@ -457,10 +462,13 @@ def evaluate(
         frames = _read_jsonl(tracks)
         truth = ScenarioTruth.load(scen_dir)
         rows = score_reports(truth, frames, assoc_tol_deg)
+        key = truth.name if truth.name not in by_scenario else f"{truth.name}#{len(by_scenario)}"
+        for r in rows:
+            r.scenario = key
         all_rows += rows
         truths.append(truth)
         frames_all.append(frames)
-        key = truth.name if truth.name not in by_scenario else f"{truth.name}#{len(by_scenario)}"
+        keys.append(key)
         by_scenario[key] = range_metrics(rows)
         sky_by[key] = sky_metrics(rows)
         for oid, m in obstacle_metrics(truth, frames, rows, settle_s).items():
@@ -504,7 +512,7 @@ def evaluate(
             "range_bins_m": [b if math.isfinite(b) else None for b in RANGE_BINS_M],
         },
     }
-    return Evaluation(metrics, all_rows, truths, frames_all)
+    return Evaluation(metrics, all_rows, truths, frames_all, keys)
 
 
 # --------------------------------------------------------------------------------------- output
@@ -578,8 +586,8 @@ def plot_ranges(ev: Evaluation, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for truth in ev.truths:
-        rows = [r for r in ev.rows if r.scenario == truth.name]
+    for truth, key in zip(ev.truths, ev.keys or [t.name for t in ev.truths], strict=True):
+        rows = [r for r in ev.rows if r.scenario == key]
         for spec in truth.scn.obstacles:
             gt_t, gt_c, gt_s = [], [], []
             for g in truth.gt:
@@ -623,10 +631,10 @@ def plot_ranges(ev: Evaluation, out_dir: str | Path) -> list[Path]:
                     )
             ax.set_xlabel("t [s]")
             ax.set_ylabel("range [m]")
-            ax.set_title(f"{truth.name}: obstacle {spec.id} ({spec.kind}{', moving' if spec.moving else ''})")
+            ax.set_title(f"{key}: obstacle {spec.id} ({spec.kind}{', moving' if spec.moving else ''})")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="best")
-            p = out_dir / f"range_{truth.name}_obstacle{spec.id}.png"
+            p = out_dir / f"range_{key.replace('#', '_')}_obstacle{spec.id}.png"
             fig.tight_layout()
             fig.savefig(p)
             plt.close(fig)

@@ -347,3 +347,41 @@ def test_unwritable_output_folder_is_an_input_error(scen_dir, tmp_path):
     blocker.write_text("x")
     with pytest.raises(InputError, match="cannot create the output folder"):
         write_outputs(evaluate([(run, scen_dir)]), blocker, plots=False)
+
+
+def test_nis_is_reported_against_its_dimension(scen_dir, tmp_path):
+    # every report carries NIS 1.0 on a 2-D innovation, and one in ten NIS 9.0 (beyond the
+    # chi2(2) 95% gate 5.991): mean 1.8 expected 2, 90% within the gate
+    def make(k, g, o, r):
+        nis = 9.0 if k % 10 == 0 else 1.0
+        return [_track(100 + o["id"], o, r, nis=nis, innovation=[0.1, -0.1])]
+
+    gt = _gt(scen_dir)
+    n_all = sum(o["visible"]["cam0"] for g in gt for o in g["obstacles"])
+    n_bad = sum(o["visible"]["cam0"] for k, g in enumerate(gt) for o in g["obstacles"] if k % 10 == 0)
+    ov = _run(scen_dir, tmp_path, make)["overall"]
+    assert ov["nis_reports"] == n_all and ov["nis_mean_expected"] == 2.0
+    assert ov["nis_mean"] == pytest.approx((9.0 * n_bad + (n_all - n_bad)) / n_all, abs=1e-12)
+    assert ov["nis_within_95"] == pytest.approx(1.0 - n_bad / n_all, abs=1e-12)
+
+
+def test_two_runs_are_reported_per_scenario_and_together(scen_dir, tmp_path):
+    def frames(bias):
+        return [{"frame": g["frame"], "t_s": g["t_s"],
+                 "tracks": [_track(100 + o["id"], o, bias * (o["range_m"] - o["radius_m"]))
+                            for o in g["obstacles"] if o["visible"]["cam0"]]} for g in _gt(scen_dir)]
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    run_a, run_b = _write_run(tmp_path / "a", frames(1.0)), _write_run(tmp_path / "b", frames(1.04))
+    ev = evaluate([(run_a, scen_dir), (run_b, scen_dir)])
+    m = ev.metrics
+    a, b = m["by_scenario"].values()
+    assert a["rel_err_median"] < 1e-5 and b["rel_err_median"] == pytest.approx(0.04, abs=1e-5)
+    assert m["overall"]["ranged"] == a["ranged"] + b["ranged"]
+    assert m["overall"]["within_5pct"] == 1.0 and m["overall"]["rel_err_p90"] == pytest.approx(0.04, abs=1e-5)
+    assert len(m["by_obstacle"]) == 6
+    # one plot per obstacle and run, each with only its own run's reports
+    paths = write_outputs(ev, tmp_path / "eval")
+    assert len([p for p in paths.values() if p.suffix == ".png"]) == 6
+    assert {r.scenario for r in ev.rows} == set(m["by_scenario"])
