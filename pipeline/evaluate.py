@@ -12,7 +12,8 @@ Reports with ``status == "lost"`` are not scored (they are predictions without a
 
 Metrics (per group: overall, per scenario, per obstacle, stationary vs moving, by true-range bin):
 relative range error ``|r - r_true| / r_true`` (median, p90, signed median as bias), share within
-5% and 10%, coverage of ``[range_min_m, range_max_m]`` and its median width, speed and heading
+5% and 10%, coverage of ``[range_min_m, range_max_m]``, its median width (an interval without an
+upper end counts as infinitely wide) and the share without an upper end, speed and heading
 error of ``velocity_world_mps`` against the obstacle's ``v_W``, NEES of the range (1-D,
 ``((r - r_true) / range_sigma_m)^2``: share within 1 sigma, mean and its 95% chi-square interval),
 NIS of the tracker's own innovations when reported. Per obstacle also: detection coverage (share of
@@ -313,12 +314,13 @@ def range_metrics(rows: list[Row], surface: str = "obstacle") -> dict:
         lo = np.array([r.range_min_m if r.range_min_m is not None else 0.0 for r in bnd])
         hi = np.array([r.range_max_m if r.range_max_m is not None else math.inf for r in bnd])
         tr = np.array([r.range_true_m for r in bnd])
-        w = hi - lo
+        w = hi - lo  # +inf for an interval without an upper end: it sorts last in the median
         out.update(
             bounds_reports=len(bnd),
             bounds_coverage=float(np.mean((lo <= tr) & (tr <= hi))),
-            bounds_width_median_m=float(np.median(w)) if np.all(np.isfinite(w)) else None,
-            bounds_rel_width_median=float(np.median(w / tr)) if np.all(np.isfinite(w)) else None,
+            bounds_width_median_m=float(np.median(w)),  # inf (null in JSON) if most are unbounded
+            bounds_rel_width_median=float(np.median(w / tr)),
+            bounds_unbounded_share=float(np.mean(~np.isfinite(w))),
         )
     vel = [r for r in assoc if r.v_est_W is not None and r.v_true_W is not None]
     if vel:

@@ -184,6 +184,20 @@ def test_bounds_that_exclude_truth_drop_coverage_by_that_share(scen_dir, tmp_pat
     assert ov["bounds_coverage"] == pytest.approx(1.0 - n_bad / n_all, abs=1e-12)
 
 
+def test_bounds_width_counts_unbounded_intervals(scen_dir, tmp_path):
+    # width 2 m, except one frame in five with no upper end: median 2 m, that share unbounded
+    def make(k, g, o, r):
+        return [_track(100 + o["id"], o, r, range_min_m=r - 1.0, range_max_m=None if k % 5 == 0 else r + 1.0)]
+
+    gt = _gt(scen_dir)
+    n_all = sum(o["visible"]["cam0"] for g in gt for o in g["obstacles"])
+    n_open = sum(o["visible"]["cam0"] for k, g in enumerate(gt) for o in g["obstacles"] if k % 5 == 0)
+    ov = _run(scen_dir, tmp_path, make)["overall"]
+    assert ov["bounds_coverage"] == 1.0
+    assert ov["bounds_width_median_m"] == pytest.approx(2.0, abs=1e-12)
+    assert ov["bounds_unbounded_share"] == pytest.approx(n_open / n_all, abs=1e-12)
+
+
 def test_velocity_errors(scen_dir, tmp_path):
     def make(k, g, o, r):
         v = np.asarray(o["v_W"]) + ([0.5, 0.0, 0.0] if o["moving"] else [0.0, 0.0, 0.0])
