@@ -213,11 +213,6 @@ class World:
             out.append(_Placed(s, p, R, parts, p + R @ c_O, r))
         return out
 
-    def bounding_sphere(self, spec: ObstacleSpec, t_s: float) -> tuple[np.ndarray, float]:
-        """Centre (3,) in W and radius (m) of the sphere bounding the obstacle at ``t_s``."""
-        pl = next(p for p in self.place(t_s) if p.spec.id == spec.id)
-        return pl.bound_c_W, pl.bound_r
-
     # -- ray casting
     def cast(self, t_s: float, o_W: np.ndarray, d_W: np.ndarray,
              placed: list[_Placed] | None = None, light_halo_rad: float = 0.0,
