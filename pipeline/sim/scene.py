@@ -23,6 +23,7 @@ Example::
 from __future__ import annotations
 
 import difflib
+import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -307,9 +308,26 @@ class Scenario(_Model):
         raise ConfigError(f"scenario {self.name!r}: no obstacle with id {obstacle_id}")
 
 
-def _known_keys() -> list[str]:
-    """Every field name of the scenario schema (for close-match suggestions on unknown keys)."""
-    return sorted({f for cls in _Model.__subclasses__() for f in cls.model_fields})
+def _models_in(annotation) -> list[type[BaseModel]]:
+    """The pydantic models an annotation refers to (through Optional, unions, lists, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for a in typing.get_args(annotation) for m in _models_in(a)]
+
+
+def _keys_at(loc: tuple) -> list[str]:
+    """The keys accepted beside the last element of a validation error's ``loc`` (the fields of
+    the model that holds it), for the message on an unknown key."""
+    cands: list[type[BaseModel]] = [Scenario]
+    for part in loc[:-1]:
+        if isinstance(part, int):  # a list index
+            continue
+        nxt = [m for c in cands if part in c.model_fields
+               for m in _models_in(c.model_fields[part].annotation)]
+        if not nxt:  # the tag of a discriminated union, e.g. motion.constant_velocity
+            nxt = [c for c in cands if "kind" in c.model_fields and c.model_fields["kind"].default == part]
+        cands = nxt or cands
+    return sorted({f for c in cands for f in c.model_fields})
 
 
 def _format_errors(e: ValidationError, source: str) -> str:
@@ -320,10 +338,10 @@ def _format_errors(e: ValidationError, source: str) -> str:
         loc = ".".join(str(p) for p in err["loc"])
         msg = err["msg"]
         if err["type"] == "extra_forbidden" and err["loc"]:
-            msg = "unknown key"
-            close = difflib.get_close_matches(str(err["loc"][-1]), _known_keys(), n=1)
-            if close:
-                msg += f" (did you mean {close[0]!r}?)"
+            keys = _keys_at(err["loc"])
+            close = difflib.get_close_matches(str(err["loc"][-1]), keys, n=1)
+            msg = (f"unknown key (did you mean {close[0]!r}?)" if close
+                   else f"unknown key; expected: {', '.join(keys)}")
         parts.append(f"{loc or '<top>'}: {msg}")
     return f"{source}: invalid scenario: " + "; ".join(parts)
 

@@ -169,6 +169,10 @@ def test_cli_simulate_and_errors(tmp_path, capsys):
     assert len(err) == 3 and all(e.startswith("fisheye-des: error: ") for e in err), err
     assert "line 2, column 3" in err[0] and "did you mean 'duration_s'" in err[1]
     assert "cannot create the output folder" in err[2]
+    # an unknown key is judged against the keys of the mapping that holds it
+    bad.write_text("name: b\nrig: {model: {kind: ds}}\n")
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "y")]) == 2
+    assert "rig.model.kind: unknown key; expected: fov_deg, name, params" in capsys.readouterr().err
 
 
 @pytest.mark.heavy
