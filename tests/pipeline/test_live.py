@@ -195,3 +195,51 @@ def test_cli_live_replays_a_video_with_stub_stages(tmp_path, monkeypatch, capsys
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["mode"] == "live" and s["latency"]["n"] == 6 and (tmp_path / "o" / "preview.mp4").is_file()
     assert "latency median" in capsys.readouterr().err
+
+
+def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch):
+    """Poses arrive while the run goes: frames wait for them (bounded) and fusion sees the right pose."""
+    from pipeline import live as live_mod
+
+    traj = tmp_path / "live.tum"
+    traj.write_text("0.00 0 0 0 0 0 0 1\n0.10 0.1 0 0 0 0 0 1\n")  # x = t (1 m/s) so far up to 0.1 s
+
+    def writer():
+        for k in range(2, 11):
+            time.sleep(0.05)
+            with traj.open("a") as f:
+                f.write(f"{k / 10:.2f} {k / 10:.2f} 0 0 0 0 0 1\n")
+
+    class PoseRecordingFusion(FakeFusion):
+        def __init__(self, ego):
+            super().__init__()
+            self.ego, self.x = ego, []
+
+        def step(self, observations, frame, t_s):
+            self.x.append((t_s, float(self.ego.pose_at(t_s).t[0])))
+            return super().step(observations, frame, t_s)
+
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
+    cfg = load_config(None, ["live.trajectory_wait_s=1.0"], cli={"ego_motion.trajectory": str(traj)})
+    rig = mono_rig()
+    made = []
+    monkeypatch.setattr(
+        live_mod, "build_fusion", lambda cfg, rig, ego: made.append(PoseRecordingFusion(ego)) or made[0]
+    )
+    th = threading.Thread(target=writer, daemon=True)
+    th.start()
+    r = run_live(
+        cfg,
+        tmp_path / "out",
+        rig=rig,
+        frontend=FakeFrontEnd(rig),
+        readers=[make_reader_factory(str(v), "cam0")],
+    )
+    th.join()
+    fusion = made[0]
+    ego = fusion.ego
+    assert isinstance(ego, GrowingTrajectory)  # live mode re-reads a trajectory file as it grows
+    assert r.summary["frames_without_pose"] == 0 and r.frames >= 5
+    assert ego.reloads >= 2
+    for t_s, x in fusion.x:
+        assert x == pytest.approx(t_s)  # x = 1 m/s * t in the file
