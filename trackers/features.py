@@ -310,6 +310,96 @@ class FeatureTracker:
             return np.zeros((0, 32), np.uint8), np.zeros(0, np.intp)
         return des, np.array([k.class_id for k in kps], np.intp)
 
+    def densify(
+        self,
+        image: np.ndarray,
+        centres_uv: np.ndarray,
+        radii_px: np.ndarray,
+        frame: int,
+        t_s: float,
+        per_roi: int = 6,
+        min_distance_px: float = 5.0,
+    ) -> int:
+        """Add features around the given points (small obstacles with few features).
+
+        Runs a sensitive ORB (FAST threshold 5, one level) on a crop around each point and adds up to
+        ``per_roi`` new keypoints there, at least ``min_distance_px`` from live features and each
+        other, within the lens mask; their bearings and first history sample are set now.
+
+        Args:
+            image: (H, W) grey or (H, W, 3) BGR frame of this camera (the calibration's size).
+            centres_uv: (K, 2) pixels; radii_px: (K,) half sizes of the regions (px).
+            frame, t_s: this frame's index and time (s).
+        Returns:
+            the number of features added.
+        """
+        from trackers.detectors.base import to_grey
+
+        if not len(centres_uv):
+            return 0
+        grey = to_grey(image)
+        if not hasattr(self, "_orb_roi"):
+            self._orb_roi = cv2.ORB_create(
+                nfeatures=60, scaleFactor=1.2, nlevels=1, edgeThreshold=8, patchSize=15, fastThreshold=5
+            )
+        h, w = self.shape_hw
+        n0 = len(self.ids)
+        room = self.max_features + self.max_features // 4 - n0  # a little above the global budget
+        for (u, v), r in zip(np.asarray(centres_uv, float), np.asarray(radii_px, float), strict=True):
+            if room <= 0:
+                break
+            r = int(max(12, r)) + 8
+            x0, y0, x1, y1 = (
+                max(0, int(u) - r),
+                max(0, int(v) - r),
+                min(w, int(u) + r + 1),
+                min(h, int(v) + r + 1),
+            )
+            if x1 - x0 < 20 or y1 - y0 < 20:
+                continue
+            m = self.mask[y0:y1, x0:x1].copy()
+            near = (
+                (self.uv[:, 0] >= x0 - 6)
+                & (self.uv[:, 0] < x1 + 6)
+                & (self.uv[:, 1] >= y0 - 6)
+                & (self.uv[:, 1] < y1 + 6)
+            )
+            for pu, pv in self.uv[near]:
+                cv2.circle(m, (int(pu) - x0, int(pv) - y0), int(min_distance_px), 0, -1)
+            kps = self._orb_roi.detect(grey[y0:y1, x0:x1], m)
+            if not kps:
+                continue
+            kps = sorted(kps, key=lambda k: -k.response)
+            chosen: list = []
+            for k in kps:
+                if all(
+                    (k.pt[0] - c.pt[0]) ** 2 + (k.pt[1] - c.pt[1]) ** 2 >= min_distance_px**2 for c in chosen
+                ):
+                    chosen.append(k)
+                if len(chosen) >= min(per_roi, room):
+                    break
+            chosen, des = self._orb_roi.compute(grey[y0:y1, x0:x1], chosen)
+            if des is None or not chosen:
+                continue
+            uv = np.array([[k.pt[0] + x0, k.pt[1] + y0] for k in chosen], np.float32)
+            room -= self._append(uv, des, np.full(len(uv), -1, np.intp))
+        added = len(self.ids) - n0
+        if added:
+            rows = np.arange(n0, len(self.ids))
+            b, valid = self.model.pixel_to_bearing(self.uv[rows].astype(np.float64))
+            self.b_C[rows] = b
+            s = self.slot[rows]
+            pos = self._h_n[s] % self.H
+            self._h_uv[s, pos] = self.uv[rows]
+            self._h_bC[s, pos] = b
+            self._h_bB[s, pos] = b @ self.R_C_B
+            self._h_t[s, pos] = t_s
+            self._h_frame[s, pos] = frame
+            self._h_n[s] += 1
+            if not np.all(valid):
+                self._drop(rows[~valid], remember=False)
+        return added
+
     # --------------------------------------------------------------------------- internals
     def _klt(self, prev, cur) -> None:
         p0 = self.uv.reshape(-1, 1, 2)
@@ -429,6 +519,11 @@ class FeatureTracker:
         uv = uv[keep]
         desc = None if desc_all is None else desc_all[keep]
         reacq = reacq_all[keep]
+        self._append(uv, desc, reacq)
+
+    def _append(self, uv: np.ndarray, desc: np.ndarray | None, reacq: np.ndarray) -> int:
+        """Add keypoints uv (n,2) as live features (re-acquired ones, ``reacq >= 0``, keep the lost
+        feature's id, slot and history); returns how many were added."""
         n = len(uv)
         new_ids = np.empty(n, np.int64)
         new_slot = np.empty(n, np.intp)
@@ -465,6 +560,7 @@ class FeatureTracker:
         self.age = np.concatenate([self.age, new_age[ok]])
         self.slot = np.concatenate([self.slot, new_slot[ok]])
         self.b_C = np.concatenate([self.b_C, np.zeros((int(ok.sum()), 3))])
+        return int(ok.sum())
 
     def _match_lost(self, uv: np.ndarray, desc: np.ndarray) -> np.ndarray:
         """For each new keypoint, the index of the lost feature it re-acquires, or -1."""

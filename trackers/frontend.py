@@ -26,7 +26,15 @@ from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
 STAGES = ("detect", "track", "group", "associate")
-_OPTION_GROUPS = ("detector_options", "features", "grouping", "boxes", "association", "max_width")
+_OPTION_GROUPS = (
+    "detector_options",
+    "features",
+    "grouping",
+    "boxes",
+    "association",
+    "max_width",
+    "densify_below",
+)
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -77,7 +85,9 @@ class FrontEnd:
             ``epipolar_deg`` (1.0), ``max_hamming`` (64), ``min_votes`` (3)), ``max_width`` (int px,
             default 1280, or None): wider frames are tracked downscaled to this width with the
             camera model scaled alike (``CameraModel.scaled``), so bearings keep their meaning;
-            ``CameraView.uv`` is reported in the full frame's pixels.
+            ``CameraView.uv`` is reported in the full frame's pixels; ``densify_below`` (int, default
+            8, 0 = off): tracks with fewer members get extra features detected around them
+            (``FeatureTracker.densify``), so small obstacles keep enough features.
 
     Attributes:
         timings: seconds of the last frame per stage (detect, track, group, associate), summed
@@ -110,6 +120,7 @@ class FrontEnd:
         mw = options.get("max_width", 1280)
         if mw is not None and (not isinstance(mw, int) or mw < 64):
             raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {mw!r}")
+        self.densify_below = int(options.get("densify_below", 8))
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
         self.scale = {
             c.name: (1.0 if mw is None or c.model.width <= mw else mw / c.model.width) for c in rig.cameras
@@ -209,6 +220,15 @@ class FrontEnd:
                     R_C = self._camera_rotations(cam, rot)
                     s1, l1 = gr.update(ft, t_s, R_C)
                     tm["group"] += time.perf_counter() - t0
+                    t0 = time.perf_counter()
+                    small = [t for t in s1 if len(t.members) < self.densify_below]
+                    if small:
+                        rad_px = cam.model.max_angle_rad / max(cam.model.image_circle()[2], 1.0)
+                        radii = [
+                            2.0 * np.sqrt(max(t.sigma_rad**2 * len(t.members), 0.0)) / rad_px for t in small
+                        ]
+                        ft.densify(img, np.array([t.uv for t in small]), np.array(radii), frame, t_s)
+                    tm["detect"] += time.perf_counter() - t0
                 else:
                     s1, l1 = [], self._coast(gr.tracks)
                 s += s1

@@ -105,7 +105,7 @@ class ObstacleGrouper:
         flow_abs_rad_s: float = 0.03,
         flow_rel: float = 0.2,
         flow_frames: int = 5,
-        min_features: int = 4,
+        min_features: int = 3,
         min_age: int = 3,
         confirm_frames: int = 5,
         max_missed: int = 10,
