@@ -85,13 +85,16 @@ class TracksWriter:
 
         Returns the track dicts as written (for the annotator).
         """
-        items = [to_plain(t) for t in tracks]
+        items = [t.to_json() if hasattr(t, "to_json") else t for t in tracks]
+        rec = {"frame": int(frame), "t_s": to_plain(float(t_s)), "tracks": items}
+        try:  # fast path: TrackReport.to_json() is already plain and finite
+            line = json.dumps(rec, allow_nan=False)
+        except (TypeError, ValueError):  # numpy values or a NaN somewhere (e.g. in attributes): clean it
+            rec["tracks"] = items = [to_plain(t) for t in items]
+            line = json.dumps(rec, allow_nan=False)
         for t in items:
             if isinstance(t, dict) and "id" in t:
                 self.track_ids.add(int(t["id"]))
-        line = json.dumps(
-            {"frame": int(frame), "t_s": to_plain(float(t_s)), "tracks": items}, allow_nan=False
-        )
         self._f.write(line + "\n")
         self._f.flush()
         self.lines += 1
