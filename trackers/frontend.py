@@ -81,7 +81,7 @@ class FrontEnd:
             or a Detector instance.
         **options: ``detector_options`` (dict, the detector's keywords), ``features`` (dict,
             FeatureTracker keywords), ``grouping`` (dict, ObstacleGrouper keywords), ``boxes``
-            (dict, BoxTracker keywords), ``association`` (dict: ``every`` frames (default 3),
+            (dict, BoxTracker keywords), ``association`` (dict: ``every`` frames (default 5),
             ``epipolar_deg`` (1.0), ``max_hamming`` (64), ``min_votes`` (3)), ``max_width`` (int px,
             default 1280, or None): wider frames are tracked downscaled to this width with the
             camera model scaled alike (``CameraModel.scaled``), so bearings keep their meaning;
@@ -111,7 +111,7 @@ class FrontEnd:
         bad = sorted(set(a) - {"every", "epipolar_deg", "max_hamming", "min_votes"})
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
-        self.assoc_every = int(a.get("every", 3))
+        self.assoc_every = int(a.get("every", 5))
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))
         self.min_votes = int(a.get("min_votes", 3))
@@ -121,6 +121,7 @@ class FrontEnd:
         if mw is not None and (not isinstance(mw, int) or mw < 64):
             raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {mw!r}")
         self.densify_below = int(options.get("densify_below", 8))
+        self._densified: dict[int, int] = {}  # track id -> frame of its last densify
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
         self.scale = {
             c.name: (1.0 if mw is None or c.model.width <= mw else mw / c.model.width) for c in rig.cameras
@@ -221,7 +222,18 @@ class FrontEnd:
                     s1, l1 = gr.update(ft, t_s, R_C)
                     tm["group"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
-                    small = [t for t in s1 if len(t.members) < self.densify_below]
+                    # tracks with few members, each at most every 5th frame, at most 8 per frame
+                    small = [
+                        t
+                        for t in s1
+                        if len(t.members) < self.densify_below
+                        and frame - self._densified.get(t.id, -(10**9)) >= 5
+                    ]
+                    small = sorted(small, key=lambda t: len(t.members))[:8]
+                    for t in small:
+                        self._densified[t.id] = frame
+                    if len(self._densified) > 4096:  # forget long-gone tracks
+                        self._densified = {k: v for k, v in self._densified.items() if frame - v < 300}
                     if small:
                         rad_px = cam.model.max_angle_rad / max(cam.model.image_circle()[2], 1.0)
                         radii = [
@@ -384,7 +396,7 @@ class FrontEnd:
     def _derive_views(
         self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]
     ) -> dict[str, list[ObstacleTrack]]:
-        """Views in the other cameras of reference-camera tracks that have none there yet.
+        """Views in the other cameras of confirmed reference-camera tracks that have none there yet.
 
         The reference camera (the rig's first) tracks' members are found in each other camera's
         image by KLT from their infinite-depth projection (epipolar-checked, trackers/association.py);
@@ -403,7 +415,11 @@ class FrontEnd:
             if b == ref or b not in greys:
                 continue
             have = {self._global(t.id) for t in seen.get(b, [])}
-            todo = [t for t in seen[ref] if self._global(t.id) not in have and len(t.members) >= 3]
+            todo = [
+                t
+                for t in seen[ref]
+                if t.status == "confirmed" and self._global(t.id) not in have and len(t.members) >= 3
+            ]
             if not todo:
                 continue
             mem = np.concatenate([t.members for t in todo])
