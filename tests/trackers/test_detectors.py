@@ -215,3 +215,27 @@ def test_kornia_responses_run_on_cpu():
         assert 10 <= len(d) <= 100, resp
     with pytest.raises(ConfigError, match="response"):
         make_detector("kornia", response="sift9000")
+
+
+def test_navlights_through_the_front_end_gives_a_drone_track_with_heading():
+    """Box detectors run through the FrontEnd's BoxTracker: one confirmed track that follows the
+    lights, labelled ``drone``, with the heading in its attributes; lost once after they vanish."""
+    from estimators.rig import mono_forward_rig
+    from trackers.frontend import FrontEnd
+
+    model = equidistant()
+    fe = FrontEnd(mono_forward_rig(model), detector="navlights")
+    seen = []
+    for k in range(12):
+        img = lights_image(170 + k, 130 + k) if k < 8 else np.full((240, 320, 3), 20, np.uint8)
+        for o in fe.process({"cam0": img}, k, k / 30):
+            seen.append((k, o))
+    live = [o for _, o in seen if o.status != "lost"]
+    assert {o.track_id for o in live} == {live[0].track_id}
+    assert live[-1].status == "confirmed" and live[-1].label == "drone"
+    assert live[-1].attributes["heading"] == "towards"
+    # the track's bearing is the box centre's, through the camera model
+    b, _ = model.pixel_to_bearing(np.array([[150.0 + 7, 119.0]]))
+    assert np.degrees(np.arccos(np.clip(live[-1].views[0].b_C @ b[0], -1, 1))) < 1.0
+    lost = [o for _, o in seen if o.status == "lost"]
+    assert len(lost) <= 1
