@@ -559,6 +559,11 @@ def format_table(metrics: dict) -> str:
         lines.append(name.ljust(w0) + " ".join(cells))
     o = metrics["overall"]
     lines.append("")
+    if o.get("frames_outside_truth"):
+        lines.append(
+            f"note: {o['frames_outside_truth']} tracks.jsonl frames lie outside the scenario's time span "
+            "and were not scored (is SCENARIO_DIR the one the run was made on?)"
+        )
     lines.append(
         f"false ranges on sky: {o['false_ranges_sky']} of {o['all_reports']} reports; "
         f"sky reports {o['sky_reports']}, ground reports {o['ground_reports']}"

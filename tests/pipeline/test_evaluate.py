@@ -399,3 +399,10 @@ def test_two_runs_are_reported_per_scenario_and_together(scen_dir, tmp_path):
     paths = write_outputs(ev, tmp_path / "eval")
     assert len([p for p in paths.values() if p.suffix == ".png"]) == 6
     assert {r.scenario for r in ev.rows} == set(m["by_scenario"])
+
+
+def test_frames_outside_the_scenario_are_counted_and_flagged(scen_dir, tmp_path):
+    frames = [{"frame": 0, "t_s": 99.0, "tracks": [_track(1, {"bearing_body": [1, 0, 0]}, 5.0)]}]
+    m = evaluate([(_write_run(tmp_path, frames), scen_dir)]).metrics
+    assert m["overall"]["frames_outside_truth"] == 1 and m["overall"]["all_reports"] == 0
+    assert "1 tracks.jsonl frames lie outside the scenario's time span" in format_table(m)
