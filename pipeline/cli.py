@@ -18,7 +18,9 @@ import typer
 
 from estimators.errors import FisheyeDesError
 
-COMMANDS: tuple[str, ...] = ("thesis", "simulate", "run", "bench", "accuracy", "calibrate", "evaluate", "live", "demo")
+COMMANDS: tuple[str, ...] = (
+    "demo", "run", "live", "simulate", "evaluate", "accuracy", "bench", "calibrate", "thesis",
+)
 
 app = typer.Typer(
     name="fisheye-des",
