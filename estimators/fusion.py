@@ -137,6 +137,9 @@ class FusionSettings:
             parallax. Default True.
         feature_sigma_rad: bearing sigma of one member feature (rad). Default 1e-3.
         feature_min_count: features with enough parallax needed for a feature range. Default 3.
+        feature_inner_half: use only the half of them angularly nearest the representative ray
+            (the range is the one along that ray; a near object's depth extent is a sizable share
+            of its range). Default True.
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -164,6 +167,7 @@ class FusionSettings:
     feature_ranging: bool = True
     feature_sigma_rad: float = 1e-3
     feature_min_count: int = 3
+    feature_inner_half: bool = True
     baseline_max_age_s: float = 1.0
     bounds_noise_sigmas: float = 4.0
     bounds_pseudo_sigma_frac: float = 0.01
@@ -450,6 +454,17 @@ class ObstacleFusion:
         self._update_bounds(tr, sg)
         stereo = self._stereo(sg) if len(sg.views) >= 2 else None
         self._feature_ranging(tr, sg)
+        if stereo is not None and tr.feature_range is not None:
+            # two independent ranges: a stereo fix from the representative bearings that disagrees
+            # with the member features' range by > 3 sigma is a mismatch of the two cameras'
+            # representative points (different parts of the object), not a measurement
+            z, sz, _ = tr.feature_range
+            r_st = float(np.linalg.norm(stereo[0] - sg.o_W))
+            u = (stereo[0] - sg.o_W) / max(r_st, 1e-9)
+            s_st = math.sqrt(max(float(u @ stereo[1] @ u), 0.0))
+            if abs(r_st - z) > 3.0 * math.hypot(sz, s_st):
+                stereo = None
+                tr.gated += 1
         init_pair = None
         if tr.kf is None and stereo is None:
             init_pair = self._mono_init_pair(tr, sg)
@@ -513,6 +528,9 @@ class ObstacleFusion:
         if not isinstance(tri, geometry.Triangulation):
             return None
         if tri.range_sigma_m > self.settings.stereo_max_rel_sigma * tri.range_m:
+            return None
+        # rays that miss each other by more than 4 sigma of their depths: not one point
+        if tri.miss_m > 4.0 * math.sqrt(2.0) * sigma * max(tri.depth_a_m, tri.depth_b_m):
             return None
         c_mid = 0.5 * (va.c_W + vb.c_W)
         return tri.p, _ray_covariance(tri.p - c_mid, tri.range_sigma_m, sigma)
@@ -605,9 +623,16 @@ class ObstacleFusion:
         if n < s.feature_min_count:
             return
         r = np.linalg.norm(p[keep] - sg.o_W, axis=1)
+        rel = rel[keep]
+        if s.feature_inner_half:  # the features angularly nearest the representative ray
+            b_rep = sg.views[0].b_W
+            ang = np.arccos(np.clip(b_now[good][keep] @ b_rep, -1.0, 1.0))
+            inner = ang <= np.median(ang)
+            if int(inner.sum()) >= s.feature_min_count:
+                r, rel, n = r[inner], rel[inner], int(inner.sum())
         z = float(np.median(r))
         mad = float(np.median(np.abs(r - z)))
-        sig = max(1.4826 * mad, float(np.median(rel[keep] * r)) / math.sqrt(n))
+        sig = max(1.4826 * mad, float(np.median(rel * r)) / math.sqrt(n))
         tr.feature_range = (z, max(sig, 1e-3 * z), n)
 
     def _set_from_features(self, tr: _Track, sg: _Sighting) -> None:
