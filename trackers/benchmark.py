@@ -302,14 +302,17 @@ def main(argv: list[str] | None = None) -> None:
         action="append",
         default=[],
         metavar="GROUP.KEY=VALUE",
-        help="a FrontEnd option, e.g. grouping.max_radius_px=30 (repeatable)",
+        help="a FrontEnd option, e.g. grouping.max_radius_px=30 or max_width=960 (repeatable)",
     )
     a = ap.parse_args(argv)
-    opts: dict[str, dict[str, Any]] = {}
+    opts: dict[str, Any] = {}
     for item in a.set:
         key, _, val = item.partition("=")
         group, _, name = key.partition(".")
-        opts.setdefault(group, {})[name] = yaml.safe_load(val)
+        if name:
+            opts.setdefault(group, {})[name] = yaml.safe_load(val)
+        else:  # a top-level FrontEnd option, e.g. max_width=960
+            opts[group] = yaml.safe_load(val)
     res = run_benchmark(
         a.scene_dir, detector=a.detector, threads=a.threads, max_frames=a.frames, use_poses=a.poses, **opts
     )

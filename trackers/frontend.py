@@ -34,6 +34,7 @@ _OPTION_GROUPS = (
     "association",
     "max_width",
     "densify_below",
+    "densify_every",
 )
 
 
@@ -87,7 +88,8 @@ class FrontEnd:
             camera model scaled alike (``CameraModel.scaled``), so bearings keep their meaning;
             ``CameraView.uv`` is reported in the full frame's pixels; ``densify_below`` (int, default
             8, 0 = off): tracks with fewer members get extra features detected around them
-            (``FeatureTracker.densify``), so small obstacles keep enough features.
+            (``FeatureTracker.densify``, each track at most every ``densify_every`` frames, default 2),
+            so small obstacles keep enough features.
 
     Attributes:
         timings: seconds of the last frame per stage (detect, track, group, associate), summed
@@ -121,6 +123,7 @@ class FrontEnd:
         if mw is not None and (not isinstance(mw, int) or mw < 64):
             raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {mw!r}")
         self.densify_below = int(options.get("densify_below", 8))
+        self.densify_every = int(options.get("densify_every", 2))
         self._densified: dict[int, int] = {}  # track id -> frame of its last densify
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
         self.scale = {
@@ -222,12 +225,12 @@ class FrontEnd:
                     s1, l1 = gr.update(ft, t_s, R_C)
                     tm["group"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
-                    # tracks with few members, each at most every 5th frame, at most 8 per frame
+                    # tracks with few members, each at most every densify_every frames, 8 per frame
                     small = [
                         t
                         for t in s1
                         if len(t.members) < self.densify_below
-                        and frame - self._densified.get(t.id, -(10**9)) >= 5
+                        and frame - self._densified.get(t.id, -(10**9)) >= self.densify_every
                     ]
                     small = sorted(small, key=lambda t: len(t.members))[:8]
                     for t in small:
