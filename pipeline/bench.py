@@ -1075,8 +1075,8 @@ class BenchRun:
                     if th == 1:
                         cd, cp = dec.get("cpu_fps"), pipe.get("cpu_fps")
                         self.rows.append(Row(
-                            "pipeline frames per CPU-second (1 core; what other load on the machine "
-                            "does not change)", name, cp, "fps", "decode-only per CPU-s", cd, inverse=True,
+                            "pipeline per CPU-second (1 core; load-independent)", name, cp, "fps",
+                            "decode-only per CPU-s", cd, inverse=True,
                             target=None if target is None else f">= {target:.0f} fps",
                             met=None if target is None or cp is None else cp >= target))
                     if tuple(res) == (1280, 720) and rig == "mono" and th == 1 and dfps and pfps:
