@@ -631,9 +631,11 @@ def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -
             ve = np.asarray(r.v_est_W, float)
             dh = math.atan2(ve[1], ve[0]) - math.atan2(v_true[1], v_true[0])
             s.heading_err_deg = abs(math.degrees(math.atan2(math.sin(dh), math.cos(dh))))
-        # the thesis's two-frame method on the tracker's own bearings (rays from the body origin)
+        # the thesis's two-frame method on the tracker's own bearings (rays from the body origin);
+        # tracks.jsonl has no per-camera bearings, so its two-camera (stereo) method is n/a here
         h = hist[r.track_id]
         h.append((r.t_s, [(T_W_B.t, b_W)]))
-        _thesis(s, h, [(T_W_B.t, b_W)], T_W_B.t, opts.thesis_interval_s, truth.scn.fps)
+        if s.n_views == 1:
+            _thesis(s, h, [(T_W_B.t, b_W)], T_W_B.t, opts.thesis_interval_s, truth.scn.fps)
         out.append(s)
     return out
