@@ -282,6 +282,9 @@ def run_benchmark(
         "coverage": sum(covered.values()) / tot_due if tot_due else None,
         "min_coverage": min((p["coverage"] for p in per.values()), default=None),
         "max_switches_per_min": max((p["switches_per_min"] for p in per.values()), default=None),
+        # all switches over all covered obstacle-minutes (stable on short scenes)
+        "switches_per_obstacle_minute": sum(switches.values())
+        / max(sum(covered.values()) * fps_dt / 60.0, 1e-9),
         "obstacles": per,
         "observations_per_frame": n_obs / nf,
         "rim_features_per_frame": rim_feats / nf,
