@@ -140,6 +140,9 @@ class FusionSettings:
         feature_inner_half: use only the half of them angularly nearest the representative ray
             (the range is the one along that ray; a near object's depth extent is a sizable share
             of its range). Default True.
+        feature_static_chi: largest median normalised ray residual (chi, ~1 for static points)
+            for which the features are taken as static; above it the feature range is not used
+            (a moving obstacle). Default 9.
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -168,6 +171,7 @@ class FusionSettings:
     feature_sigma_rad: float = 1e-3
     feature_min_count: int = 3
     feature_inner_half: bool = True
+    feature_static_chi: float = 9.0
     baseline_max_age_s: float = 1.0
     bounds_noise_sigmas: float = 4.0
     bounds_pseudo_sigma_frac: float = 0.01
@@ -249,6 +253,8 @@ class _FeatureRays:
         self.y = np.zeros((0, 3))
         self.b0 = np.zeros((0, 3))  # first bearing (parallax reference)
         self.last_t = np.zeros(0)
+        self.cc = np.zeros(0)  # sum_i c_i^T (I - b_i b_i^T) c_i, for the residual
+        self.n = np.zeros(0)  # rays so far
 
     def add(self, camera: str, ids: np.ndarray, b_W: np.ndarray, c_W: np.ndarray, t_s: float) -> np.ndarray:
         """Add one frame's rays; returns the row of each feature (M,)."""
@@ -268,9 +274,14 @@ class _FeatureRays:
             self.y = np.concatenate([self.y, np.zeros((m, 3))])
             self.b0 = np.concatenate([self.b0, b_W[new]])
             self.last_t = np.concatenate([self.last_t, np.zeros(m)])
+            self.cc = np.concatenate([self.cc, np.zeros(m)])
+            self.n = np.concatenate([self.n, np.zeros(m)])
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
         np.add.at(self.A, rows, Pm)
-        np.add.at(self.y, rows, Pm @ c_W)
+        Pc = Pm @ c_W
+        np.add.at(self.y, rows, Pc)
+        np.add.at(self.cc, rows, Pc @ c_W)
+        np.add.at(self.n, rows, 1.0)
         self.last_t[rows] = t_s
         return rows
 
@@ -282,6 +293,14 @@ class _FeatureRays:
         remap[keep] = np.arange(int(keep.sum()))
         self.index = {k: int(remap[r]) for k, r in self.index.items() if keep[r]}
         self.A, self.y, self.b0, self.last_t = self.A[keep], self.y[keep], self.b0[keep], self.last_t[keep]
+        self.cc, self.n = self.cc[keep], self.n[keep]
+
+    def residual2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Mean squared perpendicular miss (m^2) of each feature's rays from its point p (K, 3):
+        (p^T A p - 2 p^T y + cc) / n."""
+        A, y = self.A[rows], self.y[rows]
+        cost = np.einsum("ki,kij,kj->k", p, A, p) - 2.0 * np.sum(p * y, axis=1) + self.cc[rows]
+        return np.maximum(cost, 0.0) / np.maximum(self.n[rows], 1.0)
 
 
 @dataclass(frozen=True)
@@ -621,6 +640,14 @@ class ObstacleFusion:
         keep = front & (rel <= s.mono_init_max_rel_sigma)
         n = int(keep.sum())
         if n < s.feature_min_count:
+            return
+        # static-point test: each ray misses its feature's point by ~ sigma_f * depth per axis, so
+        # chi = residual^2 / (2 (sigma_f d)^2) ~ 1 for a static point; a moving obstacle's features
+        # (crossing motion) fit no static point and their range would be wrong
+        d = np.linalg.norm(p[keep] - c_now[good][keep], axis=1)
+        chi = tr.features.residual2(rows[good][keep], p[keep]) / (2.0 * (s.feature_sigma_rad * d) ** 2)
+        if float(np.median(chi)) > s.feature_static_chi:
+            tr.reason = "member features do not fit static points (moving obstacle?)"
             return
         r = np.linalg.norm(p[keep] - sg.o_W, axis=1)
         rel = rel[keep]
