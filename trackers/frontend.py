@@ -242,7 +242,7 @@ class FrontEnd:
                         radii = [
                             2.0 * np.sqrt(max(t.sigma_rad**2 * len(t.members), 0.0)) / rad_px for t in small
                         ]
-                        ft.densify(img, np.array([t.uv for t in small]), np.array(radii), frame, t_s)
+                        ft.densify(grey, np.array([t.uv for t in small]), np.array(radii), frame, t_s)
                     tm["detect"] += time.perf_counter() - t0
                 else:
                     s1, l1 = [], self._coast(gr.tracks)
