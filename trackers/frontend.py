@@ -386,7 +386,9 @@ class FrontEnd:
                     continue
                 if self._members_of(ga, b) or self._members_of(gb, a):
                     continue  # already linked to another track in that camera
-                keep, drop = min(ga, gb), max(ga, gb)
+                # the surviving id: the one the reference camera (the rig's first) tracks, else the
+                # one confirmed for longer, so the id downstream filters know carries on
+                keep, drop = self._survivor(ga, gb)
                 for lid, g in list(self._gid.items()):
                     if g == drop:
                         self._gid[lid] = keep
@@ -395,6 +397,23 @@ class FrontEnd:
                 if drop in self._reported:
                     absorbed.append(drop)
         return absorbed
+
+    def _survivor(self, ga: int, gb: int) -> tuple[int, int]:
+        """(kept, dropped) of two global ids being merged (see _associate)."""
+        ref = self.rig.cameras[0].name
+        if self._members_of(ga, ref) and not self._members_of(gb, ref):
+            return ga, gb
+        if self._members_of(gb, ref) and not self._members_of(ga, ref):
+            return gb, ga
+
+        def hits(g: int) -> int:
+            n = 0
+            for d in list(self.groupers.values()) + list(self.boxers.values()):
+                n = max([n] + [t.hits for t in d.tracks.values() if self._global(t.id) == g])
+            return n
+
+        ha, hb = hits(ga), hits(gb)
+        return (ga, gb) if (ha, -ga) >= (hb, -gb) else (gb, ga)
 
     def _derive_views(
         self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]
