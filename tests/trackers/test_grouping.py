@@ -143,3 +143,28 @@ def test_life_cycle_occlusion_and_lost_once(model, rig):
     for o in out[lost_at]:
         if o.track_id == tid:
             assert o.views == ()
+
+
+def test_rotation_compensation_with_the_body_pose(model, rig):
+    """Pure yaw of the body in a world at infinity: with T_W_B given, the grouper's
+    rotation-compensated flows are ~0 (the rotation explains all image motion); without it they
+    are the rotation rate (0.52 rad/s here)."""
+    from estimators.se3 import Pose, rot_z
+
+    scene = SphereScene(model)
+    R_C_B = rig["cam0"].T_C_B.R
+    rate = np.radians(1.0)  # per frame, at 30 frames/s: 0.52 rad/s
+    frames = []
+    for k in range(12):
+        R_W_B = rot_z(rate * k)
+        frames.append((R_W_B, scene.render(R_W_B @ R_C_B.T)))  # R_W_C = R_W_B R_B_C
+    flows = {}
+    for use_pose in (True, False):
+        fe = FrontEnd(rig)
+        for k, (R_W_B, img) in enumerate(frames):
+            fe.process({"cam0": img}, k, k / 30.0, T_W_B=Pose(R_W_B, np.zeros(3)) if use_pose else None)
+        tracks = [t for t in fe.groupers["cam0"].tracks.values() if t.seen]
+        assert len(tracks) >= 5
+        flows[use_pose] = np.median([np.linalg.norm(t.flow_rad_s) for t in tracks])
+    assert flows[True] < 0.05
+    assert 0.3 < flows[False] < 0.7
