@@ -163,6 +163,20 @@ class FeatureTracker:
         self.H = int(history)
         self.mask = lens_mask(self.model, margin_px)
         self.shape_hw = self.mask.shape
+        # image work (KLT, detection) runs on the bounding box of the lens circle only: a fisheye's
+        # circle often fills half the frame or less (a 1280x720 frame with a 338-px circle: 53%)
+        ys, xs = np.nonzero(self.mask)
+        pad = max(int(win_px), 16) + 4  # room for the KLT window and ORB's edge threshold
+        h0, w0 = self.shape_hw
+        self.roi = (
+            max(0, int(xs.min()) - pad) if len(xs) else 0,
+            max(0, int(ys.min()) - pad) if len(ys) else 0,
+            min(w0, int(xs.max()) + pad + 1) if len(xs) else w0,
+            min(h0, int(ys.max()) + pad + 1) if len(ys) else h0,
+        )
+        x0, y0, x1, y1 = self.roi
+        self._off = np.array([x0, y0], np.float32)
+        self._mask_roi = np.ascontiguousarray(self.mask[y0:y1, x0:x1])
         # cells mostly inside the lens: the ones whose coverage is checked
         gx, gy = self.grid
         h, w = self.shape_hw
@@ -228,9 +242,10 @@ class FeatureTracker:
 
         t0 = time.perf_counter()
         # (OpenCV's Python binding takes images, not prebuilt pyramids: LK builds them per call)
+        cur = self._crop(grey)
         if self._prev_pyr is not None and len(self.ids):
-            self._klt(self._prev_pyr, grey)
-        self._prev_pyr = grey
+            self._klt(self._prev_pyr, cur)
+        self._prev_pyr = cur
         t1 = time.perf_counter()
         self._frames_since_detect += 1
         if detect and self._need_detection():
@@ -401,10 +416,19 @@ class FeatureTracker:
         return added
 
     # --------------------------------------------------------------------------- internals
+    def _crop(self, image: np.ndarray) -> np.ndarray:
+        """The lens's bounding box ``roi`` of a full frame, contiguous (pixel (x0, y0) = crop (0, 0))."""
+        x0, y0, x1, y1 = self.roi
+        if (x0, y0, x1, y1) == (0, 0, image.shape[1], image.shape[0]):
+            return image
+        return np.ascontiguousarray(image[y0:y1, x0:x1])
+
     def _klt(self, prev, cur) -> None:
-        p0 = self.uv.reshape(-1, 1, 2)
+        """Track the live features from ``prev`` to ``cur`` (both cropped to ``roi``)."""
+        off = self._off
+        p0 = (self.uv - off).reshape(-1, 1, 2)
         # forward, starting from the constant-velocity prediction p0 + v
-        guess = (self.uv + self.vel).reshape(-1, 1, 2).astype(np.float32)
+        guess = (self.uv - off + self.vel).reshape(-1, 1, 2).astype(np.float32)
         p1, st, err = cv2.calcOpticalFlowPyrLK(
             prev,
             cur,
@@ -428,8 +452,8 @@ class FeatureTracker:
             criteria=self._criteria,
             flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
         )
-        p1 = p1.reshape(-1, 2)
-        fb = np.linalg.norm(p0r.reshape(-1, 2) - self.uv, axis=1)
+        p1 = p1.reshape(-1, 2) + off
+        fb = np.linalg.norm(p0r.reshape(-1, 2) + off - self.uv, axis=1)
         ok = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1) & np.isfinite(fb) & (fb <= self.fb_max_px)
         # appearance: LK's residual (mean absolute grey difference over the window) must be ordinary
         # for this frame, which tolerates global exposure changes but not a patch that changed
@@ -478,16 +502,17 @@ class FeatureTracker:
         r = max(1, int(round(self.min_distance_px)))
         for u, v in self.uv:  # keep new keypoints away from live features
             cv2.circle(m, (int(u), int(v)), r, 0, -1)
-        det = self.detector.detect(image, m)
+        x0, y0, x1, y1 = self.roi
+        det = self.detector.detect(self._crop(image), np.ascontiguousarray(m[y0:y1, x0:x1]))
         if not len(det):
             return
-        uv = det.keypoints
+        uv = det.keypoints + self._off  # crop -> full-frame pixels
         h, w = self.shape_hw
         ui = np.clip(np.round(uv[:, 0]).astype(np.intp), 0, w - 1)
         vi = np.clip(np.round(uv[:, 1]).astype(np.intp), 0, h - 1)
         inside = m[vi, ui] > 0
         det = det.select(inside)
-        uv = det.keypoints
+        uv = uv[inside]
         if not len(uv):
             return
         # prefer keypoints in thin cells: round-robin over the grid, strongest first
