@@ -82,7 +82,9 @@ def test_two_obstacles_side_by_side_stay_apart(model, rig, case):
     scene = SphereScene(model, blank_env=True)
     r = np.radians(11)
     if case == "same_motion_with_gap":
-        da, db = unit([-0.45, 0.0, 1.0]), unit([0.45, 0.0, 1.0])  # ~48 deg apart: gap ~26 deg
+        # link distance: 35 px x (100 deg / 112.8 px) = 31 deg here; centres 2 atan(0.8) = 77 deg
+        # apart, so the gap between the discs' edges is 55 deg
+        da, db = unit([-0.8, 0.0, 1.0]), unit([0.8, 0.0, 1.0])
         rate_a = rate_b = np.radians(0.5)
     else:
         da, db = rot_axis([0, 1, 0], -r) @ unit([0, 0, 1]), rot_axis([0, 1, 0], r) @ unit([0, 0, 1])
@@ -147,8 +149,8 @@ def test_life_cycle_occlusion_and_lost_once(model, rig):
 
 def test_rotation_compensation_with_the_body_pose(model, rig):
     """Pure yaw of the body in a world at infinity: with T_W_B given, the grouper's
-    rotation-compensated flows are ~0 (the rotation explains all image motion); without it they
-    are the rotation rate (0.52 rad/s here)."""
+    rotation-compensated flows are ~0 (the rotation explains all image motion); without it each
+    track's flow is the rotation's, |w x b| (w = 0.52 rad/s about the body's z here)."""
     from estimators.se3 import Pose, rot_z
 
     scene = SphereScene(model)
@@ -158,7 +160,8 @@ def test_rotation_compensation_with_the_body_pose(model, rig):
     for k in range(12):
         R_W_B = rot_z(rate * k)
         frames.append((R_W_B, scene.render(R_W_B @ R_C_B.T)))  # R_W_C = R_W_B R_B_C
-    flows = {}
+    w_C = R_C_B @ np.array([0.0, 0.0, rate * 30.0])  # the body's yaw rate in C (rad/s)
+    flows, rel_err = {}, []
     for use_pose in (True, False):
         fe = FrontEnd(rig)
         for k, (R_W_B, img) in enumerate(frames):
@@ -166,5 +169,10 @@ def test_rotation_compensation_with_the_body_pose(model, rig):
         tracks = [t for t in fe.groupers["cam0"].tracks.values() if t.seen]
         assert len(tracks) >= 5
         flows[use_pose] = np.median([np.linalg.norm(t.flow_rad_s) for t in tracks])
+        if not use_pose:  # |d b / dt| = |w x b| for a point at infinity
+            for t in tracks:
+                want = np.linalg.norm(np.cross(w_C, t.b_C))
+                rel_err.append(abs(np.linalg.norm(t.flow_rad_s) - want) / max(want, 0.05))
     assert flows[True] < 0.05
-    assert 0.3 < flows[False] < 0.7
+    assert 0.1 < flows[False] < 0.6
+    assert np.median(rel_err) < 0.2
