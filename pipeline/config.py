@@ -188,9 +188,11 @@ class TrackerConfig(_Section):
     )
     grouping: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: trackers.grouping.ObstacleGrouper keywords, e.g. link_rad (rad), "
-        "max_radius_rad (rad), "
-        "flow_abs_rad_s (rad/s), min_features (int), confirm_frames (frames), max_missed (frames).",
+        description="dict: trackers.grouping.ObstacleGrouper keywords, e.g. link_px (px, largest "
+        "distance between neighbouring features of one obstacle, at the lens's mean scale), "
+        "max_radius_px (px, largest distance of a member from its track's representative point), "
+        "flow_abs_rad_s (rad/s), flow_rel, min_features (int), min_age (frames), confirm_frames (frames), "
+        "max_missed (frames).",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,
@@ -290,6 +292,12 @@ class InputsConfig(_Section):
         "set; a frame without a partner within it is dropped and counted.",
     )
     max_frames: int | None = Field(None, gt=0, description="int: stop after this many frame sets.")
+    grey: bool | None = Field(
+        None,
+        description="bool: decode videos to (H, W) grey frames (a grey video is then read without any "
+        "colour conversion). Default (null): grey when the detector works on grey images ('orb', "
+        "'kornia'), BGR for the others ('navlights' needs colour). The annotated video is drawn either way.",
+    )
 
 
 class LiveConfig(_Section):

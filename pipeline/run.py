@@ -50,7 +50,12 @@ __all__ = [
     "run_batch",
     "find_recording",
     "VIDEO_SUFFIXES",
+    "GREY_DETECTORS",
+    "wants_grey",
 ]
+
+# detectors that work on grey images: their videos are decoded straight to grey (see inputs.grey)
+GREY_DETECTORS = ("orb", "kornia")
 
 VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".ts")
 
@@ -178,6 +183,13 @@ def build_fusion(cfg: PipelineConfig, rig: Any, egomotion: Any) -> Any:
     return ObstacleFusion(rig, egomotion, FusionSettings(**cfg.fusion.settings_kwargs()))
 
 
+def wants_grey(cfg: PipelineConfig) -> bool:
+    """``inputs.grey``, or by default whether the detector works on grey images (``GREY_DETECTORS``)."""
+    if cfg.inputs.grey is not None:
+        return bool(cfg.inputs.grey)
+    return cfg.detector.name.lower() in GREY_DETECTORS
+
+
 def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
     """One source per rig camera (videos or image folders, in the rig's order), kept in step by t_s."""
     names = list(rig.names)
@@ -193,14 +205,17 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
             "expected one video or image folder per camera, in that order"
         )
     sources: list[Source] = []
+    grey = wants_grey(cfg)
     try:
         for name, ref in zip(names, refs, strict=True):
             model = rig[name].model
             size = (int(model.width), int(model.height))
             if inp.images:
-                sources.append(ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps))
+                sources.append(
+                    ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
+                )
             else:
-                sources.append(VideoSource(ref, camera=name, expected_size=size, fps=inp.fps))
+                sources.append(VideoSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey))
     except BaseException:
         for s in sources:
             s.close()
@@ -301,33 +316,49 @@ def run(
     cpu_start = time.process_time()
     bar = _progress(total, show, out.name)
     it = iter(source)
+    perf = time.perf_counter
+    max_frames = cfg.inputs.max_frames or 0
+    every_n = cfg.outputs.every_n
+    add = timings.add
+    stages_total = 0.0  # seconds inside FrontEnd.process and ObstacleFusion.step
     try:
         while True:
-            t0 = time.perf_counter()
+            t0 = perf()
             fs = next(it, None)
-            t1 = time.perf_counter()
+            t1 = perf()
             if fs is None:
                 break
-            timings.add("decode", t1 - t0)
             obs = frontend.process(fs.images, fs.frame, fs.t_s)
-            timings.add_all(getattr(frontend, "timings", None))
             reports = fusion.step(obs, fs.frame, fs.t_s)
-            timings.add_all(getattr(fusion, "timings", None))
-            t2 = time.perf_counter()
+            t2 = perf()
             items = writer.write(fs.frame, fs.t_s, reports)
-            timings.add("write", time.perf_counter() - t2)
+            t3 = perf()
             for t in items:
-                statuses[t["status"]] = statuses.get(t["status"], 0) + 1
-            if video is not None and frames % cfg.outputs.every_n == 0:
-                t3 = time.perf_counter()
+                st = t["status"]
+                statuses[st] = statuses.get(st, 0) + 1
+            if video is not None and frames % every_n == 0:
                 video.write(annotator.draw(fs.images, items, fs.t_s, fs.frame))
-                timings.add("annotate", time.perf_counter() - t3)
-            per_frame.add(time.perf_counter() - t0)
+                add("annotate", perf() - t3)
+            # stage times: the front end's and fusion's own (detect ... fuse), the loop's (decode,
+            # write) and "unattributed": time inside FrontEnd.process / ObstacleFusion.step that their
+            # own stage timings do not cover
+            staged = 0.0
+            for st_t in (getattr(frontend, "timings", None), getattr(fusion, "timings", None)):
+                if st_t:
+                    for k, v in st_t.items():
+                        if v is not None and v == v:  # not NaN
+                            add(k, v)
+                            staged += v
+            stages_total += t2 - t1
+            add("decode", t1 - t0)
+            add("write", t3 - t2)
+            add("unattributed", max(0.0, (t2 - t1) - staged))
             first_t = fs.t_s if first_t is None else first_t
             last_t = fs.t_s
             frames += 1
             bar.update(1)
-            if cfg.inputs.max_frames and frames >= cfg.inputs.max_frames:
+            per_frame.add(perf() - t0)
+            if max_frames and frames >= max_frames:
                 break
     except KeyboardInterrupt:
         interrupted = True
@@ -357,6 +388,11 @@ def run(
             "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
             "timings": timings.summary(),
             "per_frame": per_frame.summary(),
+            # the loop's own time per frame: everything but FrontEnd.process and ObstacleFusion.step
+            # (decode, write, annotation, bookkeeping)
+            "loop_overhead_ms_per_frame": (
+                1e3 * (per_frame.total - stages_total) / frames if frames else None
+            ),
             "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},
             "parameters": cfg.model_dump(mode="json"),
             "pid": os.getpid(),

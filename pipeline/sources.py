@@ -178,6 +178,11 @@ class VideoSource(Source):
         expected_size: (width, height) pixels from the calibration; a mismatch is a SourceError.
         fps: frame rate to assume (Hz) when the video gives no usable times (overrides the container's).
         timestamps: a ``frame t_s`` file; default ``<video stem>.timestamps.txt`` when it exists.
+        grey: yield (H, W) uint8 grey frames instead of BGR. A file whose stream is already full-range
+            grey (e.g. the simulator's ``--grey`` FFV1, or MJPEG's luma) is read without any colour
+            conversion (``CAP_PROP_CONVERT_RGB`` off: the decoder's plane as it is, checked on the first
+            frame against ``cvtColor(BGR2GRAY)`` of the converted decode); other streams are decoded to
+            BGR and converted once per frame (``grey_mode`` says which: ``"native"`` or ``"converted"``).
 
     The file is opened and its first frame decoded on construction, so bad input fails before a run
     starts. When decoding stops before the announced frame count (timestamps lines, else the
@@ -191,11 +196,14 @@ class VideoSource(Source):
         expected_size: tuple[int, int] | None = None,
         fps: float | None = None,
         timestamps: str | Path | None = None,
+        grey: bool = False,
     ):
         self.path = str(path)
         self.camera = camera
         self.error = None
         self.frames_read = 0
+        self.grey = bool(grey)
+        self.grey_mode: str | None = None
         is_url = "://" in self.path
         if not is_url:
             p = Path(self.path)
@@ -234,8 +242,40 @@ class VideoSource(Source):
             raise SourceError(f"{self.path}: no frame could be decoded (corrupt or truncated video)")
         _size_check(img, expected_size, self.path)
         self.size = (int(img.shape[1]), int(img.shape[0]))
-        self._first = (img, self._cap.get(cv2.CAP_PROP_POS_MSEC))
+        pos0 = self._cap.get(cv2.CAP_PROP_POS_MSEC)
+        if self.grey:
+            img = self._grey_setup(img, probe=not is_url)
+        self._first = (img, pos0)
         self._fps_given = fps is not None
+
+    def _grey_setup(self, bgr: np.ndarray, probe: bool) -> np.ndarray:
+        """Choose how grey frames are made; returns the first frame as (H, W) uint8 grey."""
+        grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if bgr.ndim == 3 else bgr
+        if probe:
+            # a second capture opened without conversion (switching CONVERT_RGB on an open FFmpeg
+            # capture mid-stream garbles the frames that follow)
+            cap = open_capture(self.path)
+            try:
+                cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
+                ok, raw = cap.read()
+            except BaseException:
+                cap.release()
+                raise
+            if (
+                ok
+                and raw is not None
+                and raw.dtype == np.uint8
+                and raw.shape == grey.shape
+                # the decoder's own plane is the grey image (full range): not a limited-range luma
+                and int(cv2.absdiff(raw, grey).max()) <= 2
+            ):
+                self._cap.release()
+                self._cap = cap  # already past frame 0, like the one it replaces
+                self.grey_mode = "native"
+                return raw
+            cap.release()
+        self.grey_mode = "converted"
+        return grey
 
     def _time(self, k: int, pos_msec: float) -> tuple[int, float]:
         if self.timestamps is not None:
@@ -269,6 +309,8 @@ class VideoSource(Source):
             ok, img = self._cap.read()
             if not ok or img is None:
                 break
+            if img.ndim == 3 and self.grey:
+                img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
             pos = self._cap.get(cv2.CAP_PROP_POS_MSEC)
             k += 1
         n = self.frames_read

@@ -171,3 +171,27 @@ def test_fusion_section_mirrors_fusion_settings():
     assert s == fusion.FusionSettings(max_speed_mps=12.0, lost_after_s=0.8)  # the rest: fusion's defaults
     with pytest.raises(ConfigError, match=r"unknown key 'lost_after' in fusion; did you mean 'lost_after_s'"):
         load_config(None, ["fusion.lost_after=1"])
+
+
+def test_grouping_help_names_the_grouper_s_pixel_keys():
+    """The help text of tracker.grouping names ObstacleGrouper's own keywords (link_px, max_radius_px)."""
+    import inspect
+
+    from pipeline.config import describe_config
+    from trackers.grouping import ObstacleGrouper
+
+    text = describe_config()
+    params = inspect.signature(ObstacleGrouper.__init__).parameters
+    for key in ("link_px", "max_radius_px", "min_features", "confirm_frames", "max_missed"):
+        assert key in params and key in text
+    assert "link_rad" not in text and "max_radius_rad" not in text
+
+
+def test_inputs_grey_defaults_to_the_detector_s_needs():
+    from pipeline.config import load_config
+    from pipeline.run import wants_grey
+
+    assert wants_grey(load_config(None)) is True  # orb works on grey
+    assert wants_grey(load_config(None, cli={"detector.name": "navlights"})) is False  # needs colour
+    assert wants_grey(load_config(None, cli={"detector.name": "navlights", "inputs.grey": True})) is True
+    assert wants_grey(load_config(None, cli={"inputs.grey": False})) is False

@@ -238,7 +238,7 @@ def test_end_to_end_run_over_a_simulated_video(tmp_path):
         run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "ci_small.yaml"
     )
     sim = tmp_path / "sim"
-    sim_writer.simulate(scn, sim, frames=12)
+    sim_writer.simulate(scn, sim, frames=20)
     out = tmp_path / "run"
     rc = main(
         [
@@ -280,9 +280,24 @@ def test_end_to_end_run_over_a_simulated_video(tmp_path):
     for t in tracks:
         assert keys <= set(t)
         assert t["status"] in ("tentative", "confirmed", "lost")
+        b = np.asarray(t["bearing_body"])
+        assert np.linalg.norm(b) == pytest.approx(1.0, abs=1e-9)
+        assert t["azimuth_deg"] == pytest.approx(np.degrees(np.arctan2(b[1], b[0])), abs=1e-9)
+        assert t["elevation_deg"] == pytest.approx(np.degrees(np.arcsin(b[2])), abs=1e-6)
+        if t["range_m"] is not None:
+            assert t["range_m"] > 0 and t["range_sigma_m"] is not None and t["range_sigma_m"] > 0
+        if t["range_min_m"] is not None and t["range_max_m"] is not None:
+            assert t["range_min_m"] <= t["range_max_m"]
     s = json.loads((out / "summary.json").read_text())
-    assert s["frames"] == 12 and s["error"] is None and s["rig"] == {"kind": "mono", "cameras": ["cam0"]}
+    assert s["frames"] == 20 and s["error"] is None and s["rig"] == {"kind": "mono", "cameras": ["cam0"]}
     assert {"decode", "detect", "track", "estimate", "fuse", "write"} <= set(s["timings"])
+    assert 0 < s["loop_overhead_ms_per_frame"] < 1e3 * s["wall_s"] / s["frames"]
+    # the renderer's ray casting says what each reported bearing looks at: some confirmed tracks of
+    # this run are on the scenario's obstacles (not all on the ground or the sky)
+    from pipeline.evaluate import evaluate
+
+    rows = evaluate([(out, sim)]).rows
+    assert any(r.status == "confirmed" and r.hit in ("obstacle", "near") for r in rows)
     resolved = yaml.safe_load((out / "config.resolved.yaml").read_text())
     assert resolved["ego_motion"]["trajectory"] == str(sim / "trajectory.tum")
 

@@ -104,3 +104,51 @@ def test_velocity_arrow_points_where_the_obstacle_goes():
     row = out[cy - 1 : cy + 2].max(axis=0).max(axis=1)  # brightest channel along the centre row
     assert row[cx - 30 : cx - 10].min() > 0  # the arrow's shaft, left of the marker
     assert row[cx + 10 : cx + 60].max() == 0  # nothing to the right
+
+
+def test_report_dicts_equal_to_json_field_for_field():
+    """The writer's batched conversion gives exactly TrackReport.to_json() (the records' own code)."""
+    from pipeline.sinks import report_dicts
+
+    rng = np.random.default_rng(3)
+    reps = []
+    for i in range(20):
+        b = rng.normal(size=3)
+        reps.append(
+            TrackReport(
+                id=np.int64(i),
+                status=("tentative", "confirmed", "lost")[i % 3],
+                camera="cam0" if i % 2 else ["cam0", "cam1"],
+                bearing_body=b / np.linalg.norm(b),
+                range_m=None if i % 4 == 0 else np.float64(rng.uniform(1, 30)),
+                range_sigma_m=None if i % 4 == 0 else 0.3,
+                range_min_m=None if i % 5 == 0 else float(i),
+                range_max_m=None if i % 5 == 0 else 2.0 * i + 1,
+                position_body_m=None if i % 4 == 0 else rng.normal(size=3),
+                velocity_world_mps=None if i % 3 else rng.normal(size=3),
+                speed_mps=None if i % 3 else 1.5,
+                ttc_s=None if i % 2 else 3.0,
+                source="mono+bounds",
+                nis=None if i % 2 else 0.7,
+                innovation=None if i % 2 else np.array([0.1, -0.2]),
+                gated=i,
+                unobservable_reason=None if i % 4 else "no parallax yet",
+                attributes={} if i % 2 else {"heading": 1.0},
+            )
+        )
+    got = report_dicts(reps)
+    want = [r.to_json() for r in reps]
+    assert got == want
+    assert json.dumps(got) == json.dumps(want)  # same types too (int ids, float values)
+    assert report_dicts([want[0]]) == [want[0]]  # dicts pass through
+
+
+def test_writer_line_for_a_nan_report_is_to_json_s(tmp_path):
+    """A non-finite value sends the frame down the slow path: the line then equals to_json()'s."""
+    r = _report(1, 5.0)  # NaN range_min_m, inf range_max_m, NaN in attributes
+    w = TracksWriter(tmp_path / "tracks.jsonl")
+    w.write(0, 0.0, [r])
+    w.close()
+    rec = json.loads((tmp_path / "tracks.jsonl").read_text())
+    want = to_plain(r.to_json())
+    assert rec["tracks"] == [want] and want["range_min_m"] is None and want["range_max_m"] is None

@@ -154,3 +154,56 @@ def test_paced_source_releases_frames_at_their_times(tmp_path):
     for _ in paced:
         arrivals.append(paced.last_arrival_s)
     assert arrivals == pytest.approx([100.0, 100.25, 100.5, 101.0])  # real time / speed
+
+
+def _grey_video(path, n, fourcc="FFV1", ext_colour=False):
+    """An FFV1 single-channel video (the simulator's --grey) of a textured frame that changes per k."""
+    yy, xx = np.mgrid[0:H, 0:W]
+    w = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*fourcc), 30.0, (W, H), ext_colour)
+    assert w.isOpened()
+    frames = []
+    for k in range(n):
+        g = ((xx * 3 + yy * 5 + 17 * k) % 256).astype(np.uint8)
+        frames.append(g)
+        w.write(cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) if ext_colour else g)
+    w.release()
+    return frames
+
+
+def test_grey_video_is_read_natively_frame_exact(tmp_path):
+    p = tmp_path / "g.mkv"
+    frames = _grey_video(p, 6)
+    src = VideoSource(p, grey=True)
+    got = list(src)
+    assert src.grey_mode == "native"  # no colour conversion at all
+    assert len(got) == 6 and all(f.image.shape == (H, W) and f.image.dtype == np.uint8 for f in got)
+    for f, want in zip(got, frames, strict=True):
+        np.testing.assert_array_equal(f.image, want)  # FFV1 is lossless
+    # the same times as the BGR read
+    assert [f.t_s for f in got] == [f.t_s for f in VideoSource(p)]
+
+
+def test_colour_video_read_grey_is_cvtcolor_of_bgr(tmp_path):
+    p = tmp_path / "c.mkv"
+    yy, xx = np.mgrid[0:H, 0:W]
+    w = cv2.VideoWriter(str(p), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 30.0, (W, H))
+    bgr = [
+        np.dstack([(xx + 9 * k) % 256, (yy * 2) % 256, (xx + yy) % 256]).astype(np.uint8) for k in range(4)
+    ]
+    for im in bgr:
+        w.write(im)
+    w.release()
+    src = VideoSource(p, grey=True)
+    got = list(src)
+    assert src.grey_mode == "converted" and len(got) == 4
+    for f, im in zip(got, bgr, strict=True):
+        np.testing.assert_array_equal(f.image, cv2.cvtColor(im, cv2.COLOR_BGR2GRAY))
+
+
+def test_limited_range_luma_is_not_taken_as_grey(tmp_path):
+    """mp4v (yuv420p) hands out its luma plane unconverted: 16..235, not the grey image -> converted."""
+    p = tmp_path / "v.mp4"
+    _grey_video(p, 3, fourcc="mp4v", ext_colour=True)
+    src = VideoSource(p, grey=True)
+    got = list(src)
+    assert src.grey_mode == "converted" and len(got) == 3 and got[0].image.ndim == 2
