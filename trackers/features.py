@@ -168,9 +168,10 @@ class FeatureTracker:
         ys, xs = np.nonzero(self.mask)
         pad = max(int(win_px), 16) + 4  # room for the KLT window and ORB's edge threshold
         h0, w0 = self.shape_hw
+        # (origin on a multiple of 8 px so the crop's pyramid levels sample the frame's own grid)
         self.roi = (
-            max(0, int(xs.min()) - pad) if len(xs) else 0,
-            max(0, int(ys.min()) - pad) if len(ys) else 0,
+            max(0, (int(xs.min()) - pad) // 8 * 8) if len(xs) else 0,
+            max(0, (int(ys.min()) - pad) // 8 * 8) if len(ys) else 0,
             min(w0, int(xs.max()) + pad + 1) if len(xs) else w0,
             min(h0, int(ys.max()) + pad + 1) if len(ys) else h0,
         )
