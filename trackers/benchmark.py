@@ -154,8 +154,8 @@ def run_benchmark(
     on ``threads`` threads too is the work done (decode and front end booked apart).
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
-    stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
-    rim features.
+    stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
+    (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
     """
     from trackers.frontend import FrontEnd
 
@@ -176,6 +176,7 @@ def run_benchmark(
     covered: dict[int, int] = {}
     sticky: dict[int, int] = {}
     switches: dict[int, int] = {}
+    switch_log: list[dict] = []
     rim_feats, rim_old = 0, 0
     n_obs = 0
     for f in frames:
@@ -250,6 +251,8 @@ def run_benchmark(
             if not keep and ids:
                 if st is not None:
                     switches[oid] = switches.get(oid, 0) + 1
+                    why = "gone" if st not in alive_on else f"on obstacle {alive_on[st]}"
+                    switch_log.append({"frame": f, "obstacle": oid, "from": st, "to": min(ids), "why": why})
                 sticky[oid] = min(ids)
     nf = len(frames)
     fps_dt = (
@@ -291,6 +294,7 @@ def run_benchmark(
         "switches_per_obstacle_minute": sum(switches.values())
         / max(sum(covered.values()) * fps_dt / 60.0, 1e-9),
         "obstacles": per,
+        "switch_log": switch_log,
         "observations_per_frame": n_obs / nf,
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
