@@ -39,6 +39,7 @@ __all__ = [
     "TriangulationBatch",
     "triangulate_batch",
     "moving_obstacle_bounds",
+    "moving_obstacle_bounds_unchecked",
     "velocity_from_fixes",
     "planar_rays",
     "planar_triangulate",
@@ -447,20 +448,28 @@ def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> np.ndarr
 # --------------------------------------------------------------------------- moving obstacle bounds
 
 
-def _within(w: np.ndarray, u: np.ndarray, D: float, tol: float) -> tuple[float, float] | None:
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _within(w, u, D: float, tol: float) -> tuple[float, float] | None:
     """Solution set {r : |w + r u| <= D} as (lo, hi) (may be +-inf), or None if empty.
 
-    w, u: (3,) vectors. The quadratic A r^2 + 2 beta r + (|w|^2 - D^2) <= 0 with A = |u|^2,
+    w, u: 3-sequences of floats. The quadratic A r^2 + 2 beta r + (|w|^2 - D^2) <= 0 with A = |u|^2,
     beta = w.u has the reduced discriminant beta^2 - A(|w|^2 - D^2) = A D^2 - |w x u|^2 (Lagrange's
     identity), computed from the cross product so that tangent cases (D = the closest distance
     |w x u| / |u|) keep full precision; a closest distance within ``tol`` of D counts as touching.
+    Plain float math: numpy costs ~10x more on 3-vectors.
     """
-    A = float(u @ u)
-    ww = float(w @ w)
+    A = _dot(u, u)
+    ww = _dot(w, w)
     if A <= 1e-30:  # u = 0: constant distance |w|
         return (-math.inf, math.inf) if math.sqrt(ww) <= D + tol else None
-    beta = float(w @ u)
-    miss = float(np.linalg.norm(np.cross(w, u))) / math.sqrt(A)  # closest distance of the line to 0
+    beta = _dot(w, u)
+    x0 = w[1] * u[2] - w[2] * u[1]  # w x u
+    x1 = w[2] * u[0] - w[0] * u[2]
+    x2 = w[0] * u[1] - w[1] * u[0]
+    miss = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / math.sqrt(A)  # closest distance of the line to 0
     if miss > D + tol:
         return None
     disc = max(A * (D * D - miss * miss), 0.0)
@@ -501,6 +510,7 @@ def moving_obstacle_bounds(
     half-line constraint remains); None (default) = the baseline |c_b - c_a|, i.e. the obstacle is
     at most as fast as the drone (the thesis's assumption, eq. 3.11-3.13). Returns RangeBounds, or
     Unobservable("inconsistent with max speed") when R is empty. Raises InputError on malformed input.
+    See ``moving_obstacle_bounds_unchecked`` for the same without the input checks (hot loops).
     """
     c_a = _vec3("c_a", c_a)
     c_b = _vec3("c_b", c_b)
@@ -510,14 +520,25 @@ def moving_obstacle_bounds(
     if max_displacement_m is None:  # the obstacle moves at most as fast as the drone: D = |c_b - c_a|
         max_displacement_m = float(np.linalg.norm(c_b - c_a))
     D = _scalar("max_displacement_m", max_displacement_m, min_value=0.0, allow_inf=True)
+    return moving_obstacle_bounds_unchecked(
+        c_a.tolist(), b_a.tolist(), c_b.tolist(), b_b.tolist(), D, o.tolist()
+    )
 
+
+def moving_obstacle_bounds_unchecked(c_a, b_a, c_b, b_b, D: float, origin) -> RangeBounds | Unobservable:
+    """``moving_obstacle_bounds`` without input checks, in plain float math (~10x faster).
+
+    c_a, b_a, c_b, b_b, origin: 3-sequences of finite floats (tuples, lists or (3,) arrays) in one
+    frame, metres; b_a, b_b unit directions (not normalised here); D >= 0 metres (may be +inf).
+    The caller guarantees all that (e.g. the fusion filter's own world-frame rays).
+    """
     if math.isinf(D):
         lo, hi = 0.0, math.inf
     else:
-        w0 = c_b - c_a
-        k = float(b_a @ b_b)
-        s0 = float(b_a @ w0)
-        tol = 1e-9 * max(1.0, float(np.linalg.norm(c_a)), float(np.linalg.norm(c_b)))
+        w0 = (c_b[0] - c_a[0], c_b[1] - c_a[1], c_b[2] - c_a[2])
+        k = _dot(b_a, b_b)
+        s0 = _dot(b_a, w0)
+        tol = 1e-9 * max(1.0, math.sqrt(_dot(c_a, c_a)), math.sqrt(_dot(c_b, c_b)))
         # region where the foot on line a has s(r) = s0 + k r >= 0
         if abs(k) <= 1e-15:
             reg_line = (-math.inf, math.inf) if s0 >= 0 else None
@@ -527,7 +548,9 @@ def moving_obstacle_bounds(
             reg_line = (-math.inf, -s0 / k)
         # distance to the line a: |w_perp + r b_perp| <= D, the components orthogonal to b_a of
         # w(r) = w0 + r b_b (w_perp = w0 - s0 b_a, b_perp = b_b - k b_a)
-        sol_line = _within(w0 - s0 * b_a, b_b - k * b_a, D, tol)
+        w_perp = (w0[0] - s0 * b_a[0], w0[1] - s0 * b_a[1], w0[2] - s0 * b_a[2])
+        b_perp = (b_b[0] - k * b_a[0], b_b[1] - k * b_a[1], b_b[2] - k * b_a[2])
+        sol_line = _within(w_perp, b_perp, D, tol)
         # distance to the centre c_a: |w0 + r b_b| <= D
         sol_pt = _within(w0, b_b, D, tol)
         pieces = []
@@ -547,10 +570,14 @@ def moving_obstacle_bounds(
         hi = max(p[1] for p in pieces)
 
     # range from the origin along ray b: |c_b + r b_b - o| is convex in r
-    def rng(r: float) -> float:
-        return float(np.linalg.norm(c_b + r * b_b - o))
+    e = (c_b[0] - origin[0], c_b[1] - origin[1], c_b[2] - origin[2])
+    be = _dot(b_b, e)
+    ee = _dot(e, e)
 
-    r_star = min(max(float(b_b @ (o - c_b)), lo), hi)
+    def rng(r: float) -> float:
+        return math.sqrt(max(ee + 2.0 * r * be + r * r, 0.0))  # |e + r b|, |b| = 1
+
+    r_star = min(max(-be, lo), hi)
     range_min = rng(r_star)
     if math.isinf(hi):
         range_max = None

@@ -344,3 +344,29 @@ def test_planar_malformed_input_raises():
     with pytest.raises(InputError):
         g.planar_moving_obstacle_bounds(1.0, float("nan"), 1.0, 0.5)
     assert isinstance(g.planar_moving_obstacle_bounds(0.0, 1.0, 1.0, 0.5), g.Unobservable)
+
+
+def test_moving_obstacle_bounds_unchecked_matches_checked_and_takes_tuples():
+    # hand case: rays from (0,0,0) along (0.6, 0.8, 0) and from (1,0,0) along (0,1,0), D = 0.5.
+    # Ray b: (1, r, 0); its distance to line a is |0.8 - 0.6 r| (2-D cross product); <= 0.5 for
+    # r in [0.5, 2.1667]; the foot on a is s = 0.6 + 0.8 r >= 0 there. Ranges from c_b: r itself.
+    res = g.moving_obstacle_bounds_unchecked(
+        (0.0, 0.0, 0.0), (0.6, 0.8, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), 0.5, (1.0, 0.0, 0.0)
+    )
+    assert res.depth_min_m == pytest.approx(0.5)
+    assert res.depth_max_m == pytest.approx(1.3 / 0.6)
+    assert res.range_min_m == pytest.approx(0.5)
+    assert res.range_max_m == pytest.approx(1.3 / 0.6)
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        c_a, c_b, o = rng.normal(size=(3, 3))
+        b_a, b_b = (x / np.linalg.norm(x) for x in rng.normal(size=(2, 3)))
+        D = float(rng.uniform(0.0, 3.0))
+        a = g.moving_obstacle_bounds(c_a, b_a, c_b, b_b, D, origin=o)
+        b = g.moving_obstacle_bounds_unchecked(
+            tuple(c_a), tuple(b_a), tuple(c_b), tuple(b_b), D, tuple(o)
+        )
+        assert type(a) is type(b)
+        if isinstance(a, g.RangeBounds):
+            assert b.range_min_m == pytest.approx(a.range_min_m, rel=1e-9, abs=1e-9)
+            assert (a.range_max_m is None) == (b.range_max_m is None)
