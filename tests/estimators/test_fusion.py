@@ -168,6 +168,54 @@ def test_stereo_hover_stationary_point_first_frame_range():
     assert r.source == "stereo"
 
 
+def _wall_stereo_run(shared_ids: bool, frames: int = 10):
+    """A hovering 0.30 m stereo pair looks at eight corners on a wall at x = 5 m; each camera's
+    representative point lies on a different part of the wall (the ghost of centroid stereo)."""
+    rng = np.random.default_rng(11)
+    rig = stereo_forward_rig(MODEL, 0.30)
+    ego = ConstantVelocity(0.0)
+    feats_W = np.array([[5.0, y, z] for y in (0.6, 1.0, 1.4, 1.8) for z in (-0.3, 0.3)])
+    rep_W = {"cam0": np.array([5.0, 1.2, 0.1]), "cam1": np.array([5.0, 0.8, -0.1])}
+    fus = ObstacleFusion(rig, ego, FusionSettings())
+    sigma = 5e-4
+    for k in range(frames):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        views = []
+        for c in rig:
+            ids = np.arange(8) if shared_ids or c.name == "cam0" else np.arange(100, 108)
+            fb = np.array([_bearing(c, T_W_B, f, sigma, rng) for f in feats_W])
+            views.append(CameraView(c.name, _bearing(c, T_W_B, rep_W[c.name], sigma, rng), [0, 0], sigma,
+                                    feature_ids=ids, feature_b_C=fb))
+        (r,) = fus.step([ObstacleObservation(3, k, t, "confirmed", tuple(views))], k, t)
+    return r
+
+
+def test_stereo_from_physical_point_feature_ids_has_no_ghost():
+    # truth: the wall point on cam0's representative ray, (5, 1.2, 0.1), from the body origin
+    true_r = math.sqrt(25.0 + 1.44 + 0.01)
+    r = _wall_stereo_run(shared_ids=True)
+    assert "stereo" in r.source
+    assert abs(r.range_m - true_r) / true_r < 0.02
+    assert abs(r.range_m - true_r) <= 3 * r.range_sigma_m
+    # the same scene without shared ids: only the two representative rays, which cross at the
+    # wrong depth (or not at all): no range within 10 %
+    r_ghost = _wall_stereo_run(shared_ids=False)
+    assert r_ghost.range_m is None or abs(r_ghost.range_m - true_r) / true_r > 0.10
+
+
+def test_group_median_matches_numpy_median():
+    from estimators.fusion import _group_median
+
+    rng = np.random.default_rng(5)
+    g = rng.integers(0, 6, size=50)
+    v = rng.normal(size=50)
+    med = _group_median(g, v, 7)
+    for k in range(7):
+        expect = float(np.median(v[g == k])) if np.any(g == k) else 0.0
+        assert med[k] == pytest.approx(expect)
+
+
 # ----------------------------------------------------------------------------- bounds
 def test_bounds_contain_truth_for_random_moving_obstacles():
     rng = np.random.default_rng(42)
