@@ -15,7 +15,9 @@ Imports from ``estimators`` only, never from ``pipeline``.
 - ``trackers.association``: the spherical epipolar constraint, descriptor matching under it and
   stereo KLT between cameras.
 - ``trackers.frontend``: ``FrontEnd(rig, detector="orb", **options).process(images, frame, t_s)``
-  -> ``list[estimators.records.ObstacleObservation]``, with ``timings`` per stage.
+  -> ``list[estimators.records.ObstacleObservation]``, with ``timings`` per stage. Feature ids in
+  the CameraViews are physical-point ids: a feature matched across cameras carries the reference
+  camera's id in every view.
 - ``trackers.benchmark``: ``python -m trackers.benchmark SCENE_DIR`` measures frame rate, coverage
   of the simulator's obstacles and id switches.
 """

@@ -4,6 +4,8 @@ Per camera: a keypoint detector + KLT FeatureTracker + ObstacleGrouper (``orb``,
 with keypoints), and/or a BoxTracker for detectors that report boxes (``navlights``, ``torch``).
 Several cameras: tracks are linked across cameras by epipolar-constrained descriptor matching
 (trackers/association.py) so one obstacle seen by two cameras is one track with two CameraViews.
+Feature ids are physical-point ids: a feature of another camera matched (epipolar + descriptor) to a
+reference-camera (the rig's first) feature is reported under that feature's id (``link_features``).
 """
 
 from __future__ import annotations
@@ -159,6 +161,11 @@ class FrontEnd:
                     raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
+        # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
+        # feature id -> the id it is reported under (the reference camera's matched feature, or a
+        # fresh id once its link would have changed), and which of its features holds each ref id
+        self._pid: dict[str, dict[int, int]] = {c.name: {} for c in rig.cameras[1:]}
+        self._claim: dict[str, dict[int, int]] = {c.name: {} for c in rig.cameras[1:]}
         self._reported: set[int] = set()  # global ids reported at least once
         self._R_W_B: deque[np.ndarray] = deque(maxlen=8)
         self._n = 0
@@ -344,16 +351,19 @@ class FrontEnd:
             members[n] = (ft.uv[rows_a].astype(float), ft.b_C[rows_a], np.asarray(owner, np.int64))
             des, got = ft.describe(greys[n], rows_a)
             own = dict(zip(rows, owner, strict=True))
-            data[n] = (ft.b_C[got], des, np.array([own[int(g)] for g in got], np.int64))
+            data[n] = (ft.b_C[got], des, np.array([own[int(g)] for g in got], np.int64), ft.ids[got])
         absorbed: list[int] = []
         for a, b in itertools.combinations([n for n in names if n in data], 2):
             T_a, T_b = self.cams[a].T_C_B, self.cams[b].T_C_B
             T_b_a = T_b @ T_a.inverse()  # T_Cb_Ca = T_Cb_B T_B_Ca
-            ba, da, oa = data[a]
-            bb, db, ob = data[b]
+            ba, da, oa, fa = data[a]
+            bb, db, ob, fb = data[b]
             pairs: dict[tuple[int, int], int] = {}
             # votes 1: ORB descriptors of members matched under the epipolar constraint
-            for i, j in match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming):
+            m = match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming)
+            if a == self.rig.cameras[0].name and len(m):
+                self.link_features(b, fa[m[:, 0]], fb[m[:, 1]])
+            for i, j in m:
                 key = (int(oa[i]), int(ob[j]))
                 pairs[key] = pairs.get(key, 0) + 1
             # votes 2: a's members found in b's image by KLT from their infinite-depth projection;
@@ -397,6 +407,40 @@ class FrontEnd:
                 if drop in self._reported:
                     absorbed.append(drop)
         return absorbed
+
+    def link_features(self, camera: str, ref_ids: np.ndarray, ids: np.ndarray) -> None:
+        """Record verified matches of ``camera``'s features to the reference camera's (rig's first).
+
+        A matched feature of ``camera`` is then reported under the reference feature's id (one
+        physical point, one id in every view). Links are kept stable: a reference feature is held by
+        at most one live feature of ``camera``; a feature whose match would now be another reference
+        feature gets a fresh id for good instead (never re-using an id for another point).
+
+        Args:
+            camera: a non-reference camera's name.
+            ref_ids: (K,) int reference-camera feature ids; ids: (K,) int ``camera``'s feature ids,
+                row-paired, each pair verified by the epipolar constraint and the ORB descriptor.
+        """
+        pid, claim = self._pid[camera], self._claim[camera]
+        ft = self.trackers[camera]
+        if len(pid) > 4 * ft.max_features:  # forget features no longer tracked in that camera
+            keep = set(ft.ids.tolist()) | set(ft.lost_ids.tolist())
+            for f in [f for f in pid if f not in keep]:
+                r = pid.pop(f)
+                if claim.get(r) == f:
+                    del claim[r]
+        for r, f in zip(np.asarray(ref_ids).tolist(), np.asarray(ids).tolist(), strict=True):
+            cur = pid.get(f)
+            if cur == r:
+                continue
+            if cur is None:
+                if r in claim:  # another feature of this camera holds that point
+                    continue
+                pid[f] = r
+                claim[r] = f
+            elif claim.get(cur) == f:  # the link would change partner: a fresh id instead
+                del claim[cur]
+                pid[f] = next(self._feature_ids)
 
     def _survivor(self, ga: int, gb: int) -> tuple[int, int]:
         """(kept, dropped) of two global ids being merged (see _associate)."""
@@ -516,6 +560,14 @@ class FrontEnd:
                 done.add(tr.camera)
                 fb = tr.member_b_C if len(tr.member_b_C) == len(tr.members) else np.zeros((0, 3))
                 fi = tr.members if len(fb) == len(tr.members) else np.zeros(0, np.int64)
+                pid = self._pid.get(tr.camera)
+                if (
+                    pid
+                    and len(fi)
+                    and tr.camera in self.groupers
+                    and self.groupers[tr.camera].tracks.get(tr.id) is tr
+                ):
+                    fi = np.fromiter((pid.get(i, i) for i in fi.tolist()), np.int64, len(fi))
                 f = self.scale[tr.camera]
                 views.append(
                     CameraView(

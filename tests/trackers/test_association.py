@@ -117,3 +117,93 @@ def test_stereo_obstacle_is_one_track_with_two_views(stereo_scene):
             hits.append(best[1] if np.isfinite(best[0]) else None)
         agree += hits[0] == hits[1]
     assert agree >= 0.8 * len(two)
+
+
+def test_link_features_gives_the_reference_id_and_a_fresh_one_when_the_partner_would_change(stereo):
+    """The physical-point id rule's bookkeeping: a cam1 feature matched to a cam0 feature is
+    reported under the cam0 id; a cam0 feature is held by one cam1 feature at a time; a cam1 feature
+    whose match would move to another cam0 feature gets a new id never used before."""
+    from trackers.frontend import FrontEnd
+
+    rig = stereo[0]
+    fe = FrontEnd(rig)
+    pid = fe._pid["cam1"]
+    fe.link_features("cam1", np.array([10, 11]), np.array([100, 101]))
+    assert pid == {100: 10, 101: 11}
+    fe.link_features("cam1", np.array([10]), np.array([102]))  # cam0's 10 is held by 100
+    assert 102 not in pid
+    fe.link_features("cam1", np.array([10]), np.array([100]))  # the same link again: unchanged
+    assert pid[100] == 10
+    fe.link_features("cam1", np.array([12]), np.array([101]))  # 101 would change partner
+    fresh = pid[101]
+    assert fresh not in (10, 11, 12, 100, 101, 102)
+    fe.link_features("cam1", np.array([11]), np.array([102]))  # 11 is free again, 102 takes it
+    assert pid[102] == 11
+    fe.link_features("cam1", np.array([13]), np.array([101]))  # once fresh, 101 stays fresh
+    assert pid[101] == fresh
+
+
+def test_stereo_feature_ids_name_one_physical_point_in_both_views(stereo_scene):
+    """Feature ids shared by the cam0 and cam1 views of a track are one physical point: the
+    renderer's ray cast (pipeline.sim.raycast) along the cam0 ray and along the cam1 ray of each
+    shared id hits the same object at nearly the same place."""
+    from estimators.se3 import Pose, quat_to_rot
+    from pipeline.sim import World, load_scenario, raycast
+    from trackers.benchmark import open_scene
+    from trackers.frontend import FrontEnd
+
+    rig, caps, stamps, gt, specs = open_scene(stereo_scene)
+    world = World(load_scenario(stereo_scene / "scene.yaml"))
+    fe = FrontEnd(rig)
+    # tolerance: 3 pixels of angle (a surface point moves by about angle x range, more on grazing
+    # surfaces such as the ground, hence the median)
+    tol = 3.0 * rig["cam0"].model.max_angle_rad / rig["cam0"].model.image_circle()[2]
+    gaps, same_obj, shared_total = [], 0, 0
+    for f in sorted(stamps["cam0"]):
+        obs = fe.process({n: caps[n].read()[1] for n in ("cam0", "cam1")}, f, stamps["cam0"][f])
+        if f not in gt:
+            continue
+        v = gt[f]["T_W_B"]
+        T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
+        for o in obs:
+            views = {w.camera: w for w in o.views}
+            if len(views) < 2:
+                continue
+            ids0 = {int(i): k for k, i in enumerate(views["cam0"].feature_ids)}
+            ids1 = {int(i): k for k, i in enumerate(views["cam1"].feature_ids)}
+            assert len(ids1) == len(views["cam1"].feature_ids)  # no id twice in one view
+            shared = sorted(set(ids0) & set(ids1))
+            hits = []
+            for cam, ids in (("cam0", ids0), ("cam1", ids1)):
+                c = rig[cam]
+                b_W = T_W_B.rotate((c.T_C_B.R.T @ views[cam].feature_b_C[[ids[i] for i in shared]].T).T)
+                o_W = np.repeat(T_W_B.apply(c.centre_B)[None], len(shared), 0)
+                depth, obj = raycast(world, stamps["cam0"][f], o_W, b_W)
+                hits.append((o_W + depth[:, None] * b_W, obj, depth))
+            for k in range(len(shared)):
+                if not (np.isfinite(hits[0][2][k]) and np.isfinite(hits[1][2][k])):
+                    continue
+                shared_total += 1
+                same_obj += hits[0][1][k] == hits[1][1][k]
+                # distance between the two rays' surface points, relative to the range
+                gaps.append(np.linalg.norm(hits[0][0][k] - hits[1][0][k]) / hits[0][2][k])
+    assert shared_total >= 20, f"only {shared_total} shared feature ids with a surface behind them"
+    assert same_obj >= 0.9 * shared_total
+    assert np.median(gaps) < tol
+    # the links themselves (cam1 features tracked by cam1, reported under a cam0 id), last frame
+    ft0, ft1 = fe.trackers["cam0"], fe.trackers["cam1"]
+    row0 = {int(i): k for k, i in enumerate(ft0.ids)}
+    row1 = {int(i): k for k, i in enumerate(ft1.ids)}
+    links = [(row0[r], row1[f1]) for f1, r in fe._pid["cam1"].items() if r in row0 and f1 in row1]
+    assert len(links) >= 10, f"only {len(links)} live cam1 features linked to cam0 ones"
+    pts = []
+    for cam, ft, rows in (("cam0", ft0, [a for a, _ in links]), ("cam1", ft1, [b for _, b in links])):
+        c = rig[cam]
+        b_W = T_W_B.rotate((c.T_C_B.R.T @ ft.b_C[rows].T).T)
+        o_W = np.repeat(T_W_B.apply(c.centre_B)[None], len(rows), 0)
+        depth, obj = raycast(world, stamps["cam0"][f], o_W, b_W)
+        pts.append((o_W + np.where(np.isfinite(depth), depth, 0.0)[:, None] * b_W, obj, depth))
+    ok = np.isfinite(pts[0][2]) & np.isfinite(pts[1][2])
+    assert ok.sum() >= 10
+    assert np.mean(pts[0][1][ok] == pts[1][1][ok]) >= 0.9
+    assert np.median(np.linalg.norm(pts[0][0][ok] - pts[1][0][ok], axis=1) / pts[0][2][ok]) < tol
