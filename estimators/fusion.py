@@ -488,6 +488,7 @@ class ObstacleFusion:
                 tr = self._tracks[obs.track_id] = _Track(obs.track_id, obs.label)
             tr.label, tr.attributes = obs.label, dict(obs.attributes)
             work.append((tr, self._sighting(obs, frame, t_s, T_W_B, cams), obs.status))
+        self._bounds_batch(work)
         self._features_batch(work, t_s)
         self.timings["estimate"] += time.perf_counter() - t0
         for tr, sighting, status in work:
@@ -563,10 +564,6 @@ class ObstacleFusion:
     def _process(self, tr: _Track, sg: _Sighting, status: str, fc: _FrameContext) -> TrackReport:
         s = self.settings
         t0 = time.perf_counter()
-        # drop sightings older than the baseline window
-        while tr.history and sg.t_s - tr.history[0].t_s > s.baseline_max_age_s + 1e-9:
-            tr.history.popleft()
-        self._update_bounds(tr, sg)
         stereo = None
         if tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
             stereo = self._stereo_from_features(tr, sg)
@@ -700,21 +697,49 @@ class ObstacleFusion:
             )
         return best, tri
 
-    def _update_bounds(self, tr: _Track, sg: _Sighting) -> None:
-        """Moving-obstacle bounds of the current sighting against the oldest one in the window."""
-        tr.bounds, tr.bounds_reason = None, None
-        if not tr.history:
-            tr.bounds_reason = "no earlier sighting yet"
+    def _bounds_batch(self, work: list[tuple[_Track, _Sighting, str]]) -> None:
+        """Moving-obstacle bounds of every track of this frame at once (see the module docstring): the
+        current sighting against the oldest one in the baseline window, whose older sightings are
+        dropped here. The 3-4 ray pairs of each track are evaluated in one
+        ``geometry.moving_obstacle_bounds_batch`` call and united per track."""
+        s = self.settings
+        rows: list[tuple] = []
+        owner: list[int] = []
+        for i, (tr, sg, _st) in enumerate(work):
+            while tr.history and sg.t_s - tr.history[0].t_s > s.baseline_max_age_s + 1e-9:
+                tr.history.popleft()
+            tr.bounds, tr.bounds_reason = None, None
+            if not tr.history:
+                tr.bounds_reason = "no earlier sighting yet"
+                continue
+            h = tr.history[0]
+            va, vb = h.views[0], sg.views[0]
+            D = self._max_speed(h.t_s, sg.t_s) * (sg.t_s - h.t_s)  # eq. 3.11-3.13: FC = GC = v dt
+            delta = s.bounds_noise_sigmas * math.hypot(va.sigma_rad, vb.sigma_rad)
+            for r in _noisy_bound_rays(va.c_W, va.b_W, vb.c_W, vb.b_W, delta):
+                rows.append(r + (D, tuple(sg.o_W.tolist())))
+                owner.append(i)
+        if not rows:
             return
-        h = tr.history[0]
-        va, vb = h.views[0], sg.views[0]
-        D = self._max_speed(h.t_s, sg.t_s) * (sg.t_s - h.t_s)  # eq. 3.11-3.13: FC = GC = v dt
-        delta = self.settings.bounds_noise_sigmas * math.hypot(va.sigma_rad, vb.sigma_rad)
-        r = _noisy_bounds(va.c_W, va.b_W, vb.c_W, vb.b_W, D, sg.o_W, delta)
-        if isinstance(r, geometry.RangeBounds):
-            tr.bounds = r
-        else:
-            tr.bounds_reason = f"bounds unobservable: {r.reason}"
+        c_a, b_a, c_b, b_b, D, o = (np.array(x) for x in zip(*rows, strict=True))
+        r_min, r_max, d_min, _d_max, ok = geometry.moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, o)
+        own = np.asarray(owner)
+        G = len(work)
+        lo = np.full(G, np.inf)
+        hi = np.full(G, -np.inf)
+        dlo = np.full(G, np.inf)
+        np.minimum.at(lo, own[ok], r_min[ok])
+        np.maximum.at(hi, own[ok], r_max[ok])
+        np.minimum.at(dlo, own[ok], d_min[ok])
+        any_ok = np.zeros(G, dtype=bool)
+        any_ok[own[ok]] = True
+        for i in sorted(set(owner)):
+            tr = work[i][0]
+            if any_ok[i]:
+                tr.bounds = geometry.RangeBounds(
+                    float(lo[i]), None if math.isinf(hi[i]) else float(hi[i]), float(dlo[i]), None)
+            else:
+                tr.bounds_reason = "bounds unobservable: inconsistent with max speed"
 
     def _features_batch(self, work: list[tuple[_Track, _Sighting, str]], t_s: float) -> None:
         """Member-feature ranges of all of this frame's tracks at once (static points and stereo).
@@ -1160,40 +1185,28 @@ def _rotate_about(b, n, ang: float) -> tuple[float, float, float]:
     return tuple(b[i] * ca + nxb[i] * sa + n[i] * k for i in range(3))
 
 
-def _noisy_bounds(c_a, b_a, c_b, b_b, D: float, origin, delta: float):
-    """``geometry.moving_obstacle_bounds`` widened for bearing noise (see the module docstring).
-
-    c_a, b_a, c_b, b_b, origin: (3,) arrays in W (m; unit bearings); D max displacement (m); delta
-    the noise margin (rad). Ray a is projected into the plane through c_b spanned by the baseline
-    and ray b (for points of that plane the distance to the projected ray is never larger: a
-    superset of the exact interval); ray b is turned about that plane's normal n by 0, +delta,
-    -delta, and onto ray a's direction when that is within delta (then noise could make the rays
-    parallel: no upper bound). The union of the intervals is returned. Plain float math on tuples
-    (numpy costs ~10x more on 3-vectors); the inputs are the filter's own finite rays.
-    """
-    c_a, b_a, c_b, b_b, origin = (tuple(x.tolist()) for x in (c_a, b_a, c_b, b_b, origin))
-    bounds = geometry.moving_obstacle_bounds_unchecked
+def _noisy_bound_rays(c_a, b_a, c_b, b_b, delta: float) -> list[tuple]:
+    """The ray pairs (c_a, b_a', c_b, b_b') (3-tuples) whose bounds ``_bounds_batch`` unites: ray a
+    projected into the epipolar plane of (baseline, ray b), ray b turned in it by 0, +-delta and
+    onto ray a when within delta (then noise could make the rays parallel: no upper bound); for
+    points of that plane the distance to the projected ray is never larger, so the united
+    intervals are a superset of the exact one (module docstring); just the two rays when there is no plane."""
+    c_a, b_a, c_b, b_b = (tuple(x.tolist()) for x in (c_a, b_a, c_b, b_b))
     n = _tcross((c_b[0] - c_a[0], c_b[1] - c_a[1], c_b[2] - c_a[2]), b_b)  # epipolar plane normal
     if math.sqrt(_tdot(n, n)) < 1e-9:
         n = _tcross(b_a, b_b)  # zero baseline: the plane of the two bearings
     nn = math.sqrt(_tdot(n, n))
     if delta <= 0 or nn < 1e-12:
-        return bounds(c_a, b_a, c_b, b_b, D, origin)
+        return [(c_a, b_a, c_b, b_b)]
     n = (n[0] / nn, n[1] / nn, n[2] / nn)
     an = _tdot(b_a, n)
     b_a_in = (b_a[0] - an * n[0], b_a[1] - an * n[1], b_a[2] - an * n[2])
     na = math.sqrt(_tdot(b_a_in, b_a_in))
     if na < 1e-9:  # ray a along the normal: nothing to project
-        return bounds(c_a, b_a, c_b, b_b, D, origin)
+        return [(c_a, b_a, c_b, b_b)]
     b_a_in = (b_a_in[0] / na, b_a_in[1] / na, b_a_in[2] / na)
     to_a = math.atan2(_tdot(n, _tcross(b_b, b_a_in)), _tdot(b_b, b_a_in))  # signed, about n
     dirs = [b_b, _rotate_about(b_b, n, delta), _rotate_about(b_b, n, -delta)]
     if abs(to_a) <= delta:
         dirs.append(b_a_in)  # exactly parallel (a rotation would leave a rounding-size angle)
-    results = [bounds(c_a, b_a_in, c_b, d, D, origin) for d in dirs]
-    ok = [r for r in results if isinstance(r, geometry.RangeBounds)]
-    if not ok:
-        return results[0]
-    lo = min(r.range_min_m for r in ok)
-    hi = None if any(r.range_max_m is None for r in ok) else max(r.range_max_m for r in ok)
-    return geometry.RangeBounds(lo, hi, min(r.depth_min_m for r in ok), None)
+    return [(c_a, b_a_in, c_b, d) for d in dirs]

@@ -370,3 +370,29 @@ def test_moving_obstacle_bounds_unchecked_matches_checked_and_takes_tuples():
         if isinstance(a, g.RangeBounds):
             assert b.range_min_m == pytest.approx(a.range_min_m, rel=1e-9, abs=1e-9)
             assert (a.range_max_m is None) == (b.range_max_m is None)
+
+
+def test_moving_obstacle_bounds_batch_matches_the_scalar_closed_form():
+    # random rays (also parallel, coincident-centre and infinite-D rows): each row equals the
+    # scalar function, whose closed form is checked by hand above
+    rng = np.random.default_rng(4)
+    n = 400
+    c_a, c_b, o = rng.normal(size=(3, n, 3))
+    b_a, b_b = (x / np.linalg.norm(x, axis=1, keepdims=True) for x in rng.normal(size=(2, n, 3)))
+    b_b[:20] = b_a[:20]  # parallel
+    c_b[20:30] = c_a[20:30]  # zero baseline
+    D = rng.uniform(0.0, 3.0, n)
+    D[30:40] = np.inf
+    D[40:50] = 0.0
+    r_min, r_max, d_min, d_max, valid = g.moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, o)
+    for i in range(n):
+        s = g.moving_obstacle_bounds_unchecked(c_a[i], b_a[i], c_b[i], b_b[i], float(D[i]), o[i])
+        assert valid[i] == isinstance(s, g.RangeBounds), i
+        if valid[i]:
+            assert r_min[i] == pytest.approx(s.range_min_m, rel=1e-9, abs=1e-9)
+            assert d_min[i] == pytest.approx(s.depth_min_m, rel=1e-9, abs=1e-9)
+            if s.range_max_m is None:
+                assert math.isinf(r_max[i]) and math.isinf(d_max[i])
+            else:
+                assert r_max[i] == pytest.approx(s.range_max_m, rel=1e-9, abs=1e-9)
+                assert d_max[i] == pytest.approx(s.depth_max_m, rel=1e-9, abs=1e-9)
