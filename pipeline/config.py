@@ -292,6 +292,12 @@ class InputsConfig(_Section):
         "set; a frame without a partner within it is dropped and counted.",
     )
     max_frames: int | None = Field(None, gt=0, description="int: stop after this many frame sets.")
+    prefetch: int = Field(
+        2,
+        ge=0,
+        description="int, frames: decode each video this many frames ahead in a background thread "
+        "(0 = decode in the run loop).",
+    )
     grey: bool | None = Field(
         None,
         description="bool: decode videos to (H, W) grey frames (a grey video is then read without any "

@@ -35,7 +35,7 @@ from pipeline.sinks import (
     make_plots,
     write_json,
 )
-from pipeline.sources import ImageFolderSource, Source, SyncedSource, VideoSource
+from pipeline.sources import ImageFolderSource, PrefetchSource, Source, SyncedSource, VideoSource
 
 __all__ = [
     "RunningStats",
@@ -215,7 +215,8 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
                     ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
                 )
             else:
-                sources.append(VideoSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey))
+                src: Source = VideoSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
+                sources.append(PrefetchSource(src, inp.prefetch) if inp.prefetch else src)
     except BaseException:
         for s in sources:
             s.close()

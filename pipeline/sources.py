@@ -17,6 +17,8 @@ and sets ``.error`` (the run keeps what was processed and reports the error afte
 from __future__ import annotations
 
 import os
+import queue
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
@@ -38,6 +40,7 @@ __all__ = [
     "VideoSource",
     "ImageFolderSource",
     "PacedSource",
+    "PrefetchSource",
     "SyncedSource",
     "open_capture",
     "read_timestamps",
@@ -456,6 +459,86 @@ class PacedSource(Source):
         self.error = self.inner.error
 
     def close(self) -> None:
+        self.inner.close()
+
+
+_END = object()
+
+
+class PrefetchSource(Source):
+    """Decodes another source's frames ahead in a background thread (at most ``depth`` waiting).
+
+    OpenCV releases the GIL while it decodes, so with a second core free the next frame is ready
+    when the run loop asks for it; memory stays bounded (``depth`` frames). Errors of the inner
+    source are raised in the consumer; ``error``, ``frame_count``, ``fps``, ``path``... are the
+    inner source's.
+
+    Args:
+        inner: the source to read ahead; depth: frames decoded ahead (>= 1).
+    """
+
+    def __init__(self, inner: Source, depth: int = 2):
+        if depth < 1:
+            raise SourceError(f"PrefetchSource: depth must be >= 1, got {depth!r}")
+        self.inner = inner
+        self.camera = inner.camera
+        self.depth = int(depth)
+        self.frames_read = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def __getattr__(self, name: str):  # frame_count, fps, path, size, grey_mode... of the inner source
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    @property
+    def error(self) -> str | None:  # type: ignore[override]
+        return self.inner.error
+
+    def __iter__(self) -> Iterator[Frame]:
+        q: queue.Queue = queue.Queue(maxsize=self.depth)
+        stop = self._stop
+
+        def put(item) -> bool:
+            while not stop.is_set():
+                try:
+                    q.put(item, timeout=0.05)
+                    return True
+                except queue.Full:
+                    continue
+            return False
+
+        def work() -> None:
+            try:
+                for f in self.inner:
+                    if not put(f):
+                        return
+                put(_END)
+            except BaseException as e:  # handed to the consumer, raised there
+                put(e)
+
+        self._thread = threading.Thread(target=work, name=f"decode-{self.camera}", daemon=True)
+        self._thread.start()
+        try:
+            while True:
+                item = q.get()
+                if item is _END:
+                    return
+                if isinstance(item, BaseException):
+                    raise item
+                self.frames_read += 1
+                yield item
+        finally:
+            self._halt()
+
+    def _halt(self) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+
+    def close(self) -> None:
+        self._halt()  # the decoder thread is out of the inner source before it is released
         self.inner.close()
 
 

@@ -48,11 +48,22 @@ def test_demo_on_a_tiny_scenario(tmp_path, capsys):
     assert len(lines) == 15  # 0.5 s at 30 frames/s
     rep = json.loads((out / "report.json").read_text())
     assert rep["frames"] == 15 and rep["scenario"] == "ci_small" and rep["pipeline_frames_per_s"] > 0
-    n_reports = sum(len(json.loads(x)["tracks"]) for x in lines)
-    assert 0 < rep["overall"]["reports"] <= n_reports  # the evaluator scored reports of this run
+    tracks = [t for x in lines for t in json.loads(x)["tracks"]]
+    c = rep["counts"]
+    # what is scored: confirmed tracks only (counted here straight from tracks.jsonl)
+    assert c["confirmed"] == sum(1 for t in tracks if t["status"] == "confirmed")
+    assert c["tentative"] == sum(1 for t in tracks if t["status"] == "tentative")
+    assert c["confirmed_on_obstacles"] + c["confirmed_on_ground"] + c["confirmed_on_sky"] <= c["confirmed"]
+    assert rep["confirmed"]["reports"] == c["confirmed_on_obstacles"]
+    assert rep["confirmed"]["reports"] == rep["stationary"]["reports"] + rep["moving"]["reports"]
+    assert set(rep["by_obstacle"]) == {"1", "2", "3"} and rep["by_obstacle"]["3"]["moving"] is True
     text = (out / "report.md").read_text()
-    assert "range error, median" in text and "bound coverage" in text and "frames/s" in text
-    assert "fisheye-des demo: ci_small" in capsys.readouterr().out
+    for words in ("range error, median", "within 5 %", "bound coverage", "speed error", "frames/s",
+                  "Scored: the reports of confirmed tracks", "run/annotated.mp4"):
+        assert words in text
+    printed = capsys.readouterr().out
+    assert "fisheye-des demo: ci_small" in printed and "Full evaluation table" not in printed
+    assert str(out / "report.md") in printed
 
 
 def test_demo_unknown_scenario_is_one_line_error(tmp_path, capsys):

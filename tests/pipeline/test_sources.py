@@ -11,8 +11,10 @@ from test_run_support import H, W, write_video
 
 from estimators.errors import SourceError
 from pipeline.sources import (
+    Frame,
     ImageFolderSource,
     PacedSource,
+    Source,
     SyncedSource,
     VideoSource,
     open_capture,
@@ -207,3 +209,51 @@ def test_limited_range_luma_is_not_taken_as_grey(tmp_path):
     src = VideoSource(p, grey=True)
     got = list(src)
     assert src.grey_mode == "converted" and len(got) == 3 and got[0].image.ndim == 2
+
+
+class _Counting(VideoSource):
+    """A VideoSource that counts the frames it has handed out (to the prefetch thread)."""
+
+    def __iter__(self):
+        self.handed = 0
+        for f in super().__iter__():
+            self.handed += 1
+            yield f
+
+
+def test_prefetch_yields_the_same_frames_and_reads_a_bounded_distance_ahead(tmp_path):
+    import time as _time
+
+    from pipeline.sources import PrefetchSource
+
+    p = write_video(tmp_path / "v.mkv", 12)
+    want = [(f.frame, f.t_s, int(f.image[0, 0, 0])) for f in VideoSource(p)]
+    inner = _Counting(p)
+    src = PrefetchSource(inner, depth=2)
+    assert src.frame_count == inner.frame_count and src.path == inner.path  # the inner source's
+    got = []
+    for f in src:
+        _time.sleep(0.02)  # a slow consumer: the decoder may run ahead, but only by depth (+1 in hand)
+        assert inner.handed <= len(got) + 1 + 2 + 1
+        got.append((f.frame, f.t_s, int(f.image[0, 0, 0])))
+    assert got == want and src.error is None and not src._thread.is_alive()
+
+
+def test_prefetch_raises_the_inner_error_in_the_consumer_and_close_stops_the_thread(tmp_path):
+    from pipeline.sources import PrefetchSource
+
+    class Broken(Source):
+        def __iter__(self):
+            yield Frame(0, 0.0, "cam0", np.zeros((2, 2), np.uint8))
+            raise SourceError("broken.mkv: bad packet")
+
+    it = iter(PrefetchSource(Broken()))
+    assert next(it).frame == 0
+    with pytest.raises(SourceError, match="bad packet"):
+        next(it)
+    p = write_video(tmp_path / "v.mkv", 30)
+    src = PrefetchSource(VideoSource(p), depth=1)
+    it = iter(src)
+    next(it)
+    src.close()  # mid-stream: the decoder thread ends before the capture is released
+    assert not src._thread.is_alive()
