@@ -54,12 +54,13 @@ def run_demo(
         seconds: shorten the flight (None = the scenario's duration).
         detector: detector name for the run (default: the config default, ``orb``).
 
-    What is scored (the figures of the report): the **confirmed** tracks' reports whose bearing
-    looks at an obstacle (the renderer's ray cast along the reported bearing hits it, or passes
-    within the evaluator's association tolerance); their truth is the range to that obstacle along
-    the bearing. Tentative tracks (not yet reported to a user as obstacles), lost tracks, and
-    confirmed tracks on the ground or the sky are counted, not scored (the ground's own range
-    errors are given separately).
+    What is scored (the figures of the report): the **confirmed** tracks' reports whose bearing hits
+    an obstacle (the renderer's ray cast along the reported bearing hits it first); their truth is
+    the depth of that hit. Counted, not scored: tentative tracks (not yet reported to a user as
+    obstacles), and confirmed reports whose bearing hits the ground or the sky, among them the
+    "near misses" the evaluator associates with an obstacle because the ray passes within its
+    tolerance of the obstacle's bounding sphere (mostly ground features around a tall obstacle: a
+    pole's bounding sphere is as wide as the pole is tall); their range error is given separately.
     """
     from estimators.errors import ConfigError
     from pipeline.config import load_config
@@ -118,12 +119,14 @@ def run_demo(
     m = ev.metrics
     rows = ev.rows  # every non-lost report inside the scenario's time span
     conf = [r for r in rows if r.status == "confirmed"]
-    on_obstacle = [r for r in conf if r.obstacle_id is not None and r.hit in ("obstacle", "near")]
+    on_obstacle = [r for r in conf if r.obstacle_id is not None and r.hit == "obstacle"]
+    near = [r for r in conf if r.obstacle_id is not None and r.hit == "near"]
     counts = {
         "reports": len(rows),
         "tentative": sum(1 for r in rows if r.status == "tentative"),
         "confirmed": len(conf),
         "confirmed_on_obstacles": len(on_obstacle),
+        "confirmed_near_miss": len(near),
         "confirmed_on_ground": sum(1 for r in conf if r.hit == "ground" and r.obstacle_id is None),
         "confirmed_on_sky": sum(1 for r in conf if r.hit == "sky" and r.obstacle_id is None),
     }
@@ -151,11 +154,12 @@ def run_demo(
             1e3 * summary["cpu_s_per_frame"] if summary.get("cpu_s_per_frame") is not None else None
         ),
         "wall": wall,
-        "scored": "confirmed tracks' reports whose bearing is on an obstacle (renderer ray cast)",
+        "scored": "confirmed tracks' reports whose bearing hits an obstacle (renderer ray cast)",
         "counts": counts,
-        "confirmed": range_metrics(conf),
-        "stationary": range_metrics([r for r in conf if r.moving is False]),
-        "moving": range_metrics([r for r in conf if r.moving is True]),
+        "confirmed": range_metrics(on_obstacle),
+        "stationary": range_metrics([r for r in on_obstacle if r.moving is False]),
+        "moving": range_metrics([r for r in on_obstacle if r.moving is True]),
+        "near_miss": range_metrics(near),
         "by_obstacle": obstacles,
         "ground": m.get("ground", {}),
         "all_reports": m.get("overall", {}),  # tentative ones too: the evaluator's own overall row
@@ -183,10 +187,13 @@ def _report_md(f: dict[str, Any], table: str, out: Path) -> str:
         f"{len(f['cameras'])} camera(s) ({', '.join(f['cameras'])}) at {width}x{height}, "
         f"{f['frames']} frames; {n_stat} stationary and {n_mov} moving obstacles.",
         "",
-        "Scored: the reports of confirmed tracks whose bearing is on an obstacle "
+        "Scored: the reports of confirmed tracks whose bearing hits an obstacle "
         f"({c['confirmed_on_obstacles']} of {c['confirmed']} confirmed reports; the renderer's ray along "
-        f"the reported bearing gives the true range). Not scored: {c['tentative']} tentative reports, "
-        f"{c['confirmed_on_ground']} confirmed on the ground, {c['confirmed_on_sky']} on the sky.",
+        f"the reported bearing gives the true range). Not scored: {c['tentative']} tentative reports; "
+        f"confirmed ones on the ground ({c['confirmed_on_ground']}) or the sky ({c['confirmed_on_sky']}); "
+        f"{c['confirmed_near_miss']} near misses (ray within 2 deg of an obstacle's bounding sphere but "
+        f"hitting what is behind it; median range error {_pct(f['near_miss'].get('rel_err_median'))} "
+        "against the obstacle).",
         "",
         "| | all | stationary | moving |",
         "| --- | --- | --- | --- |",
