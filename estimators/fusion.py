@@ -875,8 +875,9 @@ class ObstacleFusion:
     def _feature_stereo(self, work, ids, b_now, c_now, g, cam) -> None:
         """Stereo ranges of the features one track's first two views share (same id, same frame).
 
-        For each shared feature the two rays (camera a, camera b) are triangulated
-        (``geometry.triangulate_batch``, range from the body origin, first-order sigma); rays whose
+        For each shared feature the two rays (camera a, camera b) are triangulated (midpoint of
+        the common perpendicular, range from the body origin, sigma sqrt(2) sigma_f d / sin
+        parallax); rays behind a camera, rays whose
         range sigma exceeds stereo_max_rel_sigma of the range or that miss each other by more than
         4 sqrt(2) sigma_f times their depth are dropped. Per track (>= stereo_feature_min_count):
             z = median range of the half nearest the representative ray,
@@ -910,15 +911,30 @@ class ObstacleFusion:
             return
         ia, ib, gg = np.concatenate(ia_l), np.concatenate(ib_l), np.concatenate(gg_l)
         o = work[0][1].o_W
-        tri = geometry.triangulate_batch(c_now[ia], b_now[ia], c_now[ib], b_now[ib], origin=o,
-                                         bearing_sigma_rad=s.feature_sigma_rad)
-        depth = np.maximum(tri.depth_a_m, tri.depth_b_m)
-        ok = (tri.valid & (tri.range_sigma_m <= s.stereo_max_rel_sigma * tri.range_m)
-              & (tri.miss_m <= 4.0 * math.sqrt(2.0) * s.feature_sigma_rad * depth))
+        c_a, b_a, c_b, b_b = c_now[ia], b_now[ia], c_now[ib], b_now[ib]
+        # midpoint of the common perpendicular: depths s, t of the closest points c_a + s b_a,
+        # c_b + t b_b solve [1 -k; k -1] [s t]^T = [b_a.w, b_b.w], w = c_b - c_a, k = b_a.b_b
+        w = c_b - c_a
+        k = np.einsum("ij,ij->i", b_a, b_b)
+        den = 1.0 - k * k  # sin^2(parallax)
+        good = den > 1e-12
+        den = np.where(good, den, 1.0)
+        wa, wb = np.einsum("ij,ij->i", b_a, w), np.einsum("ij,ij->i", b_b, w)
+        dep_a = (wa - k * wb) / den
+        dep_b = (k * wa - wb) / den
+        q_a = c_a + dep_a[:, None] * b_a
+        q_b = c_b + dep_b[:, None] * b_b
+        r = np.linalg.norm(0.5 * (q_a + q_b) - o, axis=1)
+        miss = np.linalg.norm(q_a - q_b, axis=1)
+        depth = np.maximum(dep_a, dep_b)
+        # first-order range sigma of a two-ray fix: sqrt(2) sigma_f d / sin(parallax)
+        sr = math.sqrt(2.0) * s.feature_sigma_rad * depth / np.sqrt(den)
+        ok = (good & (dep_a > 0) & (dep_b > 0) & (sr <= s.stereo_max_rel_sigma * r)
+              & (miss <= 4.0 * math.sqrt(2.0) * s.feature_sigma_rad * depth))
         if not ok.any():
             return
         G = len(work)
-        gg, r, sr, b = gg[ok], tri.range_m[ok], tri.range_sigma_m[ok], b_now[ia][ok]
+        gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
         b_rep = np.stack([sg.views[0].b_W for _tr, sg, _st in work])
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
