@@ -411,6 +411,16 @@ def summarize(samples: list[Sample]) -> dict:
     z = [abs(s.range_m - s.range_true) <= s.range_sigma_m for s in samples
          if s.range_m is not None and s.range_sigma_m is not None and (not s.moving or s.stereo_fed)]
     m["one_sigma_share"] = float(np.mean(z)) if z else None
+    # the evaluator's range NEES (pipeline/evaluate.py): ((r - r_true) / range_sigma_m)^2 per report,
+    # its mean against the 95% interval of a mean of n chi-square(1) values (reports taken as
+    # independent, as there; consecutive reports are correlated, so the interval is optimistic)
+    e1 = [((s.range_m - s.range_true) / s.range_sigma_m) ** 2 for s in samples
+          if s.range_m is not None and s.range_sigma_m is not None and s.range_sigma_m > 0
+          and (not s.moving or s.stereo_fed)]
+    m["range_nees_n"] = len(e1)
+    m["range_nees_mean"] = float(np.mean(e1)) if e1 else None
+    m["range_nees_median"] = float(np.median(e1)) if e1 else None
+    m["range_nees_interval95"] = list(nees_interval(1, len(e1), 0.95)) if e1 else None
     m["n_samples"] = len(samples)
     return m
 
@@ -463,6 +473,12 @@ def format_table(m: dict, title: str = "") -> str:
     ivs = f"[{iv[0]:.2f}, {iv[1]:.2f}]" if iv else "n/a"
     lines.append(f"{'position NEES mean (3 dof), 95% interval ' + ivs:52s} {_fmt(nees):>10s} "
                  f"{'':>10s} {'in int.':>10s}  {verdict}")
+    iv1, n1 = m.get("range_nees_interval95"), m.get("range_nees_mean")
+    if iv1 is not None and n1 is not None:
+        v1 = "PASS" if iv1[0] <= n1 <= iv1[1] else "FAIL"
+        lines.append(f"{f'range NEES mean (1 dof, per report), [{iv1[0]:.2f}, {iv1[1]:.2f}]':52s} "
+                     f"{_fmt(n1):>10s} {'':>10s} {'in int.':>10s}  {v1}  (median "
+                     f"{_fmt(m.get('range_nees_median'))}; chi2(1) median 0.45)")
     lines.append(
         f"samples: {m.get('n_samples')}  mono {m.get('mono_n')} "
         f"(ranged {_fmt(m.get('mono_ranged_share'), True)})  stereo<=3m {m.get('stereo_3m_n')}  "

@@ -79,6 +79,10 @@ def test_summarize_one_sigma_share_and_nees():
     assert lo < 3.0 < hi
     table = format_table(m)
     assert "position NEES" in table and "PASS" in table
+    # range NEES (the evaluator's 1-D one): (0.05 / 0.1)^2 = 0.25 and (0.2 / 0.1)^2 = 4
+    assert m["range_nees_n"] == 2
+    assert m["range_nees_mean"] == pytest.approx((0.25 + 4.0) / 2)
+    assert "range NEES" in table
 
 
 def test_thesis_law_of_sines_hand_worked_triangle():
