@@ -145,6 +145,7 @@ def run_benchmark(
     max_frames: int | None = None,
     margin_px: float = 2.0,
     use_poses: bool = False,
+    trace: dict[int, dict[int, set[int]]] | None = None,
     **frontend_options: Any,
 ) -> dict[str, Any]:
     """Run the FrontEnd over a simulated scene and measure it (see the module docstring).
@@ -152,6 +153,8 @@ def run_benchmark(
     Wall-clock rates (``fps``) suffer from other processes on a shared machine; ``fps_cpu`` uses
     this process's CPU time (``time.process_time``), which with one OpenCV thread and the decoder
     on ``threads`` threads too is the work done (decode and front end booked apart).
+
+    ``trace``: if given, filled with {frame: {obstacle id: ids of the tracks on it}}.
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
@@ -216,11 +219,11 @@ def run_benchmark(
         shapes = shapes_for_frame(specs, line["obstacles"])
         # which obstacle is each reported track on?
         on: dict[int, set[int]] = {}
-        alive_on: dict[int, int | None] = {}  # every live track id -> its obstacle or None
+        alive_on: dict[int, set[int]] = {}  # every live track id -> the obstacles its views are on
         for o in obs:
             if o.status == "lost":
                 continue
-            alive_on.setdefault(o.track_id, None)
+            alive_on.setdefault(o.track_id, set())
             for v in o.views:
                 oW = T_W_B.apply(c_B[v.camera])
                 dW = T_W_B.rotate(R_B_C[v.camera] @ v.b_C)
@@ -232,7 +235,9 @@ def run_benchmark(
                         best, best_t = oid, hit
                 if best is not None:
                     on.setdefault(best, set()).add(o.track_id)
-                    alive_on[o.track_id] = best
+                    alive_on[o.track_id].add(best)
+        if trace is not None:
+            trace[f] = on
         for o in line["obstacles"]:
             oid = int(o["id"])
             if not any(o.get("visible", {}).values()):
@@ -247,11 +252,11 @@ def run_benchmark(
             # the obstacle's track id is sticky while that track lives and is not on another
             # obstacle (CLEAR-MOT style); changing it to another track is an id switch
             st = sticky.get(oid)
-            keep = st is not None and st in alive_on and alive_on[st] in (None, oid)
+            keep = st is not None and st in alive_on and (not alive_on[st] or oid in alive_on[st])
             if not keep and ids:
-                if st is not None:
+                if st is not None and min(ids) != st:
                     switches[oid] = switches.get(oid, 0) + 1
-                    why = "gone" if st not in alive_on else f"on obstacle {alive_on[st]}"
+                    why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
                     switch_log.append({"frame": f, "obstacle": oid, "from": st, "to": min(ids), "why": why})
                 sticky[oid] = min(ids)
     nf = len(frames)

@@ -14,6 +14,9 @@ Per frame:
    track.
 4. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
    than ``max_missed`` frames -> lost (reported once, then dropped).
+5. Hysteresis on splits: a confirmed track that lost its members this frame takes over a younger
+   track now covering its place (within ``link_rad``, flows agreeing), so the id follows the
+   obstacle when its features are replaced; the younger track is lost.
 
 The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
 in both frames (so members joining or leaving do not make it jump), pulled gently (gain
@@ -278,11 +281,52 @@ class ObstacleGrouper:
                     tr.status = "lost"
                     lost.append(tr)
                     del self.tracks[tr.id]
+        seen, lost = self._hand_on(seen, lost, cos_r)
         if seen:
             uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
             for t, u, v in zip(seen, uv, ok, strict=True):
                 if v:
                     t.uv = u
+        return seen, lost
+
+    def _hand_on(
+        self, seen: list[ObstacleTrack], lost: list[ObstacleTrack], cos_r: float
+    ) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
+        """Hysteresis on splits: a confirmed track that lost its members this frame takes over the
+        younger track (higher id) that now covers its place (representative bearings within
+        ``link_rad``, flows agreeing), so the id follows the obstacle; the younger one is lost.
+
+        Returns the updated (seen, lost)."""
+        just_lost = [
+            t for t in self.tracks.values() if not t.seen and t.missed == 1 and t.status == "confirmed"
+        ]
+        if not just_lost or not seen:
+            return seen, lost
+        for old in sorted(just_lost, key=lambda t: t.id):
+            best, best_cos = None, max(cos_r, float(np.cos(self.link_rad)))
+            for y in seen:
+                if y.id <= old.id or y.label != old.label:
+                    continue
+                cs = float(y.b_C @ old.b_C)
+                d = float(np.linalg.norm(y.flow_rad_s - old.flow_rad_s))
+                thr = self.flow_abs + self.flow_rel * max(
+                    float(np.linalg.norm(y.flow_rad_s)), float(np.linalg.norm(old.flow_rad_s))
+                )
+                if cs > best_cos and d < thr:
+                    best, best_cos = y, cs
+            if best is None:
+                continue
+            y = best
+            old.members, old.member_b_C, old.b_C = y.members, y.member_b_C, y.b_C
+            old.flow_rad_s, old.sigma_rad = y.flow_rad_s, y.sigma_rad
+            old.hits += 1
+            old.missed = 0
+            old.seen = True
+            y.status = "lost"
+            y.seen = False
+            del self.tracks[y.id]
+            seen = [old if t is y else t for t in seen]
+            lost.append(y)
         return seen, lost
 
     @staticmethod
