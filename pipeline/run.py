@@ -358,7 +358,9 @@ def run(
             last_t = fs.t_s
             frames += 1
             bar.update(1)
-            per_frame.add(perf() - t0)
+            t4 = perf()
+            per_frame.add(t4 - t0)
+            add("loop", (t4 - t0) - (t2 - t1))  # the loop's own: all but FrontEnd.process + fusion.step
             if max_frames and frames >= max_frames:
                 break
     except KeyboardInterrupt:
