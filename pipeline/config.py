@@ -200,13 +200,34 @@ class TrackerConfig(_Section):
     )
     association: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: cross-camera association: every (frames, default 3), epipolar_deg (deg, 1.0), "
+        description="dict: cross-camera association: every (frames, default 5), epipolar_deg (deg, 1.0), "
         "max_hamming (int, 64), min_votes (int, 3).",
+    )
+    max_width: int | None = Field(
+        None,
+        ge=64,
+        description="int, px: frames wider than this are tracked downscaled (camera model scaled alike, so "
+        "bearings are unchanged). Null: the front end's default (1280).",
+    )
+    densify_below: int | None = Field(
+        None,
+        ge=0,
+        description="int: tracks with fewer member features get extra features detected around them. "
+        "Null: the front end's default (8).",
+    )
+    densify_every: int | None = Field(
+        None,
+        ge=1,
+        description="int, frames: densify every n-th frame. Null: the front end's default (2).",
     )
 
     def frontend_options(self) -> dict[str, Any]:
-        """The non-empty groups as FrontEnd keyword arguments."""
-        return {k: dict(v) for k, v in self.model_dump().items() if v}
+        """The non-empty groups and the set scalars as FrontEnd keyword arguments."""
+        return {
+            k: (dict(v) if isinstance(v, dict) else v)
+            for k, v in self.model_dump().items()
+            if v is not None and v != {}
+        }
 
 
 def _attribute_docs(cls: type) -> dict[str, str]:

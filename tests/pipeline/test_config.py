@@ -195,3 +195,16 @@ def test_inputs_grey_defaults_to_the_detector_s_needs():
     assert wants_grey(load_config(None, cli={"detector.name": "navlights"})) is False  # needs colour
     assert wants_grey(load_config(None, cli={"detector.name": "navlights", "inputs.grey": True})) is True
     assert wants_grey(load_config(None, cli={"inputs.grey": False})) is False
+
+
+def test_front_end_scalar_options_reach_the_front_end():
+    from test_run_support import mono_rig
+
+    from pipeline.config import load_config
+    from pipeline.run import build_frontend
+
+    cfg = load_config(None, ["tracker.max_width=640", "tracker.densify_every=3"])
+    assert cfg.tracker.frontend_options() == {"max_width": 640, "densify_every": 3}
+    fe = build_frontend(cfg, mono_rig())
+    assert fe.densify_every == 3 and fe.densify_below == 8  # the front end's own default kept
+    assert load_config(None).tracker.frontend_options() == {}
