@@ -872,7 +872,7 @@ class BenchPlan:
     memory_resolution: tuple[int, int] = (640, 480)
     memory_frames: int = 10_000
     memory_checkpoints: tuple[int, ...] = (1_000, 2_000, 5_000, 10_000)
-    memory_timeout_s: float = 2400.0
+    memory_timeout_s: float = 4800.0
     detector_frames: int = 120
     base_obstacles: int = 8
 
