@@ -1093,7 +1093,8 @@ class BenchRun:
         if not runs:
             return "(no per-stage timings: the pipeline did not run)"
         cols = [f"{_res(r['resolution'])} {r['rig']}" for r in runs]
-        stages = [s for s in STAGES if any(s in r["pipeline"]["stages"] for r in runs)]
+        seen = {k for r in runs for k in r["pipeline"]["stages"]}
+        stages = [s for s in STAGES if s in seen] + sorted(seen - set(STAGES))  # + the run loop's extras
         head = ["stage (ms/frame)"] + [f"{c}: med / p99 / x decode" for c in cols]
         body = []
         for s in stages + ["total"]:
