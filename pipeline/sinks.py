@@ -217,16 +217,14 @@ class Annotator:
         self.egomotion = egomotion
         self.arrow_s = float(arrow_s)
 
-    def _point_C(self, cam: Any, p_B: np.ndarray) -> np.ndarray:
-        return cam.T_C_B.apply(np.asarray(p_B, dtype=float).reshape(1, 3)).reshape(3)
-
-    def _px(self, cam: Any, p_C: np.ndarray) -> tuple[int, int] | None:
-        if np.linalg.norm(p_C) <= 1e-9:
-            return None
-        uv, ok = cam.model.bearing_to_pixel(np.asarray(p_C, dtype=float).reshape(1, 3))
-        if not bool(ok[0]):
-            return None
-        return int(round(uv[0, 0])), int(round(uv[0, 1]))
+    @staticmethod
+    def _project(cam: Any, p_C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) points or directions in C -> (N, 2) int pixels, (N,) valid (zero vectors invalid)."""
+        n = np.linalg.norm(p_C, axis=1)
+        ok = n > 1e-9
+        safe = np.where(ok[:, None], p_C, np.array([0.0, 0.0, 1.0]))
+        uv, valid = cam.model.bearing_to_pixel(safe)
+        return np.rint(uv).astype(int), valid & ok
 
     def draw(
         self,
@@ -240,6 +238,9 @@ class Annotator:
         Args:
             images: camera name -> (H, W) grey or (H, W, 3) BGR uint8.
             tracks: ``TrackReport.to_json()`` dicts of this frame.
+
+        Every camera's markers are projected in one batch (``bearing_to_pixel`` of all tracks' body
+        positions, or bearings when unranged, in C: ``p_C = T_C_B p_B``); so are the arrow tips.
         """
         import cv2
 
@@ -261,52 +262,79 @@ class Annotator:
                 cv2.circle(
                     canvas, (int(round(cx)), int(round(cy))), int(round(r)), (255, 200, 0), scale, cv2.LINE_AA
                 )
+            sel = []
             for t in tracks:
                 cams = t.get("camera")
-                cams = cams if isinstance(cams, list) else [cams]
-                if cam.name not in cams:
-                    continue
-                p_B = t.get("position_body_m")
-                b_B = np.asarray(t.get("bearing_body") or [1.0, 0.0, 0.0], dtype=float)
-                p_C = self._point_C(cam, p_B) if p_B is not None else cam.T_C_B.R @ b_B
-                uv = self._px(cam, p_C)
-                if uv is None:
-                    continue
-                colour = _STATUS_BGR.get(t.get("status", ""), (255, 255, 255))
-                if t.get("status") != "confirmed":  # tentative / lost: a small dot, no text (less clutter)
-                    cv2.circle(canvas, uv, 2 * scale, colour, -1, cv2.LINE_AA)
-                    continue
-                cv2.circle(canvas, uv, 6 * scale, colour, scale, cv2.LINE_AA)
-                rng = t.get("range_m")
-                txt = f"#{t.get('id')}"
-                txt += f" {rng:.1f}m" if rng is not None else " ?m"
-                lo, hi = t.get("range_min_m"), t.get("range_max_m")
-                if hi is not None or (lo is not None and lo > 0):  # [0, inf) says nothing
-                    txt += f" [{'-' if lo is None else f'{lo:.1f}'},{'-' if hi is None else f'{hi:.1f}'}]"
-                cv2.putText(
-                    canvas,
-                    txt,
-                    (uv[0] + 8 * scale, uv[1] - 6 * scale),
-                    cv2.FONT_HERSHEY_SIMPLEX,
-                    0.45 * scale,
-                    colour,
-                    scale,
-                    cv2.LINE_AA,
-                )
-                v_W = t.get("velocity_world_mps")
-                if v_W is not None and p_B is not None and R_B_W is not None:
+                if cam.name in (cams if isinstance(cams, list) else [cams]):
+                    sel.append(t)
+            if sel:
+                R_C_B = cam.T_C_B.R
+                has_p = np.array([t.get("position_body_m") is not None for t in sel])
+                p_B = np.array([t.get("position_body_m") or [0.0, 0.0, 0.0] for t in sel], dtype=float)
+                b_B = np.array([t.get("bearing_body") or [1.0, 0.0, 0.0] for t in sel], dtype=float)
+                # a ranged track at its position, an unranged one along its bearing (a direction)
+                p_C = np.where(has_p[:, None], cam.T_C_B.apply(p_B), b_B @ R_C_B.T)
+                uv, ok = self._project(cam, p_C)
+                arrows = []  # (k, v_B) of confirmed, ranged tracks with a velocity
+                for k, t in enumerate(sel):
+                    if not ok[k]:
+                        continue
+                    pt = (int(uv[k, 0]), int(uv[k, 1]))
+                    colour = _STATUS_BGR.get(t.get("status", ""), (255, 255, 255))
+                    if t.get("status") != "confirmed":  # tentative / lost: a small dot, no text
+                        cv2.circle(canvas, pt, 2 * scale, colour, -1, cv2.LINE_AA)
+                        continue
+                    cv2.circle(canvas, pt, 6 * scale, colour, scale, cv2.LINE_AA)
+                    rng = t.get("range_m")
+                    txt = f"#{t.get('id')}"
+                    txt += f" {rng:.1f}m" if rng is not None else " ?m"
+                    lo, hi = t.get("range_min_m"), t.get("range_max_m")
+                    if hi is not None or (lo is not None and lo > 0):  # [0, inf) says nothing
+                        txt += f" [{'-' if lo is None else f'{lo:.1f}'},{'-' if hi is None else f'{hi:.1f}'}]"
+                    cv2.putText(
+                        canvas,
+                        txt,
+                        (pt[0] + 8 * scale, pt[1] - 6 * scale),
+                        cv2.FONT_HERSHEY_SIMPLEX,
+                        0.45 * scale,
+                        colour,
+                        scale,
+                        cv2.LINE_AA,
+                    )
+                    v_W = t.get("velocity_world_mps")
+                    if v_W is not None and has_p[k] and R_B_W is not None:
+                        arrows.append((k, R_B_W @ np.asarray(v_W, dtype=float)))
+                if arrows:
                     # where the obstacle will be after dt (its own motion, in B), projected; a straight
-                    # line is only faithful over a short stretch of a fisheye image: shorten dt until the
-                    # arrow is under a tenth of the image
-                    v_B = R_B_W @ np.asarray(v_W, dtype=float)
+                    # line is only faithful over a short stretch of a fisheye image: halve dt until the
+                    # arrow is under a tenth of the image (at most 6 tries), all arrows in one batch
+                    idx = np.array([k for k, _ in arrows])
+                    v_B = np.array([v for _, v in arrows])
+                    colours = [_STATUS_BGR["confirmed"]] * len(idx)
                     max_len = 0.1 * max(canvas.shape[:2])
-                    dt = self.arrow_s
+                    dt = np.full(len(idx), self.arrow_s)
+                    todo = np.ones(len(idx), dtype=bool)
                     for _ in range(6):
-                        uv2 = self._px(cam, self._point_C(cam, np.asarray(p_B, dtype=float) + dt * v_B))
-                        if uv2 is not None and np.hypot(uv2[0] - uv[0], uv2[1] - uv[1]) <= max_len:
-                            cv2.arrowedLine(canvas, uv, uv2, colour, scale, cv2.LINE_AA, tipLength=0.25)
+                        if not todo.any():
                             break
-                        dt /= 2
+                        j = np.flatnonzero(todo)
+                        tip_C = cam.T_C_B.apply(p_B[idx[j]] + dt[j, None] * v_B[j])
+                        uv2, ok2 = self._project(cam, tip_C)
+                        length = np.hypot(uv2[:, 0] - uv[idx[j], 0], uv2[:, 1] - uv[idx[j], 1])
+                        good = ok2 & (length <= max_len)
+                        for jj, u2 in zip(j[good], uv2[good], strict=True):
+                            k = int(idx[jj])
+                            cv2.arrowedLine(
+                                canvas,
+                                (int(uv[k, 0]), int(uv[k, 1])),
+                                (int(u2[0]), int(u2[1])),
+                                colours[jj],
+                                scale,
+                                cv2.LINE_AA,
+                                tipLength=0.25,
+                            )
+                        todo[j[good]] = False
+                        dt[j] /= 2
             if frame is not None:
                 label = f"{cam.name}  frame {frame}" + (f"  t={t_s:.2f}s" if t_s is not None else "")
                 cv2.putText(
