@@ -286,9 +286,16 @@ class FrontEnd:
     # ------------------------------------------------------------------------------ helpers
     @staticmethod
     def _has_texture(grey: np.ndarray, mask: np.ndarray) -> bool:
-        """False for black, saturated or flat frames (std of the lens area below 2 grey levels)."""
+        """False for black, saturated or flat frames: the std of the lens area (sampled every 8 px)
+        below 2 grey levels and, at full resolution, no two pixels 24 grey levels apart (so a
+        small obstacle against a flat sky still counts)."""
         sub = grey[::8, ::8][mask[::8, ::8] > 0]
-        return bool(sub.size > 16 and float(sub.std()) >= 2.0)
+        if sub.size <= 16:
+            return False
+        if float(sub.std()) >= 2.0:
+            return True
+        lo, hi, _, _ = cv2.minMaxLoc(grey, mask)
+        return bool(hi - lo >= 24)
 
     def _coast(self, tracks: dict[int, ObstacleTrack]) -> list[ObstacleTrack]:
         lost = []

@@ -78,6 +78,7 @@ class ObstacleTrack:
     label: str = "orb"
     attributes: dict = field(default_factory=dict)
     member_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    keep_min: int = 0  # members it needs to stay seen (0: the grouper's default)
 
 
 class ObstacleGrouper:
@@ -92,6 +93,9 @@ class ObstacleGrouper:
         flow_abs_rad_s, flow_rel: flows agree when ``|f_i - f_j| < flow_abs + flow_rel * max(|f_i|, |f_j|)``.
         flow_frames: flow measured over this many frames (less for younger features).
         min_features: features needed to start a track.
+        min_features_isolated: features enough to start a track when they are isolated (no other
+            live feature within ``link_rad``) and all at least ``isolated_min_age`` frames old: a
+            small obstacle against the sky has one or two corners.
         min_age: frames a feature must have been tracked before it can join or start a track.
         confirm_frames: frames with members before a track is confirmed.
         max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
@@ -109,6 +113,8 @@ class ObstacleGrouper:
         flow_rel: float = 0.2,
         flow_frames: int = 5,
         min_features: int = 3,
+        min_features_isolated: int = 1,
+        isolated_min_age: int = 6,
         min_age: int = 3,
         confirm_frames: int = 5,
         max_missed: int = 10,
@@ -130,6 +136,8 @@ class ObstacleGrouper:
         self.flow_rel = float(flow_rel)
         self.flow_frames = int(flow_frames)
         self.min_features = int(min_features)
+        self.min_features_isolated = int(min_features_isolated)
+        self.isolated_min_age = int(isolated_min_age)
         self.min_age = int(min_age)
         self.confirm_frames = int(confirm_frames)
         self.max_missed = int(max_missed)
@@ -213,13 +221,20 @@ class ObstacleGrouper:
         fresh = np.zeros(T, bool)
         new_rep, new_flow = [], []
         for rows in self._components(free, b, flow):
-            if len(rows) < self.min_features:
+            small = len(rows) < self.min_features
+            if small and not (
+                len(rows) >= self.min_features_isolated
+                and np.all(ft.age[rows] >= self.isolated_min_age)
+                and self._isolated(rows, b, cos_link)
+            ):
                 continue
             c = _normalise(b[rows].mean(0))
             ti = self._revive(tracks, c, owner)
             if ti is None:
                 tid = next(self._ids)
                 tr = ObstacleTrack(tid, ft.name, ids[rows], c, hits=0, label=self.label)
+                if small:
+                    tr.keep_min = 1
                 self.tracks[tid] = tr
                 tracks.append(tr)
                 ti = len(tracks) - 1
@@ -260,7 +275,7 @@ class ObstacleGrouper:
         keep_min = max(2, self.min_features // 2)
         seen, lost = [], []
         for ti, tr in enumerate(tracks):
-            if cnt[ti] >= keep_min:
+            if cnt[ti] >= (tr.keep_min or keep_min):
                 rows = groups[ti]
                 tr.members = ids[rows]
                 tr.member_b_C = b[rows]
@@ -390,7 +405,10 @@ class ObstacleGrouper:
         cos_r = np.cos(self.max_radius_rad)
         for r in np.unique(roots):
             comp = np.flatnonzero(roots == r)
-            if len(comp) < self.min_features:
+            if len(comp) < min(self.min_features, self.min_features_isolated):
+                continue
+            if len(comp) < self.min_features:  # judged by the caller (isolated or not)
+                out.append(free[comp])
                 continue
             while len(comp):
                 c = _normalise(bf[comp].mean(0))
@@ -407,6 +425,13 @@ class ObstacleGrouper:
                 out.append(free[piece])
                 comp = np.setdiff1d(comp, piece)
         return out
+
+    @staticmethod
+    def _isolated(rows: np.ndarray, b: np.ndarray, cos_link: float) -> bool:
+        """Whether no live feature but ``rows`` lies within the link angle of any of them."""
+        near = (b @ b[rows].T > cos_link).any(axis=1)
+        near[rows] = False
+        return not near.any()
 
     def _revive(self, tracks: list[ObstacleTrack], c: np.ndarray, owner: np.ndarray) -> int | None:
         """Index of a coasting track (unseen last frame, no members now) whose bearing is within

@@ -208,3 +208,21 @@ def test_a_track_that_lost_its_members_takes_over_the_younger_track_in_its_place
     gr.tracks = {2: t2, 10: y2}
     seen, lost = gr._hand_on([y2], [], np.cos(gr.max_radius_rad))
     assert [t.id for t in seen] == [10] and not lost
+
+
+def test_a_tiny_isolated_obstacle_gets_a_track(model, rig):
+    """Blank sky, one small textured disc (2.5 deg radius, ~3 px; two corners) drifting 0.3 deg per
+    frame: too few corners for min_features, but isolated, so it is tracked; with
+    min_features_isolated = 3 (the rule off) it is not. (The flat sky must not make the frame count
+    as textureless either.)"""
+    scene = SphereScene(model, blank_env=True)
+    r = np.radians(2.5)
+    d0, axis, rate = unit([0.3, -0.2, 1.0]), [0, 1, 0], np.radians(0.3)
+    frames = [scene.render(None, [Patch(patch_dir(d0, axis, rate, k), r, seed=12)]) for k in range(20)]
+    for iso, want in ((1, True), (3, False)):
+        _, out = run(rig, frames, grouping={"min_features_isolated": iso})
+        on = 0
+        for k in range(12, 20):
+            d = patch_dir(d0, axis, rate, k)
+            on += any(o.status != "lost" and members_inside(o.views[0], d, 2 * r) > 0.9 for o in out[k])
+        assert (on >= 6) == want, f"min_features_isolated={iso}: on the disc in {on} of 8 frames"
