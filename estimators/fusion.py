@@ -159,6 +159,11 @@ class FusionSettings:
             representative ray's surface point and the features does not average out over frames).
             Default 0.6, fitted on the tracked stereo_hover scene (1-sigma share 23 / 42 / 53 / 80 /
             97 % for weights 0 / 0.3 / 0.5 / 0.7 / 1).
+        feature_ranging_moving: also range stereo-fed (moving-hypothesis) tracks from their
+            member features' multi-view points when those fit static points (chi test below);
+            the features' rays of both cameras and all frames then replace the per-frame stereo
+            fix. Default True (tracked stereo_flying, shared ids: median error within 3 m / 8 m
+            2.9 % / 3.1 % vs 7.4 % / 5.9 % with the per-frame feature stereo; stereo_hover the same).
         feature_static_chi: largest median normalised ray residual (chi, ~1 for static points)
             for which the features are taken as static; above it the feature range is not used
             (a moving obstacle). Default 9.
@@ -193,6 +198,7 @@ class FusionSettings:
     feature_static_chi: float = 9.0
     stereo_feature_min_count: int = 2
     feature_memory_s: float = 0.5
+    feature_ranging_moving: bool = True
     stereo_spread_weight: float = 0.6
     baseline_max_age_s: float = 1.0
     bounds_noise_sigmas: float = 4.0
@@ -592,8 +598,10 @@ class ObstacleFusion:
             init_pair = self._mono_init_pair(tr, sg)
         t1 = time.perf_counter()
         tr.bounded_now = False
-        if stereo is None and not tr.moving and tr.feature_range is not None:
+        if tr.feature_range is not None and (stereo is None or s.feature_ranging_moving):
             self._set_from_features(tr, sg)
+            if stereo is not None:
+                tr.sources.add("stereo")
         elif tr.kf is None:
             if stereo is not None:
                 self._init_stereo(tr, sg, stereo)
@@ -804,7 +812,7 @@ class ObstacleFusion:
         if not s.feature_ranging:
             return
         G = len(work)
-        eligible = np.array([not tr.moving for tr, _sg, _st in work])
+        eligible = np.array([s.feature_ranging_moving or not tr.moving for tr, _sg, _st in work])
         # one entry per (track, feature): the first camera's ray of it
         _, first = np.unique(g * (fs.size + 1) + rows, return_index=True)
         first = first[eligible[g[first]]]
