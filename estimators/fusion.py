@@ -578,7 +578,12 @@ class ObstacleFusion:
         s = self.settings
         t0 = time.perf_counter()
         stereo = None
-        if tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
+        # the member features fit static points: they range the track (all their rays, every
+        # camera), so no per-frame stereo fix is needed
+        from_features = tr.feature_range is not None and (s.feature_ranging_moving or not tr.moving)
+        if from_features:
+            pass
+        elif tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
             stereo = self._stereo_from_features(tr, sg)
         elif len(sg.views) >= 2:
             stereo = self._stereo(sg)
@@ -598,9 +603,9 @@ class ObstacleFusion:
             init_pair = self._mono_init_pair(tr, sg)
         t1 = time.perf_counter()
         tr.bounded_now = False
-        if tr.feature_range is not None and (stereo is None or s.feature_ranging_moving):
+        if from_features:
             self._set_from_features(tr, sg)
-            if stereo is not None:
+            if len(sg.views) >= 2:
                 tr.sources.add("stereo")
         elif tr.kf is None:
             if stereo is not None:
