@@ -15,7 +15,7 @@ Per frame:
 4. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
    than ``max_missed`` frames -> lost (reported once, then dropped).
 5. Hysteresis on splits: a confirmed track that lost its members this frame takes over a younger
-   track now covering its place (within ``link_rad``, flows agreeing), so the id follows the
+   track now covering its place (within half ``link_rad``, flows agreeing), so the id follows the
    obstacle when its features are replaced; the younger track is lost.
 
 The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
@@ -308,7 +308,7 @@ class ObstacleGrouper:
         self, seen: list[ObstacleTrack], lost: list[ObstacleTrack], cos_r: float
     ) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
         """Hysteresis on splits: a confirmed track that lost its members this frame takes over the
-        younger track (higher id) that now covers its place (representative bearings within
+        younger track (higher id) that now covers its place (representative bearings within half
         ``link_rad``, flows agreeing), so the id follows the obstacle; the younger one is lost.
 
         Returns the updated (seen, lost)."""
@@ -318,7 +318,7 @@ class ObstacleGrouper:
         if not just_lost or not seen:
             return seen, lost
         for old in sorted(just_lost, key=lambda t: t.id):
-            best, best_cos = None, max(cos_r, float(np.cos(self.link_rad)))
+            best, best_cos = None, max(cos_r, float(np.cos(0.5 * self.link_rad)))
             for y in seen:
                 if y.id <= old.id or y.label != old.label:
                     continue
