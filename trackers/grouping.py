@@ -220,14 +220,18 @@ class ObstacleGrouper:
         free = np.flatnonzero((owner < 0) & fvalid)
         fresh = np.zeros(T, bool)
         new_rep, new_flow = [], []
+        n_near: np.ndarray | None = None  # per feature: live features within link_rad, itself included
         for rows in self._components(free, b, flow):
             small = len(rows) < self.min_features
-            if small and not (
-                len(rows) >= self.min_features_isolated
-                and np.all(ft.age[rows] >= self.isolated_min_age)
-                and self._isolated(rows, b, cos_link)
-            ):
-                continue
+            if small:
+                if len(rows) < self.min_features_isolated or np.any(ft.age[rows] < self.isolated_min_age):
+                    continue
+                if n_near is None:
+                    n_near = np.zeros(n, np.int64)
+                    n_near[free] = (b[free] @ b.T > cos_link).sum(axis=1)
+                # isolated: every member's neighbours are members (the component is a connected one)
+                if np.any(n_near[rows] > len(rows)):
+                    continue
             c = _normalise(b[rows].mean(0))
             ti = self._revive(tracks, c, owner)
             if ti is None:
@@ -425,13 +429,6 @@ class ObstacleGrouper:
                 out.append(free[piece])
                 comp = np.setdiff1d(comp, piece)
         return out
-
-    @staticmethod
-    def _isolated(rows: np.ndarray, b: np.ndarray, cos_link: float) -> bool:
-        """Whether no live feature but ``rows`` lies within the link angle of any of them."""
-        near = (b @ b[rows].T > cos_link).any(axis=1)
-        near[rows] = False
-        return not near.any()
 
     def _revive(self, tracks: list[ObstacleTrack], c: np.ndarray, owner: np.ndarray) -> int | None:
         """Index of a coasting track (unseen last frame, no members now) whose bearing is within
