@@ -14,9 +14,10 @@ Per frame:
    track.
 4. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
    than ``max_missed`` frames -> lost (reported once, then dropped).
-5. Hysteresis on splits: a confirmed track that lost its members this frame takes over a younger
-   track now covering its place (within half ``link_rad``, flows agreeing), so the id follows the
-   obstacle when its features are replaced; the younger track is lost.
+5. Optional (``hand_on``) hysteresis on splits: a confirmed track that lost its members this
+   frame takes over a younger track now covering its place (within half ``link_rad``, flows
+   agreeing), so the id follows the obstacle when its features are replaced; the younger one is
+   lost.
 
 The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
 in both frames (so members joining or leaving do not make it jump), pulled gently (gain
@@ -96,6 +97,8 @@ class ObstacleGrouper:
         min_features_isolated: features enough to start a track when they are isolated (no other
             live feature within ``link_rad``) and all at least ``isolated_min_age`` frames old: a
             small obstacle against the sky has one or two corners.
+        hand_on: hysteresis on splits (step 5), off by default: it lowered the switches on some
+            renders of mono_straight and raised them on others.
         min_age: frames a feature must have been tracked before it can join or start a track.
         confirm_frames: frames with members before a track is confirmed.
         max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
@@ -114,9 +117,10 @@ class ObstacleGrouper:
         flow_frames: int = 5,
         min_features: int = 3,
         min_features_isolated: int = 1,
-        isolated_min_age: int = 6,
+        isolated_min_age: int = 12,
         min_age: int = 3,
         confirm_frames: int = 5,
+        hand_on: bool = False,
         max_missed: int = 10,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
@@ -137,6 +141,7 @@ class ObstacleGrouper:
         self.flow_frames = int(flow_frames)
         self.min_features = int(min_features)
         self.min_features_isolated = int(min_features_isolated)
+        self.hand_on = bool(hand_on)
         self.isolated_min_age = int(isolated_min_age)
         self.min_age = int(min_age)
         self.confirm_frames = int(confirm_frames)
@@ -300,7 +305,8 @@ class ObstacleGrouper:
                     tr.status = "lost"
                     lost.append(tr)
                     del self.tracks[tr.id]
-        seen, lost = self._hand_on(seen, lost, cos_r)
+        if self.hand_on:
+            seen, lost = self._hand_on(seen, lost, cos_r)
         if seen:
             uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
             for t, u, v in zip(seen, uv, ok, strict=True):
