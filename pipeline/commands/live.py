@@ -39,23 +39,14 @@ def register(app: typer.Typer) -> None:
         """Range obstacles live from cameras; Ctrl-C stops with everything written."""
         import sys
 
+        from pipeline.commands._overrides import rig_and_motion_overrides
         from pipeline.config import load_config
         from pipeline.live import run_live
 
         cli: dict = {}
         if camera:
             cli["live.cameras"] = [int(c) if c.isdigit() else c for c in camera]
-        if calibration is not None:
-            cli["rig.calibration"] = str(calibration)
-            cli["rig.cameras"] = None
-        if trajectory is not None:
-            cli["ego_motion.trajectory"] = str(trajectory)
-            cli["ego_motion.speed_mps"] = None
-        if speed is not None:
-            cli["ego_motion.speed_mps"] = speed
-            cli["ego_motion.trajectory"] = None
-        if out is not None:
-            cli["outputs.dir"] = str(out)
+        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out))
         if preview is not None:
             cli["live.preview"] = preview
         if port is not None:

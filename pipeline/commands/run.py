@@ -56,6 +56,7 @@ def register(app: typer.Typer) -> None:
         """Range obstacles in recorded fisheye videos: tracks.jsonl, summary.json, config.resolved.yaml."""
         import sys
 
+        from pipeline.commands._overrides import rig_and_motion_overrides
         from pipeline.config import describe_config, load_config
         from pipeline.run import run, run_batch
 
@@ -68,17 +69,7 @@ def register(app: typer.Typer) -> None:
             cli["inputs.videos"] = list(video)
         if images:
             cli["inputs.images"] = [str(p) for p in images]
-        if calibration is not None:
-            cli["rig.calibration"] = str(calibration)
-            cli["rig.cameras"] = None
-        if trajectory is not None:
-            cli["ego_motion.trajectory"] = str(trajectory)
-            cli["ego_motion.speed_mps"] = None
-        if speed is not None:
-            cli["ego_motion.speed_mps"] = speed
-            cli["ego_motion.trajectory"] = None
-        if out is not None:
-            cli["outputs.dir"] = str(out)
+        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out))
         if annotate:
             cli["outputs.annotated_video"] = True
         if plots:
