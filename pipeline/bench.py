@@ -283,13 +283,32 @@ def read_timestamps(path: str | Path) -> np.ndarray | None:
         raise InputError(f"{p}: expected lines 'frame t_s', got e.g. {rows[:1]}") from None
 
 
-def _open(path: str | Path):
+def _open(path: str | Path, raw: bool = False):
+    """An OpenCV capture of ``path``; ``raw`` turns ``CAP_PROP_CONVERT_RGB`` off (set before the first
+    read: the decoder's own planes, e.g. (H, W) for a grey FFV1, (H, W, 4) for a ``bgr0`` one)."""
     import cv2
 
     cap = cv2.VideoCapture(str(path))
     if not cap.isOpened():
         raise SourceError(f"{path}: cannot open the video (expected a file OpenCV's FFmpeg backend reads)")
+    if raw:
+        cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
     return cap
+
+
+def is_grey_video(path: str | Path) -> bool:
+    """Whether ``path``'s stream decodes to one (H, W) uint8 plane without colour conversion (the
+    simulator's ``--grey`` FFV1): its first frame read with ``CAP_PROP_CONVERT_RGB`` off is 2-D with the
+    container's width and height."""
+    import cv2
+
+    cap = _open(path, raw=True)
+    try:
+        ok, img = cap.read()
+        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+    finally:
+        cap.release()
+    return bool(ok) and img is not None and img.ndim == 2 and img.dtype == np.uint8 and img.shape == (h, w)
 
 
 def video_info(path: str | Path) -> dict[str, Any]:
@@ -325,14 +344,17 @@ def looped_frames(videos: Mapping[str, str | Path], n_frames: int, fps: float | 
     Looping lets a short rendered clip stand in for a long flight (memory over 10,000 frames).
     ``t_s`` keeps increasing across loops: ``frame / fps`` (``fps`` from the first video when None).
     ``decode_s`` is the wall time of reading (and converting to grey) all cameras' images.
-    Raises SourceError when a video cannot be opened or yields no frame at all.
+    With ``grey`` a grey video (:func:`is_grey_video`) is read without any colour conversion (the
+    decoder's plane as it is, as ``pipeline.sources.VideoSource`` does); others are decoded to BGR
+    and converted. Raises SourceError when a video cannot be opened or yields no frame at all.
     """
     import cv2
 
     names = list(videos)
     if not names:
         raise InputError("looped_frames: expected at least one video, got none")
-    caps = {n: _open(videos[n]) for n in names}
+    raw = {n: bool(grey) and is_grey_video(videos[n]) for n in names}
+    caps = {n: _open(videos[n], raw[n]) for n in names}
     if fps is None:
         fps = float(caps[names[0]].get(cv2.CAP_PROP_FPS)) or 30.0
     try:
@@ -343,7 +365,7 @@ def looped_frames(videos: Mapping[str, str | Path], n_frames: int, fps: float | 
                 ok, img = caps[n].read()
                 if not ok:
                     caps[n].release()
-                    caps[n] = _open(videos[n])
+                    caps[n] = _open(videos[n], raw[n])
                     ok, img = caps[n].read()
                     if not ok:
                         raise SourceError(f"{videos[n]}: the video yields no frame")
@@ -382,19 +404,24 @@ def cache_key(spec: Mapping[str, Any]) -> str:
 
 
 def cached_render(scenario: Mapping[str, Any], cache_dir: str | Path, *, resolution: tuple[int, int],
-                  frames: int, render: Callable[[Path, Path], None] | None = None) -> Path:
+                  frames: int, render: Callable[[Path, Path], None] | None = None,
+                  grey: bool = False) -> Path:
     """Directory of a simulator render of ``scenario`` at ``resolution`` with ``frames`` frames.
 
     Renders once into ``cache_dir/<name>-<WxH>-<frames>f-<hash>/`` and reuses it afterwards (a
     ``.complete`` marker is written last, so a killed render is redone). ``render(scenario_yaml,
     out_dir)`` defaults to ``fisheye-des simulate SCENARIO --out DIR --resolution WxH --frames N``
-    in a subprocess.
+    in a subprocess (with ``--grey`` when ``grey``: one-plane grey FFV1 videos, which decode without
+    any colour conversion; ``grey`` is part of the cache key).
     """
     import yaml
 
     spec = {"scenario": scenario, "resolution": list(resolution), "frames": int(frames)}
+    if grey:
+        spec["grey"] = True
     name = str(scenario.get("name", "scenario"))
-    d = Path(cache_dir) / f"{name}-{resolution[0]}x{resolution[1]}-{frames}f-{cache_key(spec)}"
+    d = Path(cache_dir) / f"{name}-{resolution[0]}x{resolution[1]}-{frames}f{'-grey' if grey else ''}-" \
+        f"{cache_key(spec)}"
     if (d / ".complete").is_file():
         return d
     d.mkdir(parents=True, exist_ok=True)
@@ -404,6 +431,7 @@ def cached_render(scenario: Mapping[str, Any], cache_dir: str | Path, *, resolut
         def render(scn: Path, out: Path) -> None:
             cmd = [sys.executable, "-m", "pipeline.cli", "simulate", str(scn), "--out", str(out),
                    "--resolution", f"{resolution[0]}x{resolution[1]}", "--frames", str(int(frames))]
+            cmd += ["--grey"] if grey else []
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode != 0:
                 raise SourceError(f"simulate failed for {scn} (exit {r.returncode}): "
@@ -478,19 +506,22 @@ class _SourceInfo:
 
 class LoopingSource:
     """A ``SyncedSource`` stand-in for ``pipeline.run.run``: the clip replayed for ``n_frames`` frame
-    sets (BGR, as ``VideoSource`` yields them), with RSS sampled and the steady-state clock read.
+    sets (BGR, or (H, W) grey with ``grey`` as ``VideoSource(grey=True)`` yields them: a grey video
+    without colour conversion), with RSS sampled and the steady-state clock read.
 
     Args:
         videos: camera name -> video path, in the rig's order. n_frames: frame sets to yield.
         fps: frame rate (Hz) for ``t_s = frame / fps``. checkpoints: frame counts at which RSS is
         sampled (the sample for "after k frames" is taken when set k+1 is requested, i.e. after the
         run loop has finished frame k). warmup: frame sets before the steady-state clock starts.
+        grey: yield grey frames (the run loop's ``inputs.grey`` for grey detectors).
     """
 
     def __init__(self, videos: Mapping[str, str | Path], n_frames: int, fps: float,
                  checkpoints: Sequence[int] = (), warmup: int = 0,
-                 memory_path: str | Path | None = None) -> None:
+                 memory_path: str | Path | None = None, grey: bool = False) -> None:
         self.videos = {k: str(v) for k, v in videos.items()}
+        self.grey = bool(grey)
         self.n_frames, self.fps, self.warmup = int(n_frames), float(fps), int(warmup)
         self.sources = [_SourceInfo(k, v, self.fps) for k, v in self.videos.items()]
         self.dropped = {k: 0 for k in self.videos}
@@ -505,7 +536,7 @@ class LoopingSource:
     def __iter__(self):
         from pipeline.sources import Frame, FrameSet
 
-        for k, f in enumerate(looped_frames(self.videos, self.n_frames, self.fps, grey=False)):
+        for k, f in enumerate(looped_frames(self.videos, self.n_frames, self.fps, grey=self.grey)):
             self.memory.after_frame(k)
             if k == self.warmup:
                 self.t_warm, self.cpu_warm = time.perf_counter(), time.process_time()
@@ -605,7 +636,8 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     warm = int(task.get("warmup", min(10, n // 10)))
     Path(task["out"]).mkdir(parents=True, exist_ok=True)
     src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
-                        task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json")
+                        task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json",
+                        grey=run_mod.wants_grey(cfg))
     res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
                       progress=False)
     sm = res.summary
@@ -856,6 +888,8 @@ class BenchPlan:
 
     ``resolutions`` (width, height) pixels; ``render_frames`` per clip (longer runs loop the clip);
     ``measure_frames`` per throughput measurement; ``threads``: 1 (pinned) and None (all cores).
+    ``grey_clips``: render the clips as grey videos (the detectors measured, ORB and kornia, work on
+    grey images, so the pipeline decodes them straight to grey: no 4-channel colour decode).
     """
 
     quick: bool
@@ -875,6 +909,7 @@ class BenchPlan:
     memory_timeout_s: float = 4800.0
     detector_frames: int = 120
     base_obstacles: int = 8
+    grey_clips: bool = True
 
 
 def make_plan(quick: bool) -> BenchPlan:
@@ -943,12 +978,15 @@ def bench_scenario(name: str, resolution: tuple[int, int], rig: str, fps: float,
     }
 
 
-def simulate_render(scn_path: Path, out: Path, resolution: tuple[int, int], frames: int) -> None:
-    """Render with the simulator's Python API (``pipeline.sim.writer.simulate``), no progress bar."""
+def simulate_render(scn_path: Path, out: Path, resolution: tuple[int, int], frames: int,
+                    grey: bool = False) -> None:
+    """Render with the simulator's Python API (``pipeline.sim.writer.simulate``), no progress bar;
+    ``grey`` writes grey videos."""
     from pipeline.sim.scene import load_scenario
     from pipeline.sim.writer import simulate
 
-    simulate(load_scenario(scn_path), out, frames=int(frames), resolution=tuple(resolution), progress=False)
+    simulate(load_scenario(scn_path), out, frames=int(frames), resolution=tuple(resolution), progress=False,
+             grey=bool(grey))
 
 
 @dataclass
@@ -973,14 +1011,14 @@ class Clip:
 
 
 def get_clip(cache_dir: Path, resolution: tuple[int, int], rig: str, frames: int, n_obstacles: int,
-             render: Callable[[Path, Path], None] | None = None) -> Clip:
-    """The cached (or freshly rendered) clip of :func:`bench_scenario`."""
+             render: Callable[[Path, Path], None] | None = None, grey: bool = False) -> Clip:
+    """The cached (or freshly rendered) clip of :func:`bench_scenario` (grey videos with ``grey``)."""
     fps = camera_rate_hz(resolution)
     scn = bench_scenario(f"bench_{rig}_{n_obstacles}obs", resolution, rig, fps, frames, n_obstacles)
     if render is None:
         def render(p: Path, out: Path) -> None:
-            simulate_render(p, out, resolution, frames)
-    d = cached_render(scn, cache_dir, resolution=resolution, frames=frames, render=render)
+            simulate_render(p, out, resolution, frames, grey=grey)
+    d = cached_render(scn, cache_dir, resolution=resolution, frames=frames, render=render, grey=grey)
     return Clip(d, render_videos(d), scn, tuple(resolution), fps, frames)
 
 
@@ -1023,7 +1061,8 @@ class BenchRun:
         if self.render is not None:
             def render(p: Path, o: Path) -> None:
                 self.render(p, o, resolution, self.plan.render_frames)
-        c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, render=render)
+        c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, render=render,
+                     grey=self.plan.grey_clips)
         dt = time.perf_counter() - t0
         self.sections.setdefault("clips", {}).setdefault(
             c.dir.name, {"dir": str(c.dir), "render_or_load_s": dt, "cameras": sorted(c.videos)})

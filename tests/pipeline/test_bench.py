@@ -324,3 +324,41 @@ def test_looping_source_feeds_the_run_loop_with_bgr_frame_sets(tmp_path):
     assert sorted(src.memory.samples) == [2, 7]
     assert src.steady_fps() > 0 and src.steady_cpu_fps() > 0
     assert [s.camera for s in src.sources] == ["cam0", "cam1"] and src.error is None
+
+
+def write_grey_video(path: Path, values: list[int], size: tuple[int, int] = (64, 48)) -> Path:
+    """One-plane grey FFV1 video (isColor=False, as ``simulate --grey`` writes) whose frame i is a
+    horizontal ramp ``values[i] + column``."""
+    w = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"FFV1"), 30.0, size, False)
+    if not w.isOpened():
+        pytest.skip("OpenCV cannot write grey FFV1 here")
+    ramp = np.arange(size[0], dtype=np.uint8)[None, :]
+    for v in values:
+        w.write(np.broadcast_to(ramp + np.uint8(v), (size[1], size[0])).copy())
+    w.release()
+    return path
+
+
+def test_grey_video_is_read_without_conversion_and_colour_one_is_converted(tmp_path):
+    g = write_grey_video(tmp_path / "cam0.mkv", [0, 100])
+    c = write_video(tmp_path / "cam1.mkv", [30, 60])
+    assert bench.is_grey_video(g) is True and bench.is_grey_video(c) is False
+    frames = list(bench.looped_frames({"cam0": g, "cam1": c}, 3))
+    for f, v, u in zip(frames, [0, 100, 0], [30, 60, 30], strict=True):
+        assert f.images["cam0"].shape == (48, 64) and f.images["cam1"].shape == (48, 64)
+        assert int(f.images["cam0"][5, 0]) == v and int(f.images["cam0"][5, 63]) == v + 63  # lossless ramp
+        assert int(f.images["cam1"][0, 0]) == u
+    src = bench.LoopingSource({"cam0": g}, 2, fps=10.0, grey=True)
+    assert [s.images["cam0"].shape for s in src] == [(48, 64), (48, 64)]
+
+
+def test_cached_render_keys_grey_clips_apart(tmp_path):
+    calls = []
+
+    def fake_render(scn: Path, out: Path) -> None:
+        calls.append(out)
+
+    scn = {"name": "s"}
+    d0 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render)
+    d1 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render, grey=True)
+    assert d0 != d1 and "grey" in d1.name and len(calls) == 2
