@@ -917,10 +917,12 @@ def make_plan(quick: bool) -> BenchPlan:
     if not quick:
         return BenchPlan(quick=False, resolutions=((640, 480), (1280, 720), (1920, 1080)))
     small = (160, 120)
+    # a smoke test (CI): every part runs once, on the fewest subprocesses (each costs ~1-2 s of imports);
+    # scaling keeps only the heavy ends (50 obstacles, 2000 features)
     return BenchPlan(quick=True, resolutions=(small,), render_frames=10, measure_frames=20, live_frames=20,
-                     scaling_resolution=small, scaling_frames=8, memory_resolution=small, memory_frames=120,
-                     memory_checkpoints=(40, 120), detector_frames=20, threads=(1,), base_obstacles=4,
-                     obstacle_counts=(1, 50), feature_counts=(100, 2000))
+                     scaling_resolution=small, scaling_frames=8, memory_resolution=small, memory_frames=60,
+                     memory_checkpoints=(20, 60), detector_frames=20, threads=(1,), base_obstacles=4,
+                     obstacle_counts=(50,), feature_counts=(2000,))
 
 
 def camera_rate_hz(resolution: tuple[int, int]) -> float:
