@@ -112,7 +112,11 @@ class FeatureTracker:
             predicted position and with ``reacquire_max_hamming`` or fewer differing descriptor bits.
         history: samples kept per feature (ring buffer).
         max_residual: a track is also dropped when LK's residual (mean absolute grey difference of
-            the window) exceeds both this and 3x the frame's median residual.
+            the window) exceeds this, 3x the frame's median residual and ``texture_k`` x the
+            patch's own contrast (mean absolute deviation of its grey values over the window).
+        texture_k: see ``max_residual`` (0 = no texture term). A replaced patch's residual is about
+            1.4x its deviation, so 0.4 still drops it while a textured patch tracked with a small
+            mismatch is kept (issue 4: fewer dying features on textured obstacles).
         margin_px: lens-circle margin (features closer to the circle's edge are dropped).
         crop: run KLT and detection on the lens circle's bounding box only (about 2 ms less per
             1280x720 frame with a 338-px circle; off by default: on the presets it tracked small
@@ -138,6 +142,7 @@ class FeatureTracker:
         reacquire_max_hamming: int = 40,
         history: int = 32,
         max_residual: float = 12.0,
+        texture_k: float = 0.4,
         margin_px: float = 4.0,
         crop: bool = False,
     ) -> None:
@@ -161,6 +166,7 @@ class FeatureTracker:
         self.levels = int(levels)
         self.fb_max_px = float(fb_max_px)
         self.max_residual = float(max_residual)
+        self.texture_k = float(texture_k)
         self.min_distance_px = float(min_distance_px)
         self.reacquire_frames = int(reacquire_frames)
         self.reacquire_radius_px = float(reacquire_radius_px)
@@ -467,7 +473,14 @@ class FeatureTracker:
         # for this frame, which tolerates global exposure changes but not a patch that changed
         err = err.reshape(-1)
         if np.any(ok):
-            ok &= err <= max(self.max_residual, 3.0 * float(np.median(err[ok])))
+            # a textured patch has a larger residual for the same (sub-pixel, noise, shading) mismatch:
+            # the bound also scales with the patch's own contrast (texture_k x its mean absolute
+            # deviation in the previous frame), so good features on textured obstacles are kept
+            bound = np.maximum(
+                max(self.max_residual, 3.0 * float(np.median(err[ok]))),
+                self.texture_k * self._texture(prev, p0),
+            )
+            ok &= err <= bound
         ok &= np.all(np.isfinite(p1), axis=1)
         h, w = self.shape_hw
         ui = np.clip(np.round(p1[:, 0]).astype(np.intp), 0, w - 1)
@@ -484,6 +497,18 @@ class FeatureTracker:
         self.vel[ok] = 0.5 * self.vel[ok] + 0.5 * new_vel[ok]
         self.age[ok] += 1
         self._drop(np.flatnonzero(~ok), remember=True)
+
+    def _texture(self, image: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Mean absolute deviation of the grey values (N,) over the KLT window centred on each of the
+        points ``p`` ((N,1,2) or (N,2) pixels of ``image``), the window clipped to the image."""
+        p = p.reshape(-1, 2)
+        hw = self.win[0] // 2
+        d = np.arange(-hw, hw + 1)
+        h, w = image.shape[:2]
+        ui = np.clip(np.round(p[:, 0]).astype(np.intp)[:, None] + d[None, :], 0, w - 1)
+        vi = np.clip(np.round(p[:, 1]).astype(np.intp)[:, None] + d[None, :], 0, h - 1)
+        patch = image[vi[:, :, None], ui[:, None, :]].reshape(len(p), -1).astype(np.float32)
+        return np.mean(np.abs(patch - patch.mean(axis=1, keepdims=True)), axis=1)
 
     def _cell_counts(self) -> np.ndarray:
         gx, gy = self.grid

@@ -161,3 +161,15 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
 def test_bad_tracker_options(model, kw):
     with pytest.raises(ConfigError):
         make_tracker(model, **kw)
+
+
+def test_texture_is_the_window_mean_absolute_deviation(model):
+    """A 0/200 checkerboard deviates 100 grey levels from its mean everywhere (worked by hand); a
+    flat patch 0: the texture term of the residual bound (issue 4)."""
+    ft = make_tracker(model)
+    img = np.zeros((100, 100), np.uint8)
+    img[:50] = ((np.add.outer(np.arange(50), np.arange(100)) % 2) * 200).astype(np.uint8)
+    tex = ft._texture(img, np.array([[50.0, 20.0], [50.0, 80.0]], np.float32))
+    # an 11x11 window of a checkerboard: 61 of one value, 60 of the other -> MAD = 2*61*60/121^2*200
+    assert tex[0] == pytest.approx(2 * 61 * 60 / 121**2 * 200, rel=1e-5)
+    assert tex[1] == 0.0
