@@ -115,6 +115,36 @@ def test_hover_mono_range_is_unobservable_with_bounds():
     assert j["range_m"] is None and j["source"] == "bounds"
 
 
+def _slide_run(settings: FusionSettings):
+    """Six fixed feature points around (14, 4, 0.5) while the representative point slides."""
+    rng = np.random.default_rng(3)
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(5.0)
+    offsets = np.array([[0, 0.3, 0.3], [0, -0.3, 0.3], [0.2, 0, -0.3], [-0.2, 0.2, 0], [0, 0, 0.4],
+                        [0.1, -0.2, -0.1]])
+    feats_W = np.array([14.0, 4.0, 0.5]) + offsets
+    fus = ObstacleFusion(rig, ego, settings)
+    sigma = 5e-4
+    for k in range(46):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        rep_W = np.array([14.0, 4.0, 0.5 + 0.8 * (t - 0.75)])
+        fb = np.array([_bearing(rig[0], T_W_B, f, sigma, rng) for f in feats_W])
+        view = CameraView("cam0", _bearing(rig[0], T_W_B, rep_W, sigma, rng), [0, 0], sigma,
+                          feature_ids=np.arange(6), feature_b_C=fb)
+        fus.step([ObstacleObservation(5, k, t, "confirmed", (view,))], k, t)
+    return fus._tracks[5].feature_range
+
+
+def test_feature_range_sigma_widens_by_one_plus_k_over_n():
+    # six features, inner half n = 3: k = 3 doubles the sigma (1 + 3 / 3), the range is unchanged
+    z0, s0, n0 = _slide_run(FusionSettings(feature_small_n_inflate=0.0))
+    z3, s3, n3 = _slide_run(FusionSettings(feature_small_n_inflate=3.0))
+    assert n0 == n3 == 3
+    assert z3 == z0
+    assert s3 == pytest.approx(2.0 * s0, rel=1e-12)
+
+
 def test_member_features_range_a_track_whose_representative_bearing_slides():
     # six fixed feature points around (14, 4, 0.5); the representative point slides 1.2 m up the
     # object over the flight (as a tracker's centroid does when members come and go): its bearing
