@@ -102,6 +102,8 @@ class ObstacleGrouper:
         min_age: frames a feature must have been tracked before it can join or start a track.
         confirm_frames: frames with members before a track is confirmed.
         max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
+        coast_predict: an unseen track's bearing moves on with its last flow (and the camera's
+            rotation when given), so features found where the obstacle went revive it (issue 4).
         centre_gain: pull of the representative bearing towards the member mean per frame.
         sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
         label: label of the tracks (the detector's name).
@@ -122,6 +124,7 @@ class ObstacleGrouper:
         confirm_frames: int = 5,
         hand_on: bool = False,
         max_missed: int = 10,
+        coast_predict: bool = True,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
         label: str = "orb",
@@ -150,6 +153,8 @@ class ObstacleGrouper:
         self.sigma_floor_px = float(sigma_floor_px)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
+        self.coast_predict = bool(coast_predict)
+        self._last_t_s: float | None = None
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -168,6 +173,8 @@ class ObstacleGrouper:
         """
         ids, b = ft.ids, ft.b_C
         n = len(ids)
+        dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
+        self._last_t_s = t_s
         rad_px = self._rad_per_px(ft)
         self.link_rad = self.link_px * rad_px
         self.max_radius_rad = self.max_radius_px * rad_px
@@ -301,6 +308,13 @@ class ObstacleGrouper:
                 tr.members = np.zeros(0, np.int64)
                 tr.member_b_C = np.zeros((0, 3))
                 tr.missed += 1
+                # coast on the predicted bearing: b <- normalise(R_C_Cprev b + flow dt) (flow: tangent,
+                # rad/s, rotation-compensated when R_C_Cprev is given), so new features found where
+                # the obstacle went revive it under its old id
+                if self.coast_predict and dt_s > 0:
+                    R1 = R_C_Cprev.get(1) if R_C_Cprev else None
+                    b_pred = R1 @ tr.b_C if R1 is not None else tr.b_C
+                    tr.b_C = _normalise(b_pred + tr.flow_rad_s * dt_s)
                 if tr.missed > self.max_missed:
                     tr.status = "lost"
                     lost.append(tr)

@@ -226,3 +226,26 @@ def test_a_tiny_isolated_obstacle_gets_a_track(model, rig):
             d = patch_dir(d0, axis, rate, k)
             on += any(o.status != "lost" and members_inside(o.views[0], d, 2 * r) > 0.9 for o in out[k])
         assert (on >= 6) == want, f"min_features_isolated={iso}: on the disc in {on} of 8 frames"
+
+
+def test_a_coasting_track_moves_on_with_its_flow(model):
+    """coast_predict (issue 4): a track with no features left moves its bearing by flow x dt each
+    frame (0.3 rad/s about -y for 0.1 s from the optical axis: 0.03 rad towards +x, worked by hand)."""
+    from types import SimpleNamespace
+
+    from trackers.grouping import ObstacleGrouper, ObstacleTrack, angle_between
+
+    ft = SimpleNamespace(ids=np.zeros(0, np.int64), b_C=np.zeros((0, 3)), uv=np.zeros((0, 2)), model=model)
+    ft.age = np.zeros(0, np.int64)
+    ft.previous_bearing = lambda: (np.zeros((0, 3)), np.zeros(0, bool))
+    gr = ObstacleGrouper(iter(range(100, 200)), max_missed=5)
+    f = np.array([0.3, 0.0, 0.0])  # tangent at +z, rad/s
+    tr = ObstacleTrack(1, "cam0", np.zeros(0, np.int64), unit([0, 0, 1]), flow_rad_s=f, status="confirmed")
+    gr.tracks = {1: tr}
+    gr._flows = lambda *a, **k: (np.zeros((0, 3)), np.zeros(0, bool))
+    gr.update(ft, 0.0)
+    np.testing.assert_allclose(tr.b_C, [0, 0, 1], atol=1e-12)  # first frame: no dt yet
+    gr.update(ft, 0.1)
+    expected = unit([0.03, 0.0, 1.0])
+    assert float(angle_between(tr.b_C, expected)) < 1e-9
+    assert tr.missed == 2
