@@ -38,3 +38,20 @@ def check_shape(name: str, arr, shape: tuple) -> None:
     ):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
         raise InputError(f"{name}: expected an array of shape {want}, got {actual}")
+
+
+def check_rows(name: str, arr, ncols: int, dtype=float):
+    """``arr`` as a finite ``(N, ncols)`` array of ``dtype``; an empty input becomes ``(0, ncols)``.
+
+    Raises InputError naming ``name`` on another shape or a NaN/infinite value.
+    """
+    import numpy as np
+
+    a = np.asarray(arr, dtype=dtype)
+    if a.size == 0:
+        return a.reshape(0, ncols)
+    if a.ndim != 2 or a.shape[1] != ncols:
+        raise InputError(f"{name}: expected shape (N, {ncols}), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: contains NaN or infinite values")
+    return a

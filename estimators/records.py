@@ -14,21 +14,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from estimators.errors import InputError
+from estimators.errors import InputError, check_rows
 
 TrackStatus = Literal["tentative", "confirmed", "lost"]
 TRACK_STATUSES: tuple[str, ...] = ("tentative", "confirmed", "lost")
-
-
-def _unit_rows(name: str, a: np.ndarray, ncols: int = 3) -> np.ndarray:
-    a = np.asarray(a, dtype=float)
-    if a.ndim == 1:
-        a = a.reshape(1, -1) if a.size else a.reshape(0, ncols)
-    if a.ndim != 2 or a.shape[1] != ncols:
-        raise InputError(f"{name}: expected shape (M, {ncols}), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise InputError(f"{name}: contains NaN or infinite values")
-    return a
 
 
 @dataclass(frozen=True)
@@ -58,7 +47,7 @@ class CameraView:
         if not (np.isfinite(self.sigma_rad) and self.sigma_rad > 0):
             raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {self.sigma_rad!r}")
         ids = np.asarray(self.feature_ids, dtype=np.int64).reshape(-1)
-        fb = _unit_rows("CameraView.feature_b_C", self.feature_b_C)
+        fb = check_rows("CameraView.feature_b_C", self.feature_b_C, 3)
         if len(ids) != len(fb):
             raise InputError(
                 f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"

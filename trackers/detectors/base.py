@@ -18,20 +18,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from estimators.errors import ConfigError, FisheyeDesError, InputError
+from estimators.errors import ConfigError, FisheyeDesError, InputError, check_rows
 
 ENTRY_POINT_GROUP = "fisheye_des.detectors"
-
-
-def _rows(name: str, a: Any, ncols: int, dtype: Any) -> np.ndarray:
-    a = np.asarray(a, dtype=dtype)
-    if a.size == 0:
-        return a.reshape(0, ncols)
-    if a.ndim != 2 or a.shape[1] != ncols:
-        raise InputError(f"Detections.{name}: expected shape (N, {ncols}), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise InputError(f"Detections.{name}: contains NaN or infinite values")
-    return a
 
 
 @dataclass(frozen=True)
@@ -57,7 +46,7 @@ class Detections:
     attributes: tuple[dict[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
-        kp = _rows("keypoints", self.keypoints, 2, np.float32)
+        kp = check_rows("Detections.keypoints", self.keypoints, 2, np.float32)
         sc = np.asarray(self.scores, dtype=np.float32).reshape(-1)
         if len(sc) != len(kp):
             raise InputError(f"Detections: {len(kp)} keypoints but {len(sc)} scores")
@@ -66,7 +55,7 @@ class Detections:
             de = np.asarray(de)
             if de.ndim != 2 or len(de) != len(kp):
                 raise InputError(f"Detections.descriptors: expected shape ({len(kp)}, D), got {de.shape}")
-        bx = _rows("boxes", self.boxes, 4, np.float64)
+        bx = check_rows("Detections.boxes", self.boxes, 4, np.float64)
         if np.any(bx[:, 2] < bx[:, 0]) or np.any(bx[:, 3] < bx[:, 1]):
             raise InputError("Detections.boxes: expected x1 <= x2 and y1 <= y2 in every row")
         bs = np.asarray(self.box_scores, dtype=np.float64).reshape(-1)
