@@ -574,8 +574,8 @@ class _CountingFrontEnd:
     def timings(self) -> dict[str, float]:
         return self.inner.timings
 
-    def process(self, images, frame, t_s):
-        obs = self.inner.process(images, frame, t_s)
+    def process(self, images, frame, t_s, T_W_B=None):
+        obs = self.inner.process(images, frame, t_s, T_W_B=T_W_B)
         self.observations.append(len(obs))
         self.features.append(sum(len(v.feature_ids) for o in obs for v in o.views))
         last = getattr(self.inner, "last_features", None) or {}

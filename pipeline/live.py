@@ -552,7 +552,8 @@ def run_live(
                     no_pose += 1
                     continue
             last_t_s = t_s
-            obs = frontend.process(images, lead.seq, t_s)
+            # The body pose lets the front end take the drone's own rotation out of feature motion.
+            obs = frontend.process(images, lead.seq, t_s, T_W_B=egomotion.pose_at(t_s))
             timings.add_all(getattr(frontend, "timings", None))
             reports = fusion.step(obs, lead.seq, t_s)
             timings.add_all(getattr(fusion, "timings", None))

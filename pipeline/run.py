@@ -329,7 +329,10 @@ def run(
             t1 = perf()
             if fs is None:
                 break
-            obs = frontend.process(fs.images, fs.frame, fs.t_s)
+            # The body pose lets the front end take the drone's own rotation out of feature motion; outside
+            # the trajectory's span fusion.step raises the error that names the frame.
+            T_W_B = egomotion.pose_at(fs.t_s) if egomotion.covers(fs.t_s) else None
+            obs = frontend.process(fs.images, fs.frame, fs.t_s, T_W_B=T_W_B)
             reports = fusion.step(obs, fs.frame, fs.t_s)
             t2 = perf()
             items = writer.write(fs.frame, fs.t_s, reports)

@@ -22,7 +22,7 @@ class SlowFrontEnd(FakeFrontEnd):
         super().__init__(rig)
         self.delay_s = delay_s
 
-    def process(self, images, frame, t_s):
+    def process(self, images, frame, t_s, T_W_B=None):
         time.sleep(self.delay_s)
         return super().process(images, frame, t_s)
 

@@ -66,7 +66,7 @@ class FakeFrontEnd:
         self.timings = {"detect": 1e-4, "track": 2e-4, "group": 1e-5, "associate": 1e-5}
         self.interrupt_at = interrupt_at
 
-    def process(self, images, frame, t_s):
+    def process(self, images, frame, t_s, T_W_B=None):
         if self.interrupt_at is not None and len(self.calls) == self.interrupt_at:
             raise KeyboardInterrupt
         self.calls.append((frame, t_s, {k: int(v.reshape(-1)[0]) for k, v in images.items()}))
