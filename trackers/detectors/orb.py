@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from estimators.errors import ConfigError
+from estimators.errors import ConfigError, InputError
 from trackers.detectors.base import Detections, Detector, register_detector, to_grey
 
 
@@ -69,8 +69,11 @@ class OrbDetector(Detector):
         self.max_features = int(max_features)
         self.grid = (int(grid[0]), int(grid[1]))
         self.descriptors = bool(descriptors)
+        # the mask is applied to the keypoints afterwards, not given to ORB (with a mask ORB took
+        # twice as long: 8.6 vs 3.9 ms on a 1280x720 frame with 3 levels), so masked-out corners
+        # (e.g. at live features) share the budget: 5x, not 4x, the wanted number
         self._orb = cv2.ORB_create(
-            nfeatures=4 * self.max_features,
+            nfeatures=5 * self.max_features,
             scaleFactor=scale_factor,
             nlevels=n_levels,
             edgeThreshold=15,
@@ -81,11 +84,24 @@ class OrbDetector(Detector):
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
         """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8."""
         grey = to_grey(image)
-        kps = self._orb.detect(grey, mask)
+        kps = self._orb.detect(grey, None)
         if not kps:
             return Detections.empty()
         uv = np.array([k.pt for k in kps], dtype=np.float32)
         sc = np.array([k.response for k in kps], dtype=np.float32)
+        if mask is not None:
+            m = np.asarray(mask)
+            if m.shape[:2] != grey.shape[:2]:
+                raise InputError(
+                    f"orb: mask of shape {m.shape} for a {grey.shape[:2]} image; expected the same size"
+                )
+            ui = np.clip(np.rint(uv[:, 0]).astype(np.intp), 0, m.shape[1] - 1)
+            vi = np.clip(np.rint(uv[:, 1]).astype(np.intp), 0, m.shape[0] - 1)
+            inside = np.flatnonzero(m[vi, ui] > 0)
+            if not len(inside):
+                return Detections.empty()
+            kps = [kps[i] for i in inside]
+            uv, sc = uv[inside], sc[inside]
         per_cell = max(1, int(np.ceil(self.max_features / (self.grid[0] * self.grid[1]) * 2)))
         keep = bucket(uv, sc, grey.shape[:2], self.grid, per_cell)
         keep = keep[: self.max_features]
