@@ -173,3 +173,25 @@ def test_texture_is_the_window_mean_absolute_deviation(model):
     # an 11x11 window of a checkerboard: 61 of one value, 60 of the other -> MAD = 2*61*60/121^2*200
     assert tex[0] == pytest.approx(2 * 61 * 60 / 121**2 * 200, rel=1e-5)
     assert tex[1] == 0.0
+
+
+def test_velocity_is_per_second_so_dropped_frames_keep_tracks(model):
+    """Camera turning 3 px per frame at the centre (the equidistant model: f * angle, by hand),
+    single-level KLT (no pyramid to absorb a bad prediction): after 8 frames the central features'
+    velocity is 3 px * 30 frames/s = 90 px/s, and when frames 8-10 are dropped (9 px of motion in
+    one step, predicted from v * dt) most features survive; a per-frame velocity would predict 3 px
+    and lose most of them (measured: 44% kept)."""
+    scene = SphereScene(model)
+    f_px = model.image_circle()[2] / model.max_angle_rad  # px per radian
+    step = 3.0 / f_px
+    ft = make_tracker(model, max_features=300, levels=0, redetect_every=100)
+    for k in [*range(8), 11]:  # frames 8, 9, 10 dropped
+        feats, _ = ft.track(scene.render(rot_axis([0, 1, 0], k * step)), k, k / 30)
+        if k == 7:
+            before = set(feats.ids.tolist())
+            central = np.linalg.norm(ft.uv - [model.cx, model.cy], axis=1) < 30
+            v = np.median(ft.vel[central], axis=0)
+            assert abs(v[0]) == pytest.approx(90.0, rel=0.1)
+            assert abs(v[1]) < 5.0
+    kept = len(before & set(feats.ids.tolist())) / len(before)
+    assert kept > 0.8, f"kept {kept:.2f} of the features over the dropped frames"
