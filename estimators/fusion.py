@@ -252,6 +252,21 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
+    """``tangent_basis`` of a unit 3-tuple: the columns (e1, e2) as 3-tuples of floats."""
+    a0, a1, a2 = abs(u[0]), abs(u[1]), abs(u[2])
+    e = (1.0, 0.0, 0.0) if a0 <= a1 and a0 <= a2 else (0.0, 1.0, 0.0) if a1 <= a2 else (0.0, 0.0, 1.0)
+    e1 = _tcross(u, e)
+    n = math.sqrt(_tdot(e1, e1))
+    e1 = (e1[0] / n, e1[1] / n, e1[2] / n)
+    return e1, _tcross(u, e1)
+
+
+_ZEROS = {k: np.zeros(k) for k in (1, 2, 3)}
+for _z in _ZEROS.values():
+    _z.setflags(write=False)
+
+
 def tangent_basis(u: np.ndarray) -> np.ndarray:
     """Orthonormal basis E (3, 2) of the plane orthogonal to the unit vector ``u`` (3,)."""
     e = np.zeros(3)
@@ -261,17 +276,27 @@ def tangent_basis(u: np.ndarray) -> np.ndarray:
     return np.stack([e1, _cross(u, e1)], axis=1)
 
 
-@dataclass(frozen=True)
+_NO_FEATURES = np.zeros((0, 3))
+_NO_FEATURES.setflags(write=False)
+_NO_IDS = np.zeros(0, dtype=np.int64)
+_NO_IDS.setflags(write=False)
+
+
 class _View:
     """One camera's sighting in W: centre c_W (3,) m, unit bearing b_W (3,), sigma (rad), and the
-    member features: feature_ids (M,) and their unit bearings feature_b_W (M, 3)."""
+    member features: feature_ids (M,) and their unit bearings feature_b_W (M, 3). (A slotted class,
+    not a frozen dataclass: one is built per track and camera each frame.)"""
 
-    camera: str
-    c_W: np.ndarray
-    b_W: np.ndarray
-    sigma_rad: float
-    feature_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    feature_b_W: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    __slots__ = ("camera", "c_W", "b_W", "sigma_rad", "feature_ids", "feature_b_W")
+
+    def __init__(self, camera: str, c_W: np.ndarray, b_W: np.ndarray, sigma_rad: float,
+                 feature_ids: np.ndarray = _NO_IDS, feature_b_W: np.ndarray = _NO_FEATURES) -> None:
+        self.camera = camera
+        self.c_W = c_W
+        self.b_W = b_W
+        self.sigma_rad = sigma_rad
+        self.feature_ids = feature_ids
+        self.feature_b_W = feature_b_W
 
 
 class _FeatureRays:
@@ -386,10 +411,6 @@ def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
     return np.where(cnt > 0, 0.5 * (vs[lo] + vs[hi]), 0.0)
 
 
-_NO_FEATURES = np.zeros((0, 3))
-_NO_FEATURES.setflags(write=False)
-
-
 class _FrameContext:
     """What every track's report of one frame shares: T_W_B's inverse rotation R_B_W (3, 3), the
     body origin o_W (3,) m and the drone's velocity v_drone_W (3,) m/s, in W."""
@@ -402,12 +423,21 @@ class _FrameContext:
         self.v_drone_W = np.asarray(v_drone_W, dtype=float)
 
 
-@dataclass(frozen=True)
 class _Sighting:
-    t_s: float
-    frame: int
-    o_W: np.ndarray  # body origin in W at t_s
-    views: tuple[_View, ...]
+    """One track's views of one frame: t_s (s), frame index, body origin o_W (3,) m in W at t_s,
+    views (one _View per camera, in the rig's order), c0 (the first view's centre as a 3-tuple of
+    floats, for baseline searches) and f0 (each view's offset in the frame's feature arrays)."""
+
+    __slots__ = ("t_s", "frame", "o_W", "views", "c0", "f0")
+
+    def __init__(self, t_s: float, frame: int, o_W: np.ndarray, views: tuple[_View, ...],
+                 c0: tuple[float, float, float] | None = None, f0: tuple[int, ...] = ()) -> None:
+        self.t_s = t_s
+        self.frame = frame
+        self.o_W = o_W
+        self.views = views
+        self.c0 = c0 if c0 is not None else tuple(views[0].c_W.tolist())
+        self.f0 = f0
 
 
 @dataclass
@@ -460,6 +490,7 @@ class ObstacleFusion:
         self._cam_index = {n: i for i, n in enumerate(rig.names)}
         self._features = _FeatureRays()
         self._speed_cache: dict[float, float] = {}
+        self._FQ_cache: dict[tuple[float, bool], tuple[np.ndarray, np.ndarray]] = {}
         s = self.settings
         self._gate2 = chi2_ppf(s.gate_probability, 2)
         self._gate3 = chi2_ppf(s.gate_probability, 3)
@@ -484,44 +515,60 @@ class ObstacleFusion:
         equal ``t_s``). frame: index (for messages). t_s: frame time, seconds, strictly increasing.
         Raises InputError for a non-finite, repeated or decreasing ``t_s`` (naming the frame), a time
         the ego-motion does not cover, an unknown camera or a repeated track id.
+
+        ``timings`` covers the whole call: ``estimate`` (input checks, poses, bearings to W, bounds,
+        feature and stereo triangulations) and ``fuse`` (filters and reports).
         """
-        self.timings = {"estimate": 0.0, "fuse": 0.0}
+        perf = time.perf_counter
+        t0 = perf()
         t_s = self._check_time(frame, t_s)
         try:
             T_W_B = self.egomotion.pose_at(t_s)
         except InputError as e:
             raise InputError(f"frame {frame} (t_s={t_s:.6f} s): ego-motion: {e}") from e
-        t0 = time.perf_counter()
-        frame_ctx = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s))
-        cams: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # camera -> (R_W_C, c_W) at t_s
-        for name, T_B_C in self._T_C_B_inv.items():  # T_W_C = T_W_B T_B_C
-            cams[name] = (T_W_B.R @ T_B_C.R, T_W_B.R @ T_B_C.t + T_W_B.t)
+        fc = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s))
         reports: list[TrackReport] = []
         seen: set[int] = set()
-        work: list[tuple[_Track, _Sighting, str]] = []
+        todo: list[tuple[_Track, ObstacleObservation]] = []
+        t_end = 0.0  # time spent reporting tracks ended in this loop (fuse)
         for obs in observations:
             self._check_obs(obs, frame, t_s, seen)
             tr = self._tracks.get(obs.track_id)
             if obs.status == "lost" or not obs.views:
                 if tr is not None:
-                    reports.append(self._end(tr, t_s, frame_ctx))
+                    te = perf()
+                    reports.append(self._end(tr, t_s, fc))
+                    t_end += perf() - te
                 continue
             if tr is None:
                 tr = self._tracks[obs.track_id] = _Track(obs.track_id, obs.label)
             tr.label, tr.attributes = obs.label, dict(obs.attributes)
-            work.append((tr, self._sighting(obs, frame, t_s, T_W_B, cams), obs.status))
+            todo.append((tr, obs))
+        work, feats = self._sightings(todo, frame, t_s, T_W_B)
         self._bounds_batch(work)
-        self._features_batch(work, t_s)
-        self.timings["estimate"] += time.perf_counter() - t0
-        for tr, sighting, status in work:
-            reports.append(self._process(tr, sighting, status, frame_ctx))
+        self._features_batch(work, t_s, feats)
+        t1 = perf()
+        t_est = t1 - t0 - t_end
+        batch: list[tuple[_Track, _Sighting]] = []
+        for tr, sg, _status in work:
+            if tr.feature_range is not None and (self.settings.feature_ranging_moving or not tr.moving):
+                batch.append((tr, sg))  # member features fit static points: they range the track
+            else:
+                t_est += self._process(tr, sg)
+        if batch:
+            self._set_from_features_batch(batch, fc)
+        reports.extend(self._reports([(tr, status) for tr, _sg, status in work], fc))
         for tid in list(self._tracks):
             tr = self._tracks[tid]
             if tid not in seen and t_s - tr.last_seen_t > self.settings.lost_after_s:
-                reports.append(self._end(tr, t_s, frame_ctx))
+                reports.append(self._end(tr, t_s, fc))
         if len(self._speed_cache) > 256:
             self._speed_cache.clear()
+        if len(self._FQ_cache) > 64:
+            self._FQ_cache.clear()
         self._last_t, self._last_frame = t_s, frame
+        t2 = perf()
+        self.timings = {"estimate": t_est, "fuse": t2 - t0 - t_est}
         return reports
 
     # ---------------------------------------------------------------------------- input checks
@@ -556,19 +603,92 @@ class ObstacleFusion:
                     f"rig cameras: {', '.join(self.rig.names)}"
                 )
 
-    def _sighting(self, obs: ObstacleObservation, frame: int, t_s: float, T_W_B: Pose, cams) -> _Sighting:
-        views = []
+    def _sightings(self, todo: list[tuple[_Track, ObstacleObservation]], frame: int, t_s: float,
+                   T_W_B: Pose):
+        """Every observed track's _Sighting of this frame, its bearings in W (one matrix product per
+        camera for all tracks' representative and feature bearings: b_W = R_W_C b_C with
+        R_W_C = R_W_B R_B_C, c_W = R_W_B t_B_C + t_W_B).
+
+        Returns (work, feats): work = [(track, sighting, status)] in ``todo``'s order; feats =
+        (ids (M,), b_W (M, 3), c_W (M, 3), track index (M,), camera index (M,)) of all member
+        features (track by track, each track's views in the rig's order), or None without any.
+        """
         floor = self.settings.bearing_sigma_floor_rad
-        for v in obs.views:
-            R_W_C, c_W = cams[v.camera]  # p_W = T_W_B T_B_C p_C
-            b_W = R_W_C @ v.b_C
-            sigma = max(float(v.sigma_rad), floor)
-            fb = v.feature_b_C @ R_W_C.T if len(v.feature_ids) else _NO_FEATURES
-            views.append(_View(v.camera, c_W, b_W / math.sqrt(float(b_W @ b_W)), sigma, v.feature_ids, fb))
-        if len(views) > 1:
-            order = self._cam_index
-            views.sort(key=lambda w: order[w.camera])
-        return _Sighting(t_s, frame, T_W_B.t, tuple(views))
+        cam_index = self._cam_index
+        ncam = len(cam_index)
+        R_W_C = np.empty((ncam, 3, 3))
+        c_W = np.empty((ncam, 3))
+        for name, T_B_C in self._T_C_B_inv.items():  # T_W_C = T_W_B T_B_C
+            k = cam_index[name]
+            R_W_C[k] = T_W_B.R @ T_B_C.R
+            c_W[k] = T_W_B.R @ T_B_C.t + T_W_B.t
+        c_rows = list(c_W)  # one (3,) array per camera, shared by its views
+        c_tup = [tuple(c.tolist()) for c in c_rows]
+        vs_l, b_l, cam_l, fid_l, fb_l, trk_l = [], [], [], [], [], []
+        order = cam_index.__getitem__
+        for i, (_tr, obs) in enumerate(todo):
+            vs = obs.views
+            if len(vs) > 1:
+                vs = sorted(vs, key=lambda w: order(w.camera))
+            vs_l.append(vs)
+            for v in vs:
+                b_l.append(v.b_C)
+                cam_l.append(order(v.camera))
+                fid_l.append(v.feature_ids)
+                fb_l.append(v.feature_b_C)
+                trk_l.append(i)
+        if not todo:
+            return [], None
+        B = np.array(b_l)  # (V, 3) camera bearings
+        vcam = np.array(cam_l, dtype=np.int64)
+        fcnt = np.fromiter((len(f) for f in fid_l), dtype=np.int64, count=len(fid_l))
+        M = int(fcnt.sum())
+        if ncam == 1:
+            B = B @ R_W_C[0].T
+        else:
+            for k in range(ncam):
+                m = vcam == k
+                if m.any():
+                    B[m] = B[m] @ R_W_C[k].T
+        B /= np.sqrt(B[:, 0] * B[:, 0] + B[:, 1] * B[:, 1] + B[:, 2] * B[:, 2])[:, None]
+        b_rows = list(B)
+        feats = None
+        if M:
+            ids = np.concatenate(fid_l)
+            FB = np.concatenate(fb_l)
+            fcam = np.repeat(vcam, fcnt)
+            if ncam == 1:
+                FB = FB @ R_W_C[0].T
+            else:
+                for k in range(ncam):
+                    m = fcam == k
+                    if m.any():
+                        FB[m] = FB[m] @ R_W_C[k].T
+            feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam)
+        offs = (np.cumsum(fcnt) - fcnt).tolist()
+        cnts = fcnt.tolist()
+        o_W = T_W_B.t
+        work = []
+        j = 0
+        for (tr, obs), vs in zip(todo, vs_l, strict=True):
+            views = []
+            f0 = []
+            for v in vs:
+                k = cam_l[j]
+                n, o = cnts[j], offs[j]
+                sigma = v.sigma_rad if v.sigma_rad > floor else floor
+                if n:
+                    views.append(_View(v.camera, c_rows[k], b_rows[j], float(sigma), fid_l[j],
+                                       FB[o:o + n]))
+                else:
+                    views.append(_View(v.camera, c_rows[k], b_rows[j], float(sigma)))
+                f0.append(o)
+                j += 1
+            sg = _Sighting(t_s, frame, o_W, tuple(views), c_tup[cam_l[j - len(vs)]], tuple(f0))
+            tr.feature_range = None
+            tr.feature_stereo = None
+            work.append((tr, sg, obs.status))
+        return work, feats
 
     # ------------------------------------------------------------------------------- per track
     def _speed(self, t_s: float) -> float:
@@ -583,16 +703,14 @@ class ObstacleFusion:
             return float(s)
         return max(self._speed(t_a), self._speed(t_b))
 
-    def _process(self, tr: _Track, sg: _Sighting, status: str, fc: _FrameContext) -> TrackReport:
+    def _process(self, tr: _Track, sg: _Sighting) -> float:
+        """Update one track that its member features do not range (``_set_from_features_batch``
+        does those): stereo / mono initialisation or prediction and bearing / point updates, then
+        the bounds. Returns the seconds spent on estimates (stereo fixes, mono pairs)."""
         s = self.settings
         t0 = time.perf_counter()
         stereo = None
-        # the member features fit static points: they range the track (all their rays, every
-        # camera), so no per-frame stereo fix is needed
-        from_features = tr.feature_range is not None and (s.feature_ranging_moving or not tr.moving)
-        if from_features:
-            pass
-        elif tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
+        if tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
             stereo = self._stereo_from_features(tr, sg)
         elif len(sg.views) >= 2:
             stereo = self._stereo(sg)
@@ -612,11 +730,7 @@ class ObstacleFusion:
             init_pair = self._mono_init_pair(tr, sg)
         t1 = time.perf_counter()
         tr.bounded_now = False
-        if from_features:
-            self._set_from_features(tr, sg)
-            if len(sg.views) >= 2:
-                tr.sources.add("stereo")
-        elif tr.kf is None:
+        if tr.kf is None:
             if stereo is not None:
                 self._init_stereo(tr, sg, stereo)
             elif isinstance(init_pair, tuple):
@@ -651,17 +765,14 @@ class ObstacleFusion:
         tr.last_seen_t = sg.t_s
         tr.last_views = sg.views
         tr.cameras = tuple(v.camera for v in sg.views)
-        t2 = time.perf_counter()
-        self.timings["estimate"] += t1 - t0
-        self.timings["fuse"] += t2 - t1
-        return self._report(tr, status, sg.t_s, fc)
+        return t1 - t0
 
     def _end(self, tr: _Track, t_s: float, fc: _FrameContext) -> TrackReport:
         """Report a track once as lost (predicted to t_s) and drop its filter."""
         if tr.kf is not None:
             self._predict(tr, t_s)
         tr.bounded_now = False
-        rep = self._report(tr, "lost", t_s, fc)
+        rep = self._reports([(tr, "lost")], fc)[0]
         del self._tracks[tr.id]
         return rep
 
@@ -686,16 +797,16 @@ class ObstacleFusion:
         if not tr.history:
             return "no earlier sighting yet"
         vb = sg.views[0]
-        cb = vb.c_W.tolist()
-
-        def base2(h: _Sighting) -> float:
-            c = h.views[0].c_W
-            return (c[0] - cb[0]) ** 2 + (c[1] - cb[1]) ** 2 + (c[2] - cb[2]) ** 2
-
-        best = max(tr.history, key=base2)
+        cb = sg.c0
+        hist = tr.history
+        C = np.array([h.c0 for h in hist])  # the longest baseline: largest |c - c_b|^2 (first of ties)
+        d2 = (C[:, 0] - cb[0]) ** 2 + (C[:, 1] - cb[1]) ** 2 + (C[:, 2] - cb[2]) ** 2
+        kbest = int(np.argmax(d2))
+        best = hist[kbest]
+        best_b2 = float(d2[kbest])
         va = best.views[0]
         cos_par = float(va.b_W @ vb.b_W)  # cheap pre-check of the parallax before triangulating
-        if cos_par > math.cos(self.settings.min_parallax_rad) and base2(best) > 1e-18:
+        if cos_par > math.cos(self.settings.min_parallax_rad) and best_b2 > 1e-18:
             par = math.acos(min(cos_par, 1.0))
             return (
                 f"parallax {math.degrees(par):.2f} deg below the "
@@ -706,7 +817,7 @@ class ObstacleFusion:
         # order sigma below differs from it by a geometry factor near 1): skip hopeless pairs
         sin_par = math.sqrt(max(1.0 - min(cos_par * cos_par, 1.0), 0.0))
         rel_est = math.sqrt(2.0) * sigma / max(sin_par, 1e-12)
-        if rel_est > 2.0 * self.settings.mono_init_max_rel_sigma and base2(best) > 1e-18:
+        if rel_est > 2.0 * self.settings.mono_init_max_rel_sigma and best_b2 > 1e-18:
             return (
                 f"mono triangulation too uncertain (sigma ~{100 * rel_est:.0f} % > "
                 f"{100 * self.settings.mono_init_max_rel_sigma:.0f} %)"
@@ -729,48 +840,57 @@ class ObstacleFusion:
     def _bounds_batch(self, work: list[tuple[_Track, _Sighting, str]]) -> None:
         """Moving-obstacle bounds of every track of this frame at once (see the module docstring): the
         current sighting against the oldest one in the baseline window, whose older sightings are
-        dropped here. The 3-4 ray pairs of each track are evaluated in one
-        ``geometry.moving_obstacle_bounds_batch`` call and united per track."""
+        dropped here. The 3-4 ray pairs of each track (``_noisy_bound_rays_batch``) are evaluated
+        in one ``geometry.moving_obstacle_bounds_batch`` call and united per track."""
         s = self.settings
-        rows: list[tuple] = []
-        owner: list[int] = []
+        max_age = s.baseline_max_age_s + 1e-9
+        nsig = s.bounds_noise_sigmas
+        idx: list[int] = []
+        ca_l, ba_l, cb_l, bb_l, D_l, dl_l = [], [], [], [], [], []
         for i, (tr, sg, _st) in enumerate(work):
-            while tr.history and sg.t_s - tr.history[0].t_s > s.baseline_max_age_s + 1e-9:
-                tr.history.popleft()
+            hist = tr.history
+            t_now = sg.t_s
+            while hist and t_now - hist[0].t_s > max_age:
+                hist.popleft()
             tr.bounds, tr.bounds_reason = None, None
-            if not tr.history:
+            if not hist:
                 tr.bounds_reason = "no earlier sighting yet"
                 continue
-            h = tr.history[0]
+            h = hist[0]
             va, vb = h.views[0], sg.views[0]
-            D = self._max_speed(h.t_s, sg.t_s) * (sg.t_s - h.t_s)  # eq. 3.11-3.13: FC = GC = v dt
-            delta = s.bounds_noise_sigmas * math.hypot(va.sigma_rad, vb.sigma_rad)
-            for r in _noisy_bound_rays(va.c_W, va.b_W, vb.c_W, vb.b_W, delta):
-                rows.append(r + (D, tuple(sg.o_W.tolist())))
-                owner.append(i)
-        if not rows:
+            idx.append(i)
+            ca_l.append(va.c_W)
+            ba_l.append(va.b_W)
+            cb_l.append(vb.c_W)
+            bb_l.append(vb.b_W)
+            D_l.append(self._max_speed(h.t_s, t_now) * (t_now - h.t_s))  # eq. 3.11-3.13: FC = GC = v dt
+            dl_l.append(nsig * math.hypot(va.sigma_rad, vb.sigma_rad))
+        if not idx:
             return
-        c_a, b_a, c_b, b_b, D, o = (np.array(x) for x in zip(*rows, strict=True))
+        rows, c_a, b_a, c_b, b_b = _noisy_bound_rays_batch(
+            np.array(ca_l), np.array(ba_l), np.array(cb_l), np.array(bb_l), np.array(dl_l))
+        D = np.array(D_l)[rows]
+        o = np.broadcast_to(work[0][1].o_W, c_a.shape)
         r_min, r_max, d_min, _d_max, ok = geometry.moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, o)
-        own = np.asarray(owner)
-        G = len(work)
+        G = len(idx)
         lo = np.full(G, np.inf)
         hi = np.full(G, -np.inf)
         dlo = np.full(G, np.inf)
-        np.minimum.at(lo, own[ok], r_min[ok])
-        np.maximum.at(hi, own[ok], r_max[ok])
-        np.minimum.at(dlo, own[ok], d_min[ok])
+        own = rows[ok]
+        np.minimum.at(lo, own, r_min[ok])
+        np.maximum.at(hi, own, r_max[ok])
+        np.minimum.at(dlo, own, d_min[ok])
         any_ok = np.zeros(G, dtype=bool)
-        any_ok[own[ok]] = True
-        for i in sorted(set(owner)):
+        any_ok[own] = True
+        for i, good, lo_i, hi_i, dlo_i in zip(idx, any_ok.tolist(), lo.tolist(), hi.tolist(),
+                                              dlo.tolist(), strict=True):
             tr = work[i][0]
-            if any_ok[i]:
-                tr.bounds = geometry.RangeBounds(
-                    float(lo[i]), None if math.isinf(hi[i]) else float(hi[i]), float(dlo[i]), None)
+            if good:
+                tr.bounds = geometry.RangeBounds(lo_i, None if math.isinf(hi_i) else hi_i, dlo_i, None)
             else:
                 tr.bounds_reason = "bounds unobservable: inconsistent with max speed"
 
-    def _features_batch(self, work: list[tuple[_Track, _Sighting, str]], t_s: float) -> None:
+    def _features_batch(self, work: list[tuple[_Track, _Sighting, str]], t_s: float, feats) -> None:
         """Member-feature ranges of all of this frame's tracks at once (static points and stereo).
 
         Every view's feature rays are added to the run's feature store (one ray per feature and
@@ -796,29 +916,16 @@ class ObstacleFusion:
         ``feature_stereo``: the features with one id in both views this frame, triangulated from
         these two rays only (valid for moving obstacles too), reduced the same way.
         All groups are computed in one vectorised pass (group medians by sorting).
+
+        feats: (ids (M,), b_W (M, 3), c_W (M, 3), track index (M,), camera index (M,)) of this frame's
+        member features (``_sightings``), or None.
         """
         s = self.settings
         fs = self._features
-        ids_l, b_l, c_l, g_l, cam_l = [], [], [], [], []
-        for gi, (tr, sg, _st) in enumerate(work):
-            tr.feature_range = None
-            tr.feature_stereo = None
-            for v in sg.views:
-                m = len(v.feature_ids)
-                if m:
-                    ids_l.append(v.feature_ids)
-                    b_l.append(v.feature_b_W)
-                    c_l.append(np.broadcast_to(v.c_W, (m, 3)))
-                    g_l.append(np.full(m, gi, dtype=np.int64))
-                    cam_l.append(np.full(m, self._cam_index[v.camera], dtype=np.int64))
         fs.prune(t_s, s.lost_after_s)
-        if not ids_l:
+        if feats is None:
             return
-        ids = np.concatenate(ids_l)
-        b_now = np.concatenate(b_l)
-        c_now = np.concatenate(c_l)
-        g = np.concatenate(g_l)
-        cam = np.concatenate(cam_l)
+        ids, b_now, c_now, g, cam = feats
         rows = fs.rows(ids, b_now)
         ncam = len(self._cam_index)
         _, first = np.unique(rows * ncam + cam, return_index=True)  # one ray per feature and camera
@@ -917,12 +1024,6 @@ class ObstacleFusion:
         """
         s = self.settings
         ia_l, ib_l, gg_l = [], [], []
-        offs = 0
-        pos = {}
-        for gi, (_tr, sg, _st) in enumerate(work):
-            for v in sg.views:
-                pos[(gi, v.camera)] = offs
-                offs += len(v.feature_ids)
         for gi, (_tr, sg, _st) in enumerate(work):
             if len(sg.views) < 2:
                 continue
@@ -932,8 +1033,8 @@ class ObstacleFusion:
             _, ka, kb = np.intersect1d(va.feature_ids, vb.feature_ids, assume_unique=False,
                                        return_indices=True)
             if len(ka):
-                ia_l.append(ka + pos[(gi, va.camera)])
-                ib_l.append(kb + pos[(gi, vb.camera)])
+                ia_l.append(ka + sg.f0[0])
+                ib_l.append(kb + sg.f0[1])
                 gg_l.append(np.full(len(ka), gi, dtype=np.int64))
         if not ia_l:
             return
@@ -1000,30 +1101,59 @@ class ObstacleFusion:
         p = v.c_W + d * v.b_W
         return p, _ray_covariance(p - sg.o_W, sig, v.sigma_rad)
 
-    def _set_from_features(self, tr: _Track, sg: _Sighting) -> None:
-        """(Re)set a static-hypothesis track's point on its representative ray at the feature range.
+    def _set_from_features_batch(self, batch: list[tuple[_Track, _Sighting]], fc: _FrameContext) -> None:
+        """(Re)set the point of every track its member features range on its representative ray at
+        the feature range, all tracks at once, then apply the bounds of static-hypothesis ones.
 
         The feature estimate is cumulative (all rays of every feature), so it replaces the state
         rather than being fused again each frame (no double counting). The point is where the ray
         c + d b of the first view is at range z from the body origin o:
-            d = -(b.w) + sqrt((b.w)^2 - |w|^2 + z^2),  w = c - o.
+            d = -(b.w) + sqrt((b.w)^2 - |w|^2 + z^2),  w = c - o,   p = c + d b,
+        with covariance R = sig^2 u u^T + (|p - o| sigma_b)^2 (I - u u^T) (``_ray_covariance``) and
+        the velocity prior static_velocity_sigma_mps (velocity 0).
         """
-        z, sig, _n = tr.feature_range
-        p, R = self._point_on_ray(sg, z, sig)
-        tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
-        if tr.kf is None:
-            tr.kf = self._new_kf(p, R, self.settings.static_velocity_sigma_mps)
+        s = self.settings
+        K = len(batch)
+        v0 = [sg.views[0] for _tr, sg in batch]
+        c = np.array([v.c_W for v in v0])
+        b = np.array([v.b_W for v in v0])
+        zs = np.array([tr.feature_range[:2] for tr, _sg in batch])
+        z, sig = zs[:, 0], zs[:, 1]
+        sb = np.array([v.sigma_rad for v in v0])
+        o = fc.o_W
+        w = c - o
+        bw = b[:, 0] * w[:, 0] + b[:, 1] * w[:, 1] + b[:, 2] * w[:, 2]
+        disc = bw * bw - (w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]) + z * z
+        d = np.where(disc > 0, -bw + np.sqrt(np.maximum(disc, 0.0)), z)
+        X = np.zeros((K, 6))
+        X[:, :3] = c + d[:, None] * b
+        P = np.zeros((K, 6, 6))
+        P[:, :3, :3] = _ray_covariances(X[:, :3] - o, sig, sb)
+        P[:, 3, 3] = P[:, 4, 4] = P[:, 5, 5] = s.static_velocity_sigma_mps**2
+        r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
+        v_sigma = s.static_velocity_sigma_mps
+        for k, (tr, sg) in enumerate(batch):
+            tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
+            if tr.kf is None:
+                tr.kf = self._new_kf(X[k, :3], P[k, :3, :3], v_sigma)
+            else:  # the state is replaced: no prediction needed
+                tr.kf.x = X[k]
+                tr.kf.P = P[k]
             tr.t_kf = sg.t_s
-        else:
-            tr.t_kf = sg.t_s  # the state is replaced: no prediction needed
-            tr.kf.x[:3] = p
-            tr.kf.x[3:] = 0.0
-            tr.kf.P[:, :] = 0.0
-            tr.kf.P[:3, :3] = R
-            tr.kf.P[3:, 3:] = np.eye(3) * self.settings.static_velocity_sigma_mps**2
-        tr.gated_run = 0
-        tr.reason = None
-        tr.sources.add("mono")
+            tr.gated_run = 0
+            tr.reason = None
+            tr.sources.add("mono")
+            if len(sg.views) >= 2:
+                tr.sources.add("stereo")
+            tr.bounded_now = False
+            bd = tr.bounds
+            if not tr.moving and bd is not None and (
+                    r[k] < bd.range_min_m or (bd.range_max_m is not None and r[k] > bd.range_max_m)):
+                self._apply_bounds(tr, sg)  # stereo measures range itself; the bounds rest on an
+            tr.history.append(sg)           # assumed max speed
+            tr.last_seen_t = sg.t_s
+            tr.last_views = sg.views
+            tr.cameras = tuple(v.camera for v in sg.views)
 
     # ---------------------------------------------------------------------------------- filter
     def _new_kf(self, p_W: np.ndarray, P_pp: np.ndarray, v_sigma: float) -> ExtendedKalmanFilter:
@@ -1083,52 +1213,69 @@ class ObstacleFusion:
         dt = t_s - tr.t_kf
         if dt <= 0:
             return
-        a = self.settings.max_accel_mps2 if tr.moving else self.settings.static_accel_mps2
-        q = a * a * self.settings.accel_time_s  # PSD, m^2/s^3: sqrt(q tau) = a tau
-        F = np.eye(6)
-        F[:3, 3:] = np.eye(3) * dt  # p' = p + v dt
-        Q = np.zeros((6, 6))
-        Q[:3, :3] = np.eye(3) * q * dt**3 / 3.0
-        Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**2 / 2.0
-        Q[3:, 3:] = np.eye(3) * q * dt
-        tr.kf.F, tr.kf.Q = F, Q
+        key = (dt, tr.moving)
+        FQ = self._FQ_cache.get(key)
+        if FQ is None:  # (one dt per frame for most tracks: F and Q are shared, never written)
+            a = self.settings.max_accel_mps2 if tr.moving else self.settings.static_accel_mps2
+            q = a * a * self.settings.accel_time_s  # PSD, m^2/s^3: sqrt(q tau) = a tau
+            F = np.eye(6)
+            F[:3, 3:] = np.eye(3) * dt  # p' = p + v dt
+            Q = np.zeros((6, 6))
+            Q[:3, :3] = np.eye(3) * q * dt**3 / 3.0
+            Q[:3, 3:] = Q[3:, :3] = np.eye(3) * q * dt**2 / 2.0
+            Q[3:, 3:] = np.eye(3) * q * dt
+            F.setflags(write=False)
+            Q.setflags(write=False)
+            FQ = self._FQ_cache[key] = (F, Q)
+        tr.kf.F, tr.kf.Q = FQ
         tr.kf.predict()
         tr.t_kf = t_s
 
     def _gated_update(self, tr: _Track, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
-        """Fuse residual y with Jacobian H and noise R unless NIS > gate; returns whether fused."""
-        S = H @ tr.kf.P @ H.T + R
-        nis = float(y @ np.linalg.solve(S, y))
+        """Fuse residual y with Jacobian H and noise R unless NIS = y^T S^-1 y > gate; returns whether
+        fused. filterpy's update forms S = H P H^T + R and its inverse once; the NIS is read from
+        them after the update, and a gated update is undone (x and P restored)."""
+        kf = tr.kf
+        x0, P0 = kf.x, kf.P  # (filterpy's update binds new arrays: these stay the prior)
+        # filterpy EKF update with the residual already formed about the linearisation point:
+        # z = y, h(x) = 0 (bearing) / the same residual for a linear measurement.
+        zero = _ZEROS[len(y)]
+        kf.update(y, HJacobian=lambda _x: H, Hx=lambda _x: zero, R=R)
+        yv = kf.y
+        nis = float(yv @ kf.SI @ yv)
         if not math.isfinite(nis) or nis > gate:
+            kf.x, kf.P = x0, P0
             tr.gated += 1
             tr.gated_run += 1
             return False
-        # filterpy EKF update with the residual already formed about the linearisation point:
-        # z = y, h(x) = 0 (bearing) / the same residual for a linear measurement.
-        zero = np.zeros(len(y))
-        tr.kf.update(y, HJacobian=lambda _x: H, Hx=lambda _x: zero, R=R)
-        tr.nis, tr.innovation = nis, y.copy()
+        tr.nis, tr.innovation = nis, yv
         tr.gated_run = 0
         return True
 
     def _bearing_update(self, tr: _Track, v: _View) -> bool:
-        d = tr.kf.x[:3] - v.c_W
-        rho = float(np.linalg.norm(d))
+        x = tr.kf.x
+        c, b = v.c_W, v.b_W
+        d = (float(x[0]) - float(c[0]), float(x[1]) - float(c[1]), float(x[2]) - float(c[2]))
+        rho = math.sqrt(_tdot(d, d))
         if rho < 1e-6:
             tr.gated += 1
             tr.gated_run += 1
             return False
-        u = d / rho
-        cos_ang = float(u @ v.b_W)
+        u = (d[0] / rho, d[1] / rho, d[2] / rho)
+        bt = (float(b[0]), float(b[1]), float(b[2]))
+        cos_ang = _tdot(u, bt)
         if cos_ang < 0.5:  # more than 60 degrees off the predicted ray: not this obstacle
             tr.gated += 1
             tr.gated_run += 1
             return False
-        E = tangent_basis(u)
-        y = E.T @ v.b_W / cos_ang  # gnomonic coordinates of the measured ray about the predicted one
-        H = np.zeros((2, 6))
-        H[:, :3] = E.T / rho  # d(gnomonic)/dp at the prediction
-        R = np.eye(2) * v.sigma_rad**2
+        e1, e2 = _ttangent_basis(u)
+        # gnomonic coordinates of the measured ray about the predicted one: y = E^T b / (u . b)
+        y = np.array((_tdot(e1, bt) / cos_ang, _tdot(e2, bt) / cos_ang))
+        H = np.array((  # d(gnomonic)/dp at the prediction: [E^T / rho, 0]
+            (e1[0] / rho, e1[1] / rho, e1[2] / rho, 0.0, 0.0, 0.0),
+            (e2[0] / rho, e2[1] / rho, e2[2] / rho, 0.0, 0.0, 0.0)))
+        s2 = v.sigma_rad * v.sigma_rad
+        R = np.array(((s2, 0.0), (0.0, s2)))
         return self._gated_update(tr, y, H, R, self._gate2)
 
     def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> bool:
@@ -1161,14 +1308,75 @@ class ObstacleFusion:
         tr.bounded_now = True
 
     # ---------------------------------------------------------------------------------- report
-    def _report(self, tr: _Track, status: str, t_s: float, fc: _FrameContext) -> TrackReport:
+    def _reports(self, items: list[tuple[_Track, str]], fc: _FrameContext) -> list[TrackReport]:
+        """One TrackReport per (track, status), in order; the arithmetic of all tracks at once.
+
+        With a filter (state x = [p_W, v_W], P): r_W = p_W - o_W, range |r_W|, range sigma
+        sqrt(u^T P_pp u + struct_sigma^2) with u = r_W / |r_W|, position_body_m = R_B_W r_W; for
+        moving tracks the velocity when its largest sigma is small enough; the time to closest
+        approach t* = -r.w / |w|^2 (w = v_W - v_drone_W) when closing. Without one: the first view's
+        bearing turned into B (the camera offset is unknown without range) and the bounds.
+        """
         s = self.settings
-        cam: str | list[str] = tr.cameras[0] if len(tr.cameras) == 1 else list(tr.cameras)
+        out: list[TrackReport | None] = [None] * len(items)
+        with_kf = [k for k, (tr, _st) in enumerate(items) if tr.kf is not None]
+        without = [k for k, (tr, _st) in enumerate(items) if tr.kf is None]
+        R_B_W = fc.R_B_W
+        if with_kf:
+            trs = [items[k][0] for k in with_kf]
+            X = np.array([tr.kf.x for tr in trs]).reshape(len(trs), 6)
+            Ppp = np.array([tr.kf.P[:3, :3] for tr in trs])
+            r_W = X[:, :3] - fc.o_W
+            w = X[:, 3:] - fc.v_drone_W
+            rng = np.sqrt(_dot_rows(r_W, r_W))
+            u = r_W / np.maximum(rng, 1e-12)[:, None]
+            p_B = r_W @ R_B_W.T
+            b_B = p_B / np.maximum(rng, 1e-12)[:, None]
+            var = np.maximum(np.einsum("ki,kij,kj->k", u, Ppp, u), 0.0)
+            struct = np.array([tr.struct_sigma_m for tr in trs])
+            sig = np.sqrt(var + struct * struct).tolist()
+            rw = _dot_rows(r_W, w).tolist()
+            ww = _dot_rows(w, w).tolist()
+            moving = [j for j, tr in enumerate(trs) if tr.moving]
+            vel_ok: dict[int, bool] = {}
+            if moving:
+                Pvv = np.array([trs[j].kf.P[3:, 3:] for j in moving])
+                v_max = np.linalg.eigvalsh(Pvv).max(axis=1)
+                v_sig = np.sqrt(np.maximum(v_max, 0.0)).tolist()
+                vel_ok = {j: v_sig[m] <= s.velocity_report_max_sigma_mps for m, j in enumerate(moving)}
+            rng_l = rng.tolist()
+            for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
+                kw = self._report_common(tr, items[k][1])
+                kw.update(bearing_body=b_B[j], range_m=rng_l[j], range_sigma_m=sig[j],
+                          position_body_m=p_B[j])
+                srcs = tr.sources
+                if vel_ok.get(j, False):
+                    v_W = X[j, 3:].copy()
+                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
+                if rw[j] < 0 and ww[j] > 1e-12:
+                    kw["ttc_s"] = -rw[j] / ww[j]
+                if tr.bounded_now:
+                    srcs = srcs | {"bounds"}
+                kw["source"] = "+".join(x for x in ("mono", "stereo", "bounds") if x in srcs)
+                out[k] = TrackReport(**kw)
+        if without:
+            trs = [items[k][0] for k in without]
+            b_B = np.array([tr.last_views[0].b_W for tr in trs]) @ R_B_W.T
+            b_B /= np.sqrt(_dot_rows(b_B, b_B))[:, None]
+            for j, (k, tr) in enumerate(zip(without, trs, strict=True)):
+                kw = self._report_common(tr, items[k][1])
+                kw.update(bearing_body=b_B[j], unobservable_reason=tr.reason or tr.bounds_reason,
+                          source="bounds" if tr.bounds is not None else "")
+                out[k] = TrackReport(**kw)
+        return out  # type: ignore[return-value]
+
+    @staticmethod
+    def _report_common(tr: _Track, status: str) -> dict:
         b = tr.bounds
-        kw: dict = dict(
+        return dict(
             id=tr.id,
             status=status,
-            camera=cam,
+            camera=tr.cameras[0] if len(tr.cameras) == 1 else list(tr.cameras),
             range_min_m=None if b is None else b.range_min_m,
             range_max_m=None if b is None else b.range_max_m,
             label=tr.label,
@@ -1177,43 +1385,6 @@ class ObstacleFusion:
             innovation=tr.innovation,
             attributes=tr.attributes,
         )
-        srcs = set(tr.sources)
-        if tr.kf is None:
-            v0 = tr.last_views[0]
-            b_B = fc.R_B_W @ v0.b_W  # camera bearing; the camera offset is unknown without range
-            kw.update(
-                bearing_body=b_B / np.linalg.norm(b_B), unobservable_reason=tr.reason or tr.bounds_reason
-            )
-            if b is not None:
-                srcs = {"bounds"}
-            else:
-                srcs = set()
-        else:
-            x, P = tr.kf.x, tr.kf.P
-            p_W, v_W = x[:3], x[3:]
-            r_W = p_W - fc.o_W
-            rng = math.sqrt(float(r_W @ r_W))
-            u = r_W / max(rng, 1e-12)
-            p_B = fc.R_B_W @ r_W
-            kw.update(
-                bearing_body=p_B / max(rng, 1e-12),
-                range_m=rng,
-                range_sigma_m=float(math.sqrt(max(u @ P[:3, :3] @ u, 0.0) + tr.struct_sigma_m**2)),
-                position_body_m=p_B,
-            )
-            if tr.moving:
-                v_sig = float(math.sqrt(max(np.linalg.eigvalsh(P[3:, 3:]).max(), 0.0)))
-                if v_sig <= s.velocity_report_max_sigma_mps:
-                    kw.update(velocity_world_mps=v_W.copy(), speed_mps=float(np.linalg.norm(v_W)))
-            # time to closest approach: r relative position, w relative velocity; t* = -r.w / |w|^2
-            w = v_W - fc.v_drone_W
-            rw = float(r_W @ w)
-            if rw < 0 and float(w @ w) > 1e-12:
-                kw["ttc_s"] = -rw / float(w @ w)
-            if tr.bounded_now:
-                srcs.add("bounds")
-        kw["source"] = "+".join(x for x in ("mono", "stereo", "bounds") if x in srcs)
-        return TrackReport(**kw)
 
 
 def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np.ndarray:
@@ -1226,6 +1397,18 @@ def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np
     return sigma_along_m**2 * uu + s_t**2 * (np.eye(3) - uu) + np.eye(3) * 1e-12
 
 
+def _ray_covariances(d: np.ndarray, sigma_along_m: np.ndarray, sigma_rad: np.ndarray) -> np.ndarray:
+    """``_ray_covariance`` of K points at once: d (K, 3) m, sigma_along_m (K,) m, sigma_rad (K,)
+    -> (K, 3, 3)."""
+    n = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+    u = d / np.maximum(n, 1e-12)[:, None]
+    uu = u[:, :, None] * u[:, None, :]
+    s_t = np.maximum(n * sigma_rad, 1e-6)
+    eye = np.eye(3)
+    return ((sigma_along_m**2)[:, None, None] * uu + (s_t**2)[:, None, None] * (eye - uu)
+            + eye * 1e-12)
+
+
 def _tcross(a, b) -> tuple[float, float, float]:
     """a x b for two 3-tuples of floats."""
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
@@ -1235,37 +1418,61 @@ def _tdot(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def _rotate_about(b, n, ang: float) -> tuple[float, float, float]:
-    """Rodrigues rotation of b (3-tuple) about the unit axis n (3-tuple) by ang radians:
-    b cos + (n x b) sin + n (n.b)(1 - cos)."""
-    ca, sa = math.cos(ang), math.sin(ang)
-    nxb = _tcross(n, b)
-    k = _tdot(n, b) * (1.0 - ca)
-    return tuple(b[i] * ca + nxb[i] * sa + n[i] * k for i in range(3))
+def _rotate_about_batch(b: np.ndarray, n: np.ndarray, ca: np.ndarray, sa: np.ndarray) -> np.ndarray:
+    """Rodrigues rotation of the rows of b (K, 3) about the unit axes n (K, 3) by the angles whose
+    cosines / sines are ca, sa (K,):  b cos + (n x b) sin + n (n.b)(1 - cos)."""
+    nxb = _cross_rows(n, b)
+    k = _dot_rows(n, b) * (1.0 - ca)
+    return b * ca[:, None] + nxb * sa[:, None] + n * k[:, None]
 
 
-def _noisy_bound_rays(c_a, b_a, c_b, b_b, delta: float) -> list[tuple]:
-    """The ray pairs (c_a, b_a', c_b, b_b') (3-tuples) whose bounds ``_bounds_batch`` unites: ray a
-    projected into the epipolar plane of (baseline, ray b), ray b turned in it by 0, +-delta and
-    onto ray a when within delta (then noise could make the rays parallel: no upper bound); for
-    points of that plane the distance to the projected ray is never larger, so the united
-    intervals are a superset of the exact one (module docstring); just the two rays when there is no plane."""
-    c_a, b_a, c_b, b_b = (tuple(x.tolist()) for x in (c_a, b_a, c_b, b_b))
-    n = _tcross((c_b[0] - c_a[0], c_b[1] - c_a[1], c_b[2] - c_a[2]), b_b)  # epipolar plane normal
-    if math.sqrt(_tdot(n, n)) < 1e-9:
-        n = _tcross(b_a, b_b)  # zero baseline: the plane of the two bearings
-    nn = math.sqrt(_tdot(n, n))
-    if delta <= 0 or nn < 1e-12:
-        return [(c_a, b_a, c_b, b_b)]
-    n = (n[0] / nn, n[1] / nn, n[2] / nn)
-    an = _tdot(b_a, n)
-    b_a_in = (b_a[0] - an * n[0], b_a[1] - an * n[1], b_a[2] - an * n[2])
-    na = math.sqrt(_tdot(b_a_in, b_a_in))
-    if na < 1e-9:  # ray a along the normal: nothing to project
-        return [(c_a, b_a, c_b, b_b)]
-    b_a_in = (b_a_in[0] / na, b_a_in[1] / na, b_a_in[2] / na)
-    to_a = math.atan2(_tdot(n, _tcross(b_b, b_a_in)), _tdot(b_b, b_a_in))  # signed, about n
-    dirs = [b_b, _rotate_about(b_b, n, delta), _rotate_about(b_b, n, -delta)]
-    if abs(to_a) <= delta:
-        dirs.append(b_a_in)  # exactly parallel (a rotation would leave a rounding-size angle)
-    return [(c_a, b_a_in, c_b, d) for d in dirs]
+def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b of (K, 3) arrays (np.cross costs more on small arrays)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a . b of (K, 3) arrays -> (K,)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta):
+    """The ray pairs whose bounds ``_bounds_batch`` unites (module docstring), for K ray pairs at
+    once: c_a, b_a, c_b, b_b (K, 3) in W (m, unit directions), delta (K,) rad.
+
+    Returns (owner (N,), c_a, b_a', c_b, b_b' (N, 3)): the ray pairs whose bounds are united, each
+    with the index of its input pair: ray a projected into the epipolar plane of (baseline, ray b)
+    (normal n = (c_b - c_a) x b_b, or b_a x b_b at zero baseline) and ray b turned in it by 0 and
+    +-delta, plus ray a itself when ray b is within delta of it; just the two rays when there is
+    no plane, delta is 0 or ray a lies along the normal.
+    """
+    n = _cross_rows(c_b - c_a, b_b)  # epipolar plane normal
+    nn = np.sqrt(_dot_rows(n, n))
+    zero_base = nn < 1e-9
+    if zero_base.any():  # zero baseline: the plane of the two bearings
+        n[zero_base] = _cross_rows(b_a[zero_base], b_b[zero_base])
+        nn = np.sqrt(_dot_rows(n, n))
+    plane = (delta > 0) & (nn >= 1e-12)
+    n = n / np.where(plane, nn, 1.0)[:, None]
+    an = _dot_rows(b_a, n)
+    b_in = b_a - an[:, None] * n
+    na = np.sqrt(_dot_rows(b_in, b_in))
+    plane &= na >= 1e-9  # ray a along the normal: nothing to project
+    b_in = b_in / np.where(plane, na, 1.0)[:, None]
+    to_a = np.arctan2(_dot_rows(n, _cross_rows(b_b, b_in)), _dot_rows(b_b, b_in))  # signed, about n
+    ca, sa = np.cos(delta), np.sin(delta)
+    p = np.flatnonzero(plane)
+    q = np.flatnonzero(~plane)
+    par = p[np.abs(to_a[p]) <= delta[p]]  # (exactly parallel: a rotation would leave a rounding-size angle)
+    np_, bp = n[p], b_b[p]
+    owner = np.concatenate([q, p, p, p, par])
+    c_a_o = c_a[owner]
+    c_b_o = c_b[owner]
+    b_a_o = np.concatenate([b_a[q], b_in[p], b_in[p], b_in[p], b_in[par]])
+    b_b_o = np.concatenate([b_b[q], bp, _rotate_about_batch(bp, np_, ca[p], sa[p]),
+                            _rotate_about_batch(bp, np_, ca[p], -sa[p]), b_in[par]])
+    return owner, c_a_o, b_a_o, c_b_o, b_b_o
