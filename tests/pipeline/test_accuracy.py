@@ -35,6 +35,7 @@ def test_summarize_mono_selection_and_quantiles():
         _s(off_axis_deg=5.0, range_m=0.0),  # < 10 deg off the flight direction: excluded
         _s(in_view_s=0.5, range_m=0.0),  # < 1 s in view: excluded
         _s(moving=True, speed_true=1.0, range_m=0.0),  # moving: excluded
+        _s(rig="stereo", range_m=0.0),  # one camera of a stereo rig: not the monocular case
     ]
     m = summarize(samples)
     assert m["mono_n"] == 11
