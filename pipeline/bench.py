@@ -682,6 +682,8 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "frames": res.frames, "latency": res.latency, "dropped": lead_stale, "offered": lead,
         "stale_by_camera": sm.get("stale_frames_dropped"), "grabbed_by_camera": grabbed,
         "decode_median_s": dec["per_frame"]["median_s"], "decode": dec, "stages": sm.get("timings", {}),
+        "waited": sm.get("latency_waited"), "processing": sm.get("latency_processing"),
+        "replay_lag": next(iter((sm.get("replay_lag") or {}).values()), None),
         "rate_hz": task.get("rate_hz"), "wall_s": sm.get("wall_s"), "fps": sm.get("frames_per_s"),
         "cpu_s": cpu, "cpu_busy": cpu / sm["wall_s"] if sm.get("wall_s") else None,
     }
@@ -1192,6 +1194,20 @@ class BenchRun:
                 met=None if budget is None or lat.get("p99_s") is None else lat["p99_s"] < budget))
             self.rows.append(Row("live latency (arrival -> tracks.jsonl line)", f"{name}: frames dropped",
                                  r.get("dropped"), "frames", "frames offered", r.get("offered")))
+            # where the latency goes: waiting to be taken (<= one interval when the replay keeps to its
+            # schedule) and processing (the pipeline's time per frame); the replay's own lag behind
+            # schedule; the share of the pinned core this process got (other load on the core shows here)
+            wt, pr, lag = r.get("waited") or {}, r.get("processing") or {}, r.get("replay_lag") or {}
+            sec = "live latency split (median; p99 in bench.json)"
+            self.rows.append(Row(sec, f"{name}: arrival -> taken by the loop", _ms(wt.get("median_s")), "ms",
+                                 "frame interval", _ms(interval), extra={"p99_ms": _ms(wt.get("p99_s"))}))
+            self.rows.append(Row(sec, f"{name}: taken -> line written", _ms(pr.get("median_s")), "ms",
+                                 "frame interval", _ms(interval), extra={"p99_ms": _ms(pr.get("p99_s"))}))
+            self.rows.append(Row(sec, f"{name}: replay published late by", _ms(lag.get("median_s")), "ms",
+                                 extra={"p99_ms": _ms(lag.get("p99_s"))}))
+            busy = r.get("cpu_busy")
+            self.rows.append(Row(sec, f"{name}: CPU share of the pinned core", None if busy is None
+                                 else 100.0 * busy, "%"))
         self.sections["live"] = out
 
     def scaling(self) -> None:

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import http.server
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -31,11 +32,20 @@ from estimators.egomotion import EgoMotion, TumTrajectory
 from estimators.errors import InputError, SourceError
 from estimators.se3 import Pose
 from pipeline.config import PipelineConfig, write_resolved
-from pipeline.run import RunningStats, StageTimings, build_egomotion, build_frontend, build_fusion, build_rig
+from pipeline.run import (
+    RunningStats,
+    StageTimings,
+    build_egomotion,
+    build_frontend,
+    build_fusion,
+    build_rig,
+    wants_grey,
+)
 from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
 from pipeline.sources import PacedSource, Source, VideoSource, open_capture
 
 __all__ = [
+    "LIVE_SWITCH_INTERVAL_S",
     "LiveFrame",
     "Grabber",
     "CaptureReader",
@@ -46,6 +56,10 @@ __all__ = [
     "run_live",
     "make_reader_factory",
 ]
+
+
+#: Python's thread switch interval (s) while ``run_live`` runs (``sys.setswitchinterval``).
+LIVE_SWITCH_INTERVAL_S = 0.0005
 
 
 @dataclass(frozen=True)
@@ -65,14 +79,20 @@ class LiveFrame:
 
 
 class CaptureReader:
-    """A camera index or stream URL read with OpenCV (``read() -> image or None``)."""
+    """A camera index or stream URL read with OpenCV (``read() -> (image or None, None)``).
+
+    With ``grey`` the frame is converted to (H, W) grey here, in the grabber's thread (``cvtColor``
+    releases the GIL), so the pipeline's thread gets what a grey detector works on.
+    """
 
     ends = False  # a camera never ends: a failure means reopen
+    arrival_s = None  # the grabber stamps the arrival itself
 
-    def __init__(self, ref: int | str, timeout_s: float = 5.0):
+    def __init__(self, ref: int | str, timeout_s: float = 5.0, grey: bool = False):
         import cv2
 
         self.ref = ref
+        self.grey = bool(grey)
         if isinstance(ref, str) and "://" in ref:
             ms = int(timeout_s * 1000)
             self.cap = cv2.VideoCapture(
@@ -88,23 +108,36 @@ class CaptureReader:
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
         ok, img = self.cap.read()
-        return (img if ok else None), None
+        if not ok or img is None:
+            return None, None
+        if self.grey and img.ndim == 3:
+            import cv2
+
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        return img, None
 
     def close(self) -> None:
         self.cap.release()
 
 
 class SourceReader:
-    """A recorded :class:`Source` (e.g. a paced video replay) read frame by frame; it ends at its end."""
+    """A recorded :class:`Source` (e.g. a paced video replay) read frame by frame; it ends at its end.
+
+    ``arrival_s``: for a :class:`PacedSource`, when the last frame was due (``time.monotonic()``), i.e.
+    when a camera would have delivered it; the grabber takes that as the frame's arrival, so a replay
+    that falls behind its schedule shows as latency, not as a later arrival. None otherwise.
+    """
 
     ends = True
 
     def __init__(self, source: Source):
         self.source = source
         self._it = iter(source)
+        self.arrival_s: float | None = None
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
         f = next(self._it, None)
+        self.arrival_s = getattr(self.source, "last_due_s", None)
         return (None, None) if f is None else (f.image, f.t_s)
 
     def close(self) -> None:
@@ -121,7 +154,8 @@ class Grabber:
         reconnect_initial_s / reconnect_max_s: back-off of reopen attempts (doubling), seconds.
         stall_timeout_s: no frame for this long counts as a stopped camera (reopened).
 
-    Counters: ``grabbed``, ``stale`` (replaced before taken), ``reconnects``, ``errors`` (last message).
+    Counters: ``grabbed``, ``stale`` (replaced before taken), ``reconnects``, ``errors`` (last message),
+    ``lag`` (for readers that give a due time, e.g. a paced replay: how late frames were published).
     """
 
     def __init__(
@@ -147,6 +181,7 @@ class Grabber:
         self.grabbed = 0
         self.stale = 0
         self.reconnects = 0
+        self.lag = RunningStats()  # seconds from a replayed frame's due time to its publication
         self.last_error: str | None = None
         self._reader = None
         self._thread = threading.Thread(target=self._loop, name=f"grab-{name}", daemon=True)
@@ -157,11 +192,14 @@ class Grabber:
         self._thread.start()
         return self
 
-    def _publish(self, image: np.ndarray, t_s: float | None) -> None:
+    def _publish(self, image: np.ndarray, t_s: float | None, arrival_s: float | None = None) -> None:
         with self._cond:
             if self._latest is not None and self._latest.seq > self._taken_seq:
                 self.stale += 1  # never taken: dropped in favour of the newer frame
-            self._latest = LiveFrame(self.grabbed, t_s, image, self.clock())
+            now = self.clock()
+            if arrival_s is not None:
+                self.lag.add(max(0.0, now - arrival_s))
+            self._latest = LiveFrame(self.grabbed, t_s, image, now if arrival_s is None else arrival_s)
             self.grabbed += 1
             self._cond.notify_all()
 
@@ -185,13 +223,14 @@ class Grabber:
             except Exception as e:  # a driver error is a stopped camera, not the end of the run
                 image, t_s = None, None
                 self.last_error = f"{self.name}: {e}"
+            arrival = getattr(reader, "arrival_s", None)  # a paced replay's due time, else now
             if image is not None and (
                 getattr(reader, "ends", False) or self.clock() - t_read <= self.stall_timeout_s
             ):
-                self._publish(image, t_s)
+                self._publish(image, t_s, arrival)
                 continue
             if image is not None:  # arrived, but after a stall: keep it, then reopen
-                self._publish(image, t_s)
+                self._publish(image, t_s, arrival)
             if getattr(reader, "ends", False) and image is None:
                 reader.close()
                 break
@@ -430,18 +469,28 @@ class LiveResult:
 
 
 def make_reader_factory(
-    ref: int | str, camera: str, paced: bool = True, expected_size=None, timeout_s: float = 5.0
+    ref: int | str,
+    camera: str,
+    paced: bool = True,
+    expected_size=None,
+    timeout_s: float = 5.0,
+    grey: bool = False,
 ) -> Callable[[], Any]:
     """A function opening camera ``ref``: a device index, a URL, or (testing) a video file replayed
-    at its real rate when ``paced``."""
+    at its real rate when ``paced``.
+
+    ``grey``: deliver (H, W) grey frames, made in the grabber's thread: a video file through
+    ``VideoSource(grey=True)`` (a grey video read without colour conversion, as ``run`` reads it), a
+    camera or URL converted once per frame (:class:`CaptureReader`)."""
     if isinstance(ref, str) and "://" not in ref and not ref.isdigit():
 
         def open_file() -> SourceReader:
-            src: Source = VideoSource(ref, camera=camera, expected_size=expected_size)
+            src: Source = VideoSource(ref, camera=camera, expected_size=expected_size, grey=grey)
             return SourceReader(PacedSource(src) if paced else src)
 
         return open_file
-    return lambda: CaptureReader(int(ref) if isinstance(ref, str) and ref.isdigit() else ref, timeout_s)
+    index_or_url = int(ref) if isinstance(ref, str) and ref.isdigit() else ref
+    return lambda: CaptureReader(index_or_url, timeout_s, grey=grey)
 
 
 def run_live(
@@ -488,9 +537,10 @@ def run_live(
                 f"live.cameras has {len(lv.cameras)} entries for a rig of {len(names)} ({names})"
             )
         readers = []
+        grey = wants_grey(cfg)  # the fast path of `run`: grey frames for grey detectors
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
-            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height))))
+            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
     grabbers: list[Grabber] = []
     try:
         for name, factory in zip(names, readers, strict=True):
@@ -511,11 +561,18 @@ def run_live(
             on_event(f"preview: http://127.0.0.1:{server.port}/ (MJPEG stream {server.url})")
         if video is not None:
             on_event(f"preview: {video.path}")
-    latency = RunningStats()
+    latency = RunningStats()  # arrival -> line written = waited (arrival -> taken) + processing
+    waited, processing = RunningStats(), RunningStats()
     timings = StageTimings()
     frames = 0
     no_pose = 0
     interrupted = False
+    # The grabber threads need the GIL for a moment between frames; while the pipeline runs Python, a
+    # waiting thread gets it only after the switch interval (5 ms by default), several times per frame,
+    # so on one core a replay at 60-100 Hz fell behind its camera's schedule. A short interval while
+    # live lets each frame arrive on time.
+    switch_interval = sys.getswitchinterval()
+    sys.setswitchinterval(min(switch_interval, LIVE_SWITCH_INTERVAL_S))
     start_mono = time.monotonic()
     start_unix = time.time()
     t_start = time.perf_counter()
@@ -527,6 +584,7 @@ def run_live(
             if max_frames is not None and frames >= max_frames:
                 break
             lead = grabbers[0].take(timeout_s=0.25)
+            t_taken = time.monotonic()
             if lead is None:
                 if grabbers[0].finished:
                     break
@@ -560,8 +618,11 @@ def run_live(
             t0 = time.perf_counter()
             items = writer.write(lead.seq, t_s, reports)
             timings.add("write", time.perf_counter() - t0)
-            lat = time.monotonic() - lead.arrival_s
+            t_done = time.monotonic()
+            lat = t_done - lead.arrival_s
             latency.add(lat)
+            waited.add(t_taken - lead.arrival_s)
+            processing.add(t_done - t_taken)
             frames += 1
             if annotator is not None and frames % cfg.outputs.every_n == 0:
                 img = annotator.draw(images, items, t_s, lead.seq)
@@ -574,6 +635,7 @@ def run_live(
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        sys.setswitchinterval(switch_interval)
         for g in grabbers:
             g.stop()
         writer.close()
@@ -590,6 +652,11 @@ def run_live(
             "frames_per_s": frames / wall if wall > 0 else None,
             "interrupted": interrupted,
             "latency": latency.summary(),
+            # latency split: from arrival until the loop took the frame, and from then to its line
+            "latency_waited": waited.summary(),
+            "latency_processing": processing.summary(),
+            # replays only: how late each frame was published after it was due (the grabber's lag)
+            "replay_lag": {g.name: g.lag.summary() for g in grabbers if g.lag.n},
             "stale_frames_dropped": {g.name: g.stale for g in grabbers},
             "frames_grabbed": {g.name: g.grabbed for g in grabbers},
             "reopened": {g.name: max(0, g.reconnects) for g in grabbers},

@@ -309,7 +309,6 @@ def run(
     writer = TracksWriter(out / TRACKS_NAME)
     video = VideoWriter(out / "annotated.mp4", fps_in or 30.0) if cfg.outputs.annotated_video else None
     annotator = Annotator(rig, egomotion) if video is not None else None
-    statuses: dict[str, int] = {}
     frames = 0
     interrupted = False
     first_t = last_t = None
@@ -321,7 +320,6 @@ def run(
     max_frames = cfg.inputs.max_frames or 0
     every_n = cfg.outputs.every_n
     add = timings.add
-    stages_total = 0.0  # seconds inside FrontEnd.process and ObstacleFusion.step
     try:
         while True:
             t0 = perf()
@@ -332,20 +330,20 @@ def run(
             # The body pose lets the front end take the drone's own rotation out of feature motion; outside
             # the trajectory's span fusion.step raises the error that names the frame.
             T_W_B = egomotion.pose_at(fs.t_s) if egomotion.covers(fs.t_s) else None
+            t1p = perf()
             obs = frontend.process(fs.images, fs.frame, fs.t_s, T_W_B=T_W_B)
             reports = fusion.step(obs, fs.frame, fs.t_s)
             t2 = perf()
             items = writer.write(fs.frame, fs.t_s, reports)
-            t3 = perf()
-            for t in items:
-                st = t["status"]
-                statuses[st] = statuses.get(st, 0) + 1
+            t3 = t_ann = perf()
             if video is not None and frames % every_n == 0:
                 video.write(annotator.draw(fs.images, items, fs.t_s, fs.frame))
-                add("annotate", perf() - t3)
-            # stage times: the front end's and fusion's own (detect ... fuse), the loop's (decode,
-            # write) and "unattributed": time inside FrontEnd.process / ObstacleFusion.step that their
-            # own stage timings do not cover
+                t_ann = perf()
+                add("annotate", t_ann - t3)
+            # stage times, each millisecond counted once: the front end's and fusion's own (detect ...
+            # fuse), "unattributed" (time inside FrontEnd.process / ObstacleFusion.step that their own
+            # stage timings do not cover), the loop's decode, write, annotate, and "loop" (the rest:
+            # statistics, progress bar, pose look-up)
             staged = 0.0
             for st_t in (getattr(frontend, "timings", None), getattr(fusion, "timings", None)):
                 if st_t:
@@ -353,17 +351,16 @@ def run(
                         if v is not None and v == v:  # not NaN
                             add(k, v)
                             staged += v
-            stages_total += t2 - t1
             add("decode", t1 - t0)
             add("write", t3 - t2)
-            add("unattributed", max(0.0, (t2 - t1) - staged))
+            add("unattributed", max(0.0, (t2 - t1p) - staged))
             first_t = fs.t_s if first_t is None else first_t
             last_t = fs.t_s
             frames += 1
             bar.update(1)
             t4 = perf()
             per_frame.add(t4 - t0)
-            add("loop", (t4 - t0) - (t2 - t1))  # the loop's own: all but FrontEnd.process + fusion.step
+            add("loop", (t1p - t1) + (t4 - t_ann))  # the loop's own: pose look-up, statistics, progress
             if max_frames and frames >= max_frames:
                 break
     except KeyboardInterrupt:
@@ -380,7 +377,7 @@ def run(
         summary = {
             "frames": frames,
             "tracks": len(writer.track_ids),
-            "track_reports_by_status": statuses,
+            "track_reports_by_status": dict(writer.statuses),
             "wall_s": wall,
             "frames_per_s": frames / wall if wall > 0 else None,
             "cpu_s": cpu,
@@ -394,11 +391,6 @@ def run(
             "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
             "timings": timings.summary(),
             "per_frame": per_frame.summary(),
-            # the loop's own time per frame: everything but FrontEnd.process and ObstacleFusion.step
-            # (decode, write, annotation, bookkeeping)
-            "loop_overhead_ms_per_frame": (
-                1e3 * (per_frame.total - stages_total) / frames if frames else None
-            ),
             "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},
             "parameters": cfg.model_dump(mode="json"),
             "pid": os.getpid(),

@@ -144,6 +144,7 @@ class TracksWriter:
         self._f = self.path.open("w", encoding="utf-8")
         self.lines = 0
         self.track_ids: set[int] = set()
+        self.statuses: dict[str, int] = {}  # track reports written, by status
 
     def write(self, frame: int, t_s: float, tracks: Iterable[Any]) -> list[dict]:
         """Write one frame's line; ``tracks`` are ``TrackReport``s or their ``to_json()`` dicts.
@@ -159,11 +160,14 @@ class TracksWriter:
             items = [t.to_json() if hasattr(t, "to_json") else t for t in tracks]
             rec["tracks"] = items = [to_plain(t) for t in items]
             line = _dumps(rec)
-        ids = self.track_ids
+        ids, statuses = self.track_ids, self.statuses
         for t in items:
-            i = t.get("id") if isinstance(t, dict) else None
-            if i is not None:
-                ids.add(int(i))
+            if isinstance(t, dict):
+                i, st = t.get("id"), t.get("status")
+                if i is not None:
+                    ids.add(int(i))
+                if st is not None:
+                    statuses[st] = statuses.get(st, 0) + 1
         self._f.write(line + "\n")
         self._f.flush()
         self.lines += 1

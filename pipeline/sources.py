@@ -314,7 +314,9 @@ class VideoSource(Source):
                 break
             if img.ndim == 3 and self.grey:
                 img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-            pos = self._cap.get(cv2.CAP_PROP_POS_MSEC)
+            # the container's time only when there is no timestamps file (one call into OpenCV less per
+            # frame: each gives up and takes back the GIL, a wait of up to sys.getswitchinterval())
+            pos = self._cap.get(cv2.CAP_PROP_POS_MSEC) if self.timestamps is None else 0.0
             k += 1
         n = self.frames_read
         if self.error is None and self.frame_count is not None and n < self.frame_count:
@@ -418,8 +420,9 @@ class ImageFolderSource(Source):
 class PacedSource(Source):
     """Replays another source at its real rate: frame k is released at ``start + (t_k - t_0) / speed``.
 
-    A stand-in for a live camera in tests and demos. ``arrival_s`` of the last frame (the monotonic clock
-    when it was released) is kept in ``last_arrival_s``.
+    A stand-in for a live camera in tests and demos. The monotonic clock when the last frame was
+    released is ``last_arrival_s``; when it was due (when a camera would have delivered it, however
+    late the replay got there) is ``last_due_s``.
 
     Args:
         inner: the source to replay; speed: replay speed factor (2 = twice real time).
@@ -442,6 +445,7 @@ class PacedSource(Source):
         self.sleep = sleep
         self.error = None
         self.last_arrival_s: float | None = None
+        self.last_due_s: float | None = None
 
     def __iter__(self) -> Iterator[Frame]:
         start = None
@@ -453,6 +457,7 @@ class PacedSource(Source):
             wait = due - self.clock()
             if wait > 0:
                 self.sleep(wait)
+            self.last_due_s = due
             self.last_arrival_s = self.clock()
             self.frames_read += 1
             yield f

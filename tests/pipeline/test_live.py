@@ -243,3 +243,64 @@ def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch):
     assert ego.reloads >= 2
     for t_s, x in fusion.x:
         assert x == pytest.approx(t_s)  # x = 1 m/s * t in the file
+
+
+class ShapeFrontEnd(FakeFrontEnd):
+    """Records the shape of every image it is given."""
+
+    def __init__(self, rig):
+        super().__init__(rig)
+        self.shapes = []
+
+    def process(self, images, frame, t_s, T_W_B=None):
+        self.shapes += [v.shape for v in images.values()]
+        return super().process(images, frame, t_s)
+
+
+def test_live_feeds_a_grey_detector_grey_frames_as_run_does(tmp_path):
+    """The orb detector works on grey images: live decodes to (H, W) as `run` does (colour for navlights)."""
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    rig = mono_rig()
+    for name, want in (("orb", (H, W)), ("navlights", (H, W, 3))):
+        front = ShapeFrontEnd(rig)
+        cfg = _cfg(f"live.cameras=['{v}']", f"detector.name={name}", "live.paced=false")
+        run_live(
+            cfg,
+            tmp_path / name,
+            rig=rig,
+            egomotion=ConstantVelocity(5.0),
+            frontend=front,
+            fusion=FakeFusion(),
+        )
+        assert front.shapes and set(front.shapes) == {want}, name
+
+
+class LateReader:
+    """A replay that publishes each frame 0.3 s after it was due (a camera emulation falling behind)."""
+
+    ends = True
+
+    def __init__(self, n=3):
+        self.n = n
+        self.arrival_s = None
+
+    def read(self):
+        if self.n == 0:
+            return None, None
+        self.n -= 1
+        time.sleep(0.05)
+        self.arrival_s = time.monotonic() - 0.3
+        return np.zeros((H, W), np.uint8), 1.0 - 0.1 * self.n
+
+    def close(self):
+        pass
+
+
+def test_a_replay_behind_schedule_shows_as_latency_not_as_a_late_arrival(tmp_path):
+    r = _live(tmp_path, [LateReader])
+    s = r.summary
+    assert r.frames >= 1
+    assert s["latency"]["median_s"] >= 0.3  # from when the frame was due, not when it was published
+    assert s["replay_lag"]["cam0"]["median_s"] >= 0.3
+    # the split adds up: waited (arrival -> taken) + processing (taken -> line written)
+    assert s["latency_waited"]["median_s"] >= 0.3 and s["latency_processing"]["n"] == r.frames
