@@ -111,6 +111,8 @@ def stereo_klt(
     win_px: int = 11,
     levels: int = 4,
     fb_max_px: float = 1.0,
+    off_a: np.ndarray | None = None,
+    off_b: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Find camera a's features in camera b's image by KLT, starting from their infinite-depth
     projection, checked forward-backward and by the epipolar constraint.
@@ -119,6 +121,9 @@ def stereo_klt(
         grey_a, grey_b: (H, W) uint8 frames of cameras a and b (same time).
         b_a: (N, 3) unit bearings in C_a; uv_a: (N, 2) their pixels in a.
         model_b: camera b's CameraModel; R_b_a (3, 3), t_b_a (3,) m: p_Cb = R p_Ca + t.
+        off_a, off_b: (2,) px, when grey_a / grey_b are crops of the full frames: the crops'
+            origins in the full frames (full-frame pixel = crop pixel + origin); uv_a and the
+            returned uv_b are full-frame pixels either way.
     Returns:
         (idx (K,) rows of b_a found, uv_b (K, 2) pixels in b, b_b (K, 3) unit bearings in C_b).
     """
@@ -132,13 +137,15 @@ def stereo_klt(
     idx = np.flatnonzero(ok)
     if not len(idx):
         return empty
+    oa = np.zeros(2) if off_a is None else np.asarray(off_a, float).reshape(2)
+    ob = np.zeros(2) if off_b is None else np.asarray(off_b, float).reshape(2)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
-    p0 = uv_a[idx].reshape(-1, 1, 2).astype(np.float32)
+    p0 = (uv_a[idx] - oa).reshape(-1, 1, 2).astype(np.float32)
     p1, st, _ = cv2.calcOpticalFlowPyrLK(
         grey_a,
         grey_b,
         p0,
-        guess[idx].reshape(-1, 1, 2).astype(np.float32),
+        (guess[idx] - ob).reshape(-1, 1, 2).astype(np.float32),
         winSize=(win_px, win_px),
         maxLevel=levels,
         criteria=crit,
@@ -149,7 +156,7 @@ def stereo_klt(
     )
     good = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1)
     good &= np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1) <= fb_max_px
-    uv_b = p1.reshape(-1, 2).astype(float)
+    uv_b = p1.reshape(-1, 2).astype(float) + ob
     bb, okb = model_b.pixel_to_bearing(uv_b)
     good &= okb
     good &= epipolar_residual(b_a[idx], bb, R_b_a, t_b_a) < np.sin(epipolar_rad)

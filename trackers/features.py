@@ -180,10 +180,11 @@ class FeatureTracker:
         ys, xs = np.nonzero(self.mask)
         pad = max(int(win_px), 16) + 4  # room for the KLT window and ORB's edge threshold
         h0, w0 = self.shape_hw
-        # (origin on a multiple of 8 px so the crop's pyramid levels sample the frame's own grid)
+        # (origin on a multiple of 16 px so the crop's pyramid levels, up to the stereo search's
+        # 4, sample the frame's own grid)
         self.roi = (
-            max(0, (int(xs.min()) - pad) // 8 * 8) if len(xs) else 0,
-            max(0, (int(ys.min()) - pad) // 8 * 8) if len(ys) else 0,
+            max(0, (int(xs.min()) - pad) // 16 * 16) if len(xs) else 0,
+            max(0, (int(ys.min()) - pad) // 16 * 16) if len(ys) else 0,
             min(w0, int(xs.max()) + pad + 1) if len(xs) else w0,
             min(h0, int(ys.max()) + pad + 1) if len(ys) else h0,
         )
@@ -274,6 +275,12 @@ class FeatureTracker:
         self.n_frames += 1
         t3 = time.perf_counter()
         return self.features(), {"track": (t1 - t0) + (t3 - t2), "detect": t2 - t1}
+
+    @property
+    def crop(self) -> tuple[np.ndarray | None, np.ndarray]:
+        """(the last tracked frame's grey lens crop ``roi`` (h, w) uint8 or None, its origin (2,)
+        float32 px in the full frame: full-frame pixel = crop pixel + origin)."""
+        return self._prev_pyr, self._off
 
     def features(self) -> Features:
         """The live features now."""
@@ -376,6 +383,11 @@ class FeatureTracker:
         h, w = self.shape_hw
         n0 = len(self.ids)
         room = self.max_features + self.max_features // 4 - n0  # a little above the global budget
+        # the keypoints of all regions are appended at once (one _append, one bearing computation);
+        # a region keeps min_distance_px from the live features and from earlier regions' new ones
+        taken = self.uv
+        new_uv: list[np.ndarray] = []
+        new_des: list[np.ndarray] = []
         for (u, v), r in zip(np.asarray(centres_uv, float), np.asarray(radii_px, float), strict=True):
             if room <= 0:
                 break
@@ -390,12 +402,12 @@ class FeatureTracker:
                 continue
             m = self.mask[y0:y1, x0:x1].copy()
             near = (
-                (self.uv[:, 0] >= x0 - 6)
-                & (self.uv[:, 0] < x1 + 6)
-                & (self.uv[:, 1] >= y0 - 6)
-                & (self.uv[:, 1] < y1 + 6)
+                (taken[:, 0] >= x0 - 6)
+                & (taken[:, 0] < x1 + 6)
+                & (taken[:, 1] >= y0 - 6)
+                & (taken[:, 1] < y1 + 6)
             )
-            for pu, pv in self.uv[near]:
+            for pu, pv in taken[near]:
                 cv2.circle(m, (int(pu) - x0, int(pv) - y0), int(min_distance_px), 0, -1)
             kps = self._orb_roi.detect(grey[y0:y1, x0:x1], m)
             if not kps:
@@ -413,7 +425,13 @@ class FeatureTracker:
             if des is None or not chosen:
                 continue
             uv = np.array([[k.pt[0] + x0, k.pt[1] + y0] for k in chosen], np.float32)
-            room -= self._append(uv, des, np.full(len(uv), -1, np.intp))
+            new_uv.append(uv)
+            new_des.append(des)
+            taken = np.concatenate([taken, uv])
+            room -= len(uv)
+        if new_uv:
+            uv = np.concatenate(new_uv)
+            self._append(uv, np.concatenate(new_des), np.full(len(uv), -1, np.intp))
         added = len(self.ids) - n0
         if added:
             rows = np.arange(n0, len(self.ids))

@@ -27,7 +27,7 @@ from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
-STAGES = ("detect", "track", "group", "associate")
+STAGES = ("detect", "track", "group", "associate", "report")
 _OPTION_GROUPS = (
     "detector_options",
     "features",
@@ -94,8 +94,8 @@ class FrontEnd:
             so small obstacles keep enough features.
 
     Attributes:
-        timings: seconds of the last frame per stage (detect, track, group, associate), summed
-            over the cameras.
+        timings: seconds of the last frame per stage (detect, track, group, associate, report: the
+            observations built from the tracks), summed over the cameras.
     """
 
     def __init__(self, rig, detector: str | Detector = "orb", **options: Any) -> None:
@@ -160,6 +160,20 @@ class FrontEnd:
                 except TypeError as e:
                     raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        # per camera and camera pair, computed once: radians per pixel at the lens's mean scale,
+        # R_C_B, and T_Cb_Ca = T_Cb_B T_B_Ca (p_Cb = R p_Ca + t)
+        self._rad_px = {
+            n: c.model.max_angle_rad / max(c.model.image_circle()[2], 1.0) for n, c in self.cams.items()
+        }
+        self._R_C_B = {n: np.asarray(c.T_C_B.R, float) for n, c in self.cams.items()}
+        self._T_b_a = {
+            (a, b): self.cams[b].T_C_B @ self.cams[a].T_C_B.inverse()
+            for a in self.cams
+            for b in self.cams
+            if a != b
+        }
+        # this frame's stereo KLT results per camera pair (shared by _associate and _derive_views)
+        self._stereo_cache: dict[tuple[str, str], tuple] = {}
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
         # feature id -> the id it is reported under (the reference camera's matched feature, or a
@@ -230,7 +244,7 @@ class FrontEnd:
                     tm["detect"] += t["detect"]
                     self.last_features[name] = feats
                     t0 = time.perf_counter()
-                    R_C = self._camera_rotations(cam, rot)
+                    R_C = self._camera_rotations(self._R_C_B[name], rot)
                     s1, l1 = gr.update(ft, t_s, R_C)
                     tm["group"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
@@ -247,7 +261,7 @@ class FrontEnd:
                     if len(self._densified) > 4096:  # forget long-gone tracks
                         self._densified = {k: v for k, v in self._densified.items() if frame - v < 300}
                     if small:
-                        rad_px = cam.model.max_angle_rad / max(cam.model.image_circle()[2], 1.0)
+                        rad_px = self._rad_px[name]
                         radii = [
                             2.0 * np.sqrt(max(t.sigma_rad**2 * len(t.members), 0.0)) / rad_px for t in small
                         ]
@@ -278,10 +292,14 @@ class FrontEnd:
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
+        self._stereo_cache.clear()
         tm["associate"] = time.perf_counter() - t0
-        self.timings = tm
+        t0 = time.perf_counter()
         self._n += 1
-        return self._observations(seen, lost, absorbed, frame, t_s)
+        out = self._observations(seen, lost, absorbed, frame, t_s)
+        tm["report"] = time.perf_counter() - t0
+        self.timings = tm
+        return out
 
     # ------------------------------------------------------------------------------ helpers
     @staticmethod
@@ -325,15 +343,64 @@ class FrontEnd:
         return {k: R_now.T @ self._R_W_B[k] for k in range(1, len(self._R_W_B))}
 
     @staticmethod
-    def _camera_rotations(cam, rot: dict[int, np.ndarray] | None) -> dict[int, np.ndarray] | None:
+    def _camera_rotations(
+        R_C_B: np.ndarray, rot: dict[int, np.ndarray] | None
+    ) -> dict[int, np.ndarray] | None:
         if not rot:
             return None
-        R_C_B = np.asarray(cam.T_C_B.R, float)
         # R_Cnow_Ck = R_C_B R_Bnow_Bk R_C_B^T
         return {k: R_C_B @ R @ R_C_B.T for k, R in rot.items()}
 
     def _global(self, tid: int) -> int:
         return self._gid.get(tid, tid)
+
+    @staticmethod
+    def _rows(ft: FeatureTracker, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows (K,) into ft's live features, which (K,) indices into ``ids``) of the live ones
+        among feature ids ``ids`` (N,)."""
+        ids = np.asarray(ids, np.int64)
+        if not len(ids) or not len(ft.ids):
+            return np.zeros(0, np.intp), np.zeros(0, np.intp)
+        order = np.argsort(ft.ids, kind="stable")
+        sids = ft.ids[order]
+        k = np.minimum(np.searchsorted(sids, ids), len(sids) - 1)
+        which = np.flatnonzero(sids[k] == ids)
+        return order[k[which]], which
+
+    def _stereo(self, a: str, b: str, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Camera a's live features ``rows`` (K,) found in camera b's frame by stereo KLT
+        (trackers/association.py ``stereo_klt``, on the trackers' lens crops), each feature at most
+        once per frame: (idx (J,) into rows, uv_b (J, 2) full-frame px in b, b_b (J, 3) unit
+        bearings in C_b)."""
+        fa, fb = self.trackers[a], self.trackers[b]
+        n = len(fa.ids)
+        c = self._stereo_cache.get((a, b))
+        if c is None or len(c[0]) != n:
+            c = (np.zeros(n, bool), np.full((n, 2), np.nan), np.full((n, 3), np.nan))
+            self._stereo_cache[(a, b)] = c
+        tried, uvb, bb = c
+        rows = np.asarray(rows, np.intp)
+        todo = np.unique(rows[~tried[rows]])
+        if len(todo):
+            (ca, oa), (cb, ob) = fa.crop, fb.crop
+            T = self._T_b_a[(a, b)]
+            idx, uv, bv = stereo_klt(
+                ca,
+                cb,
+                fa.b_C[todo],
+                fa.uv[todo].astype(float),
+                self.cams[b].model,
+                T.R,
+                T.t,
+                self.epipolar_rad,
+                off_a=oa,
+                off_b=ob,
+            )
+            tried[todo] = True
+            uvb[todo[idx]] = uv
+            bb[todo[idx]] = bv
+        sel = np.flatnonzero(np.isfinite(uvb[rows, 0]))
+        return sel, uvb[rows[sel]], bb[rows[sel]]
 
     def _associate(self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]) -> list[int]:
         """Link tracks of different cameras that share epipolar-consistent feature correspondences
@@ -342,29 +409,27 @@ class FrontEnd:
         Returns the global ids absorbed into another this frame (to be reported lost once)."""
         names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
         data = {}
-        members: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # uv, b_C, owner track id
+        members: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # rows, uv, owner track id
         for n in names:
             ft = self.trackers[n]
-            pos = {int(i): k for k, i in enumerate(ft.ids)}
-            rows, owner = [], []
-            for tr in seen[n]:
-                if not tr.label == self.label:
-                    continue
-                for fid in tr.members.tolist():
-                    if fid in pos:
-                        rows.append(pos[fid])
-                        owner.append(tr.id)
-            if not rows:
+            trs = [tr for tr in seen[n] if tr.label == self.label and len(tr.members)]
+            if not trs:
                 continue
-            rows_a = np.asarray(rows, np.intp)
-            members[n] = (ft.uv[rows_a].astype(float), ft.b_C[rows_a], np.asarray(owner, np.int64))
+            mem = np.concatenate([tr.members for tr in trs])
+            own_all = np.repeat(np.array([tr.id for tr in trs], np.int64), [len(tr.members) for tr in trs])
+            rows_a, which = self._rows(ft, mem)
+            if not len(rows_a):
+                continue
+            owner = own_all[which]
+            members[n] = (rows_a, ft.uv[rows_a].astype(float), owner)
             des, got = ft.describe(greys[n], rows_a)
-            own = dict(zip(rows, owner, strict=True))
-            data[n] = (ft.b_C[got], des, np.array([own[int(g)] for g in got], np.int64), ft.ids[got])
+            # describe returns rows of the live features; their owners via the row -> owner map
+            row_owner = np.full(len(ft.ids), -1, np.int64)
+            row_owner[rows_a] = owner
+            data[n] = (ft.b_C[got], des, row_owner[got], ft.ids[got])
         absorbed: list[int] = []
         for a, b in itertools.combinations([n for n in names if n in data], 2):
-            T_a, T_b = self.cams[a].T_C_B, self.cams[b].T_C_B
-            T_b_a = T_b @ T_a.inverse()  # T_Cb_Ca = T_Cb_B T_B_Ca
+            T_b_a = self._T_b_a[(a, b)]  # T_Cb_Ca = T_Cb_B T_B_Ca
             ba, da, oa, fa = data[a]
             bb, db, ob, fb = data[b]
             pairs: dict[tuple[int, int], int] = {}
@@ -378,11 +443,9 @@ class FrontEnd:
             # votes 2: a's members found in b's image by KLT from their infinite-depth projection;
             # the vote goes to b's track whose member is nearest (within the grouping link distance)
             ua, ub = members[a], members[b]
-            idx, uv_b, _ = stereo_klt(
-                greys[a], greys[b], ua[1], ua[0], self.cams[b].model, T_b_a.R, T_b_a.t, self.epipolar_rad
-            )
-            if len(idx) and len(ub[0]):
-                d2 = ((uv_b[:, None, :] - ub[0][None, :, :]) ** 2).sum(-1)
+            idx, uv_b, _ = self._stereo(a, b, ua[0])
+            if len(idx) and len(ub[1]):
+                d2 = ((uv_b[:, None, :] - ub[1][None, :, :]) ** 2).sum(-1)
                 j = np.argmin(d2, axis=1)
                 near = d2[np.arange(len(idx)), j] <= self.groupers[b].link_px ** 2
                 for i, jj in zip(idx[near], j[near], strict=True):
@@ -484,8 +547,6 @@ class FrontEnd:
         if ref not in greys or ref not in self.trackers or not seen.get(ref):
             return out
         ft = self.trackers[ref]
-        order = np.argsort(ft.ids, kind="stable")
-        sids = ft.ids[order]
         for b in self.cams:
             if b == ref or b not in greys:
                 continue
@@ -499,20 +560,10 @@ class FrontEnd:
                 continue
             mem = np.concatenate([t.members for t in todo])
             own = np.repeat(np.arange(len(todo)), [len(t.members) for t in todo])
-            k = np.minimum(np.searchsorted(sids, mem), len(sids) - 1)
-            ok = sids[k] == mem
-            rows, own, mem = order[k[ok]], own[ok], mem[ok]
-            T_b_a = self.cams[b].T_C_B @ self.cams[ref].T_C_B.inverse()
-            idx, _, bb = stereo_klt(
-                greys[ref],
-                greys[b],
-                ft.b_C[rows],
-                ft.uv[rows].astype(float),
-                self.cams[b].model,
-                T_b_a.R,
-                T_b_a.t,
-                self.epipolar_rad,
-            )
+            rows, which = self._rows(ft, mem)
+            own, mem = own[which], mem[which]
+            T_b_a = self._T_b_a[(ref, b)]
+            idx, _, bb = self._stereo(ref, b, rows)
             model_b = self.cams[b].model
             for ti, tr in enumerate(todo):
                 sel = idx[own[idx] == ti]
