@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import time
 from collections import defaultdict, deque
 from dataclasses import asdict, dataclass, field
@@ -70,7 +71,11 @@ TARGETS: dict[str, tuple[str, float]] = {
 class AccuracyOptions:
     """Harness settings. pixel_sigma_px: pixel noise (px, 1-sigma per axis); seed: noise and random
     scenes; n_random: random scenes per family; quick: fewer, shorter scenes (CI smoke, < 1 min);
-    thesis_interval_s: the thesis method's frame interval (s); scenes: only these scene names."""
+    thesis_interval_s: the thesis method's frame interval (s); scenes: only these scene names;
+    reuse_frontend (pipeline mode): replay the fusion over the front end's observations recorded by
+    an earlier pipeline-mode run into the same ``out_dir`` (``runs/<scene>/observations.pkl``)
+    instead of decoding and tracking again: a fusion change is measured in about a tenth of the
+    time. The recording notes a hash of ``trackers/`` and the run says when it no longer matches."""
 
     mode: str = "bearings"
     quick: bool = False
@@ -80,6 +85,7 @@ class AccuracyOptions:
     thesis_interval_s: float = 0.5
     scenes: tuple[str, ...] | None = None
     settings: FusionSettings = field(default_factory=FusionSettings)
+    reuse_frontend: bool = False
 
 
 @dataclass
@@ -552,7 +558,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
     Scenes are rendered into ``out_dir/scenes/<name>`` (reused when ``gt.jsonl`` is there), runs go
     to ``out_dir/runs/<name>``; without ``out_dir`` a temporary folder is used. NEES (3-D) is not
     available here (tracks.jsonl carries no covariance): the 1-sigma share uses range_sigma_m.
-    The truth is the evaluator's: the surface hit along the report's bearing, not the centre."""
+    The truth is the evaluator's: the surface hit along the report's bearing, not the centre.
+    Each run also keeps the front end's observations (``runs/<name>/observations.pkl``); with
+    ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end."""
     import tempfile
 
     from estimators.fusion import ObstacleFusion
@@ -590,9 +598,18 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
         })
         rig = build_rig(cfg)
         ego = build_egomotion(cfg)
-        run(cfg, rdir, rig=rig, egomotion=ego, fusion=ObstacleFusion(rig, ego, opts.settings))
-        lines = (rdir / "tracks.jsonl").read_text().splitlines()
-        frames = [json.loads(line) for line in lines if line.strip()]
+        fusion = ObstacleFusion(rig, ego, opts.settings)
+        obs_path = rdir / OBSERVATIONS_NAME
+        if opts.reuse_frontend and obs_path.is_file():
+            frames, note = _replay_fusion(fusion, obs_path)
+            if progress:
+                progress(f"{name}: fusion replayed over {obs_path}{note}")
+        else:
+            rec = _RecordingFusion(fusion)
+            run(cfg, rdir, rig=rig, egomotion=ego, fusion=rec)
+            obs_path.write_bytes(pickle.dumps({"trackers_hash": _trackers_hash(), "frames": rec.frames}))
+            lines = (rdir / "tracks.jsonl").read_text().splitlines()
+            frames = [json.loads(line) for line in lines if line.strip()]
         rows = score_reports(truth, frames)
         ss = _samples_from_rows(truth, frames, rows, opts)
         per_scene[name] = summarize(ss)
@@ -600,6 +617,50 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
         if progress:
             progress(f"{name}: {len(ss)} scored reports")
     return samples, per_scene
+
+
+OBSERVATIONS_NAME = "observations.pkl"
+
+
+class _RecordingFusion:
+    """An ObstacleFusion that keeps every frame's input (frame, t_s, observations) for a replay."""
+
+    def __init__(self, inner: ObstacleFusion) -> None:
+        self.inner = inner
+        self.frames: list[tuple[int, float, list[ObstacleObservation]]] = []
+
+    @property
+    def timings(self) -> dict[str, float]:
+        return self.inner.timings
+
+    def step(self, observations, frame: int, t_s: float):
+        self.frames.append((int(frame), float(t_s), list(observations)))
+        return self.inner.step(observations, frame, t_s)
+
+
+def _trackers_hash() -> str:
+    """sha1 of the trackers package's sources (does a recording still match the front end?)."""
+    import hashlib
+
+    h = hashlib.sha1()
+    root = Path(__file__).resolve().parents[1] / "trackers"
+    for p in sorted(root.rglob("*.py")):
+        h.update(p.relative_to(root).as_posix().encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def _replay_fusion(fusion: ObstacleFusion, path: Path) -> tuple[list[dict], str]:
+    """Run ``fusion`` over recorded observations; the tracks.jsonl lines it would have written
+    (``TrackReport.to_json`` per report) and a note when the front end changed since."""
+    rec = pickle.loads(path.read_bytes())
+    frames = []
+    for frame, t_s, obs in rec["frames"]:
+        reps = fusion.step(obs, frame, t_s)
+        frames.append({"frame": frame, "t_s": t_s, "tracks": [r.to_json() for r in reps]})
+    note = "" if rec.get("trackers_hash") == _trackers_hash() else (
+        " (trackers/ changed since this recording: delete it to track again)")
+    return frames, note
 
 
 def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -> list[Sample]:

@@ -47,6 +47,14 @@ def register(app: typer.Typer) -> None:
         scene: Annotated[
             list[str] | None, typer.Option("--scene", help="Only this scene (repeat); default: all.")
         ] = None,
+        reuse_frontend: Annotated[
+            bool,
+            typer.Option(
+                "--reuse-frontend",
+                help="Pipeline mode: replay the fusion over the front end's observations recorded by an "
+                "earlier run into the same --out (runs/<scene>/observations.pkl) instead of tracking again.",
+            ),
+        ] = False,
     ) -> None:
         """Measure range, bounds, velocity and consistency of the fusion filter (and the thesis's method)."""
         from estimators.errors import ConfigError
@@ -58,7 +66,7 @@ def register(app: typer.Typer) -> None:
         opts = AccuracyOptions(
             mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
             thesis_interval_s=thesis_interval, scenes=tuple(scene) if scene else None,
-            settings=FusionSettings(max_speed_mps=max_speed),
+            settings=FusionSettings(max_speed_mps=max_speed), reuse_frontend=reuse_frontend,
         )
         res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
         typer.echo(res["table"])

@@ -129,3 +129,42 @@ def test_quick_harness_meets_targets_bearings_mode():
     assert m["stereo_8m_median_rel"] <= 0.04
     assert m["bounds_coverage"] >= 0.99
     assert res["elapsed_s"] < 120
+
+
+def test_replayed_fusion_over_recorded_observations_reports_the_same(tmp_path):
+    """--reuse-frontend: the fusion replayed over the observations recorded while running gives the
+    same tracks.jsonl lines as the run itself (here: five static member features of one obstacle,
+    seen from the tiny scene's straight flight)."""
+    import pickle
+
+    from estimators.fusion import ObstacleFusion
+    from estimators.records import CameraView, ObstacleObservation
+    from pipeline.accuracy import _RecordingFusion, _replay_fusion, _trackers_hash
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.trajectory import observer_trajectory
+
+    scn = _tiny_scene()
+    rig = build_rig(scn.rig)
+    cam = rig[0]
+    traj = observer_trajectory(scn.observer, 2.0)
+    pts_W = np.array([12.0, 4.0, 5.5]) + 0.2 * np.array(
+        [[0, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    rec = _RecordingFusion(ObstacleFusion(rig, traj))
+    ran = []
+    for k in range(40):
+        t = k / 30.0
+        T_C_W = cam.T_C_B @ traj.pose_at(t).inverse()
+        b_C = np.array([T_C_W.apply(p) for p in pts_W])
+        b_C /= np.linalg.norm(b_C, axis=1, keepdims=True)
+        rep = b_C.mean(axis=0)
+        view = CameraView(cam.name, rep / np.linalg.norm(rep), np.zeros(2), 1e-3,
+                          np.arange(5, dtype=np.int64), b_C)
+        obs = [ObstacleObservation(7, k, t, "confirmed", (view,))]
+        ran.append({"frame": k, "t_s": t, "tracks": [r.to_json() for r in rec.step(obs, k, t)]})
+    assert ran[-1]["tracks"][0]["range_m"] is not None  # the features did range the track
+    path = tmp_path / "observations.pkl"
+    path.write_bytes(pickle.dumps({"trackers_hash": _trackers_hash(), "frames": rec.frames}))
+    replayed, note = _replay_fusion(ObstacleFusion(rig, traj), path)
+    assert replayed == ran and note == ""
+    path.write_bytes(pickle.dumps({"trackers_hash": "older front end", "frames": rec.frames}))
+    assert "changed" in _replay_fusion(ObstacleFusion(rig, traj), path)[1]
