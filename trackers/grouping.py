@@ -1,23 +1,28 @@
 """Features -> obstacle tracks in one camera: proximity on the unit sphere plus consistent motion.
 
-Per frame:
+Per frame (all steps are array operations over the features and tracks, no per-track Python
+except building the output):
 
 1. Each track keeps its member features that are still alive and still move with it: a member
-   whose rotation-compensated flow differs from the track's median flow by more than
-   ``flow_abs_rad_s + flow_rel * |median|`` leaves, and so does one farther than ``max_radius_rad``
+   whose rotation-compensated flow differs from the track's mean flow by more than
+   ``flow_abs_rad_s + flow_rel * |flow|`` leaves, and so does one farther than ``max_radius_rad``
    from the track's representative bearing.
 2. Unassigned features old enough to have a flow join the track of their nearest member within
    ``link_rad`` when their flow agrees.
 3. The rest are grouped by connected components of the graph "angular distance < link_rad and flow
-   agrees"; a component wider than ``max_radius_rad`` is cut into pieces of that radius; a piece
-   of at least ``min_features`` features revives a coasting track near it, or starts a tentative
-   track.
-4. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
-   than ``max_missed`` frames -> lost (reported once, then dropped).
-5. Optional (``hand_on``) hysteresis on splits: a confirmed track that lost its members this
-   frame takes over a younger track now covering its place (within half ``link_rad``, flows
-   agreeing), so the id follows the obstacle when its features are replaced; the younger one is
-   lost.
+   agrees"; a component wider than ``max_radius_rad`` is cut into pieces of that radius. A piece of
+   at least ``min_features`` features (or a small isolated one, see ``min_features_isolated``)
+   revives a track that has no members now (coasting, or whose features were all replaced this
+   frame) when it lies within ``max_radius_rad`` of where that track was predicted to be and moves
+   like it (closest pairs first); otherwise it starts a tentative track.
+4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
+   moving with it surround it, i.e. lie in at least ``extended_sectors`` of 8 angular sectors
+   around it (sectors outside the lens do not count against it). A bounded obstacle has a motion
+   boundary or empty space around most of it; a piece of a textured surface does not. An embedded
+   piece starts no track; a track embedded ``extended_frames`` frames in a row is dropped (lost).
+5. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
+   than ``max_missed`` frames -> lost (reported once, then dropped). An unseen track coasts: its
+   bearing moves on with its last flow (and the camera's rotation when given).
 
 The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
 in both frames (so members joining or leaving do not make it jump), pulled gently (gain
@@ -80,6 +85,7 @@ class ObstacleTrack:
     attributes: dict = field(default_factory=dict)
     member_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     keep_min: int = 0  # members it needs to stay seen (0: the grouper's default)
+    extended: int = 0  # frames in a row on extended texture (the grouper's step 4)
 
 
 class ObstacleGrouper:
@@ -97,17 +103,21 @@ class ObstacleGrouper:
         min_features_isolated: features enough to start a track when they are isolated (no other
             live feature within ``link_rad``) and all at least ``isolated_min_age`` frames old: a
             small obstacle against the sky has one or two corners.
-        hand_on: hysteresis on splits (step 5), off by default: it lowered the switches on some
-            renders of mono_straight and raised them on others.
         min_age: frames a feature must have been tracked before it can join or start a track.
         confirm_frames: frames with members before a track is confirmed.
         max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
         coast_predict: an unseen track's bearing moves on with its last flow (and the camera's
             rotation when given), so features found where the obstacle went revive it (issue 4).
+        extended_sectors: a track is on extended texture when features moving with it lie in at
+            least this many of the 8 sectors around it (empty sectors outside the lens excepted,
+            at least 4 occupied); 0 turns the rule off.
+        extended_frames: frames in a row a track may be on extended texture before it is dropped.
         centre_gain: pull of the representative bearing towards the member mean per frame.
         sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
         label: label of the tracks (the detector's name).
     """
+
+    BG_FRAMES = 15  # frames a feature stays marked as extended texture
 
     def __init__(
         self,
@@ -122,39 +132,56 @@ class ObstacleGrouper:
         isolated_min_age: int = 12,
         min_age: int = 3,
         confirm_frames: int = 5,
-        hand_on: bool = False,
         max_missed: int = 10,
         coast_predict: bool = True,
+        extended_sectors: int = 6,
+        extended_frames: int = 3,
+        extended_loose: float = 1.0,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
         label: str = "orb",
     ) -> None:
-        if link_px <= 0 or max_radius_px <= 0 or min_features < 1 or confirm_frames < 1 or max_missed < 0:
+        if (
+            link_px <= 0
+            or max_radius_px <= 0
+            or min_features < 1
+            or confirm_frames < 1
+            or max_missed < 0
+            or not 0 <= extended_sectors <= 8
+            or extended_frames < 1
+        ):
             raise ConfigError(
                 "ObstacleGrouper: expected link_px > 0, max_radius_px > 0, min_features >= 1, "
-                "confirm_frames >= 1, max_missed >= 0; got "
-                f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}"
+                "confirm_frames >= 1, max_missed >= 0, 0 <= extended_sectors <= 8, extended_frames >= 1; got "
+                f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}, "
+                f"{extended_sectors}, {extended_frames}"
             )
         self._ids = ids
         self.link_px = float(link_px)
         self.max_radius_px = float(max_radius_px)
-        self.link_rad = self.max_radius_rad = 0.0  # set from the camera's scale on the first update
+        self.link_rad = self.max_radius_rad = 0.0  # set from the camera's scale on each update
         self.flow_abs = float(flow_abs_rad_s)
         self.flow_rel = float(flow_rel)
         self.flow_frames = int(flow_frames)
         self.min_features = int(min_features)
         self.min_features_isolated = int(min_features_isolated)
-        self.hand_on = bool(hand_on)
         self.isolated_min_age = int(isolated_min_age)
         self.min_age = int(min_age)
         self.confirm_frames = int(confirm_frames)
         self.max_missed = int(max_missed)
+        self.coast_predict = bool(coast_predict)
+        self.extended_sectors = int(extended_sectors)
+        self.extended_frames = int(extended_frames)
+        self.extended_loose = float(extended_loose)
         self.centre_gain = float(centre_gain)
         self.sigma_floor_px = float(sigma_floor_px)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
-        self.coast_predict = bool(coast_predict)
         self._last_t_s: float | None = None
+        # features judged to be on extended texture: ids (sorted) and the frame their mark expires
+        self._bg_ids = np.zeros(0, np.int64)
+        self._bg_until = np.zeros(0, np.int64)
+        self._frame = 0
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -172,35 +199,25 @@ class ObstacleGrouper:
             (tracks seen this frame, tracks lost this frame).
         """
         ids, b = ft.ids, ft.b_C
-        n = len(ids)
         dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
         self._last_t_s = t_s
         rad_px = self._rad_per_px(ft)
         self.link_rad = self.link_px * rad_px
         self.max_radius_rad = self.max_radius_px * rad_px
         cos_link, cos_r = np.cos(self.link_rad), np.cos(self.max_radius_rad)
+        R1 = R_C_Cprev.get(1) if R_C_Cprev else None
         flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
         fnorm = np.sqrt(np.einsum("ij,ij->i", flow, flow))
         b_prev, pvalid = ft.previous_bearing()
         tracks = list(self.tracks.values())
         T = len(tracks)
-        rep = np.array([t.b_C for t in tracks]).reshape(T, 3)
-        tflow = np.array([t.flow_rad_s for t in tracks]).reshape(T, 3)
-        # owner[i]: index (into tracks) of the track feature i belonged to last frame, or -1
-        owner = np.full(n, -1, np.intp)
-        if T and n:
-            order = np.argsort(ids, kind="stable")
-            sids = ids[order]
-            lens = [len(t.members) for t in tracks]
-            if sum(lens):
-                mem = np.concatenate([t.members for t in tracks])
-                mem_t = np.repeat(np.arange(T), lens)
-                k = np.minimum(np.searchsorted(sids, mem), n - 1)
-                ok = sids[k] == mem
-                owner[order[k[ok]]] = mem_t[ok]
-        for t in tracks:
-            t.seen = False
+        rep = np.array([t.b_C for t in tracks], float).reshape(T, 3)
+        tflow = np.array([t.flow_rad_s for t in tracks], float).reshape(T, 3)
+        hits = np.array([t.hits for t in tracks], np.int64)
+        owner = self._owners(ids, tracks)
+        self._frame += 1
+        bg = self._background(ids)
         # 1. members stay within max_radius of the representative bearing and move with the track
         r = np.flatnonzero(owner >= 0)
         if len(r):
@@ -211,12 +228,11 @@ class ObstacleGrouper:
             sel = np.flatnonzero((owner >= 0) & fvalid)
             if len(sel):
                 o = owner[sel]
-                d = np.linalg.norm(flow[sel] - tflow[o], axis=1)
-                thr = self.flow_abs + self.flow_rel * np.maximum(fnorm[sel], np.linalg.norm(tflow[o], axis=1))
-                owner[sel[(d >= loose * thr) & has_flow[o]]] = -1
+                bad = ~self._agree(flow[sel], fnorm[sel], tflow[o], loose) & has_flow[o]
+                owner[sel[bad]] = -1
         tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
         # 2. unassigned features with a flow join the track of their nearest member
-        free = np.flatnonzero((owner < 0) & fvalid)
+        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
         memb = np.flatnonzero(owner >= 0)
         if len(free) and len(memb):
             cosd = b[free] @ b[memb].T
@@ -224,103 +240,123 @@ class ObstacleGrouper:
             t_of = owner[memb[j]]
             ok = cosd[np.arange(len(free)), j] > cos_link
             ok &= np.einsum("ij,ij->i", b[free], rep[t_of]) > cos_r
-            fd = np.linalg.norm(flow[free] - tflow[t_of], axis=1)
-            thr = self.flow_abs + self.flow_rel * np.maximum(fnorm[free], np.linalg.norm(tflow[t_of], axis=1))
-            ok &= (fd < thr) | ~has_flow[t_of]
+            ok &= self._agree(flow[free], fnorm[free], tflow[t_of])  # (the last known flow if < 3 members)
             owner[free[ok]] = t_of[ok]
-        # 3. new groups from the rest
-        free = np.flatnonzero((owner < 0) & fvalid)
-        fresh = np.zeros(T, bool)
-        new_rep, new_flow = [], []
-        n_near: np.ndarray | None = None  # per feature: live features within link_rad, itself included
-        for rows in self._components(free, b, flow):
-            small = len(rows) < self.min_features
-            if small:
-                if len(rows) < self.min_features_isolated or np.any(ft.age[rows] < self.isolated_min_age):
-                    continue
-                if n_near is None:
-                    n_near = np.zeros(n, np.int64)
-                    n_near[free] = (b[free] @ b.T > cos_link).sum(axis=1)
-                # isolated: every member's neighbours are members (the component is a connected one)
-                if np.any(n_near[rows] > len(rows)):
-                    continue
-            c = _normalise(b[rows].mean(0))
-            ti = self._revive(tracks, c, owner)
-            if ti is None:
-                tid = next(self._ids)
-                tr = ObstacleTrack(tid, ft.name, ids[rows], c, hits=0, label=self.label)
-                if small:
-                    tr.keep_min = 1
-                self.tracks[tid] = tr
-                tracks.append(tr)
-                ti = len(tracks) - 1
-                fresh = np.append(fresh, True)
-                new_rep.append(c)
-                new_flow.append(flow[rows].mean(0))
-            else:
-                fresh[ti] = True
-                rep[ti] = c
-            owner[rows] = ti
-        if new_rep:
-            rep = np.concatenate([rep, np.array(new_rep)])
-            tflow = np.concatenate([tflow, np.array(new_flow)])
-        T = len(tracks)
-        tflow, _ = self._track_flow(owner, flow, fvalid, tflow, T)
-        # 4. representative bearing, sigma, members, life cycle
+        # 3. new groups from the rest: revive a memberless track where it was predicted, else new
+        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
+        pieces, small = self._pieces(free, b, flow, ft.age, cos_link)
+        K = len(pieces)
+        fresh = np.zeros(T + K, bool)  # its members are all new this frame (no motion to follow)
+        keep1 = np.zeros(T + K, bool)  # a small isolated obstacle: one member keeps it seen
+        if K:
+            rows_all = np.concatenate(pieces)
+            piece_of = np.repeat(np.arange(K), [len(p) for p in pieces])
+            cnt_p = np.bincount(piece_of, minlength=K)
+            pc = _normalise(np.stack([np.bincount(piece_of, b[rows_all, k], K) for k in range(3)], 1))
+            pf = np.stack([np.bincount(piece_of, flow[rows_all, k], K) for k in range(3)], 1) / cnt_p[:, None]
+            tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
+            cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
+            need = np.array([t.keep_min or self._keep_min() for t in tracks], np.int64).reshape(T)
+            cand = np.flatnonzero((cnt_now < need) & (hits > 0))
+            if len(cand):
+                # where each candidate is now: b <- normalise(R_C_Cprev b + flow dt)
+                pred = rep[cand] @ R1.T if R1 is not None else rep[cand]
+                pred = _normalise(pred + tflow[cand] * dt_s) if self.coast_predict else pred
+                cs = pc @ pred.T  # (K, C)
+                pfn = np.linalg.norm(pf, axis=1)
+                agree = self._agree(pf[:, None, :], pfn[:, None], tflow[cand][None, :, :])
+                cs = np.where((cs > cos_r) & agree, cs, -2.0)
+                pi, ci = np.nonzero(cs > -2.0)
+                used_p, used_c = np.zeros(K, bool), np.zeros(len(cand), bool)
+                for k in np.argsort(-cs[pi, ci], kind="stable"):  # closest pairs first
+                    p, c = pi[k], ci[k]
+                    if not (used_p[p] or used_c[c]):
+                        used_p[p] = used_c[c] = True
+                        tgt[p] = cand[c]
+                        rep[cand[c]] = pc[p]
+                        fresh[cand[c]] = cnt_now[cand[c]] == 0
+            fresh[T:] = True
+            keep1[tgt] = small
+            owner[rows_all] = tgt[piece_of]
+            rep = np.concatenate([rep, pc])
+            tflow = np.concatenate([tflow, pf])
+        TK = T + K
+        tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
+        # 4. representative bearing, sigma, reach
         own = np.flatnonzero(owner >= 0)
         o = owner[own]
-        cnt = np.bincount(o, minlength=T)
-        bsum = np.stack([np.bincount(o, b[own, k], T) for k in range(3)], 1)
-        mean_c = _normalise(bsum)
+        cnt = np.bincount(o, minlength=TK)
+        mean_c = _normalise(np.stack([np.bincount(o, b[own, k], TK) for k in range(3)], 1))
         per = own[pvalid[own] & ~fresh[o]]
         po = owner[per]
-        pcnt = np.bincount(po, minlength=T)
-        dsum = np.stack([np.bincount(po, b[per, k] - b_prev[per, k], T) for k in range(3)], 1)
+        pcnt = np.bincount(po, minlength=TK)
+        dsum = np.stack([np.bincount(po, b[per, k] - b_prev[per, k], TK) for k in range(3)], 1)
         # move with the members present in both frames: b_rep += mean(b_now - b_prev), then a
         # gentle pull towards the member mean (gain centre_gain)
         moved = _normalise(rep + dsum / np.maximum(pcnt, 1)[:, None])
         moved = _normalise(moved + self.centre_gain * (mean_c - moved))
         use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
-        new_rep_all = np.where(use_moved[:, None], moved, mean_c)
-        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b[own], new_rep_all[o]), -1.0, 1.0))
-        spread2 = np.bincount(o, ang * ang, T) / np.maximum(cnt, 1)
+        new_rep = np.where(use_moved[:, None], moved, mean_c)
+        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b[own], new_rep[o]), -1.0, 1.0))
+        spread2 = np.bincount(o, ang * ang, TK) / np.maximum(cnt, 1)
         # sigma^2 = spread^2 / n + floor^2
         sigma = np.sqrt(spread2 / np.maximum(cnt, 1) + (self.sigma_floor_px * rad_px) ** 2)
-        srt = own[np.argsort(o, kind="stable")]
-        groups = np.split(srt, np.cumsum(cnt)[:-1]) if T else []
-        keep_min = max(2, self.min_features // 2)
+        order_o = np.argsort(o, kind="stable")
+        srt = own[order_o]  # member rows grouped by track
+        starts = np.concatenate([[0], np.cumsum(cnt)])
+        reach = np.zeros(TK)  # farthest member's angle from the representative bearing
+        ne = np.flatnonzero(cnt > 0)
+        if len(ne):
+            reach[ne] = np.maximum.reduceat(ang[order_o], starts[ne])
+        need = np.full(TK, self._keep_min())
+        need[:T] = [t.keep_min or self._keep_min() for t in tracks]
+        need[keep1] = 1
+        alive = cnt >= need
+        # 5. extended texture
+        ext = np.zeros(TK, bool)
+        # (confirmed tracks are not judged: an established obstacle keeps its track)
+        tent = np.ones(TK, bool)
+        tent[:T] = [t.status == "tentative" for t in tracks]
+        if self.extended_sectors and np.any(alive & tent):
+            a_idx = np.flatnonzero(alive & tent)
+            ext[a_idx] = self._embedded(
+                new_rep[a_idx], reach[a_idx], tflow[a_idx], a_idx, b, flow, fvalid, owner, ft.model
+            )
+        # 6. the tracks' new state, the life cycle
         seen, lost = [], []
-        for ti, tr in enumerate(tracks):
-            if cnt[ti] >= (tr.keep_min or keep_min):
-                rows = groups[ti]
-                tr.members = ids[rows]
-                tr.member_b_C = b[rows]
-                tr.b_C = new_rep_all[ti]
-                tr.flow_rad_s = tflow[ti]
-                tr.sigma_rad = float(sigma[ti])
-                tr.hits += 1
-                tr.missed = 0
-                tr.seen = True
-                if tr.status == "tentative" and tr.hits >= self.confirm_frames:
-                    tr.status = "confirmed"
+        to_bg = []
+        for ti in range(T):
+            tr = tracks[ti]
+            if alive[ti]:
+                tr.extended = tr.extended + 1 if ext[ti] else 0
+                if tr.extended >= self.extended_frames and tr.status == "tentative":
+                    tr.status, tr.seen = "lost", False
+                    to_bg.append(srt[starts[ti] : starts[ti + 1]])
+                    self._coast_one(tr, 0.0, None)
+                    del self.tracks[tr.id]
+                    lost.append(tr)
+                    continue
+                rows = srt[starts[ti] : starts[ti + 1]]
+                self._set_seen(tr, ids[rows], b[rows], new_rep[ti], tflow[ti], sigma[ti])
                 seen.append(tr)
             else:
-                tr.members = np.zeros(0, np.int64)
-                tr.member_b_C = np.zeros((0, 3))
-                tr.missed += 1
-                # coast on the predicted bearing: b <- normalise(R_C_Cprev b + flow dt) (flow: tangent,
-                # rad/s, rotation-compensated when R_C_Cprev is given), so new features found where
-                # the obstacle went revive it under its old id
-                if self.coast_predict and dt_s > 0:
-                    R1 = R_C_Cprev.get(1) if R_C_Cprev else None
-                    b_pred = R1 @ tr.b_C if R1 is not None else tr.b_C
-                    tr.b_C = _normalise(b_pred + tr.flow_rad_s * dt_s)
-                if tr.missed > self.max_missed:
-                    tr.status = "lost"
+                tr.seen = False
+                if self._coast_one(tr, dt_s, R1):
                     lost.append(tr)
-                    del self.tracks[tr.id]
-        if self.hand_on:
-            seen, lost = self._hand_on(seen, lost, cos_r)
+        for ti in range(T, TK):
+            if not alive[ti]:
+                continue
+            rows = srt[starts[ti] : starts[ti + 1]]
+            if ext[ti]:
+                to_bg.append(rows)
+                continue
+            tr = ObstacleTrack(next(self._ids), ft.name, ids[rows], new_rep[ti], hits=0, label=self.label)
+            tr.keep_min = 1 if keep1[ti] else 0
+            self.tracks[tr.id] = tr
+            self._set_seen(tr, ids[rows], b[rows], new_rep[ti], tflow[ti], sigma[ti])
+            seen.append(tr)
+        if to_bg:
+            self._mark_background(ids[np.concatenate(to_bg)])
         if seen:
             uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
             for t, u, v in zip(seen, uv, ok, strict=True):
@@ -328,45 +364,105 @@ class ObstacleGrouper:
                     t.uv = u
         return seen, lost
 
-    def _hand_on(
-        self, seen: list[ObstacleTrack], lost: list[ObstacleTrack], cos_r: float
-    ) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
-        """Hysteresis on splits: a confirmed track that lost its members this frame takes over the
-        younger track (higher id) that now covers its place (representative bearings within half
-        ``link_rad``, flows agreeing), so the id follows the obstacle; the younger one is lost.
+    def coast(self, t_s: float, R_C_Cprev: dict[int, np.ndarray] | None = None) -> list[ObstacleTrack]:
+        """A frame without usable features (dropped, black or flat): every track coasts (its
+        bearing moves on with its flow and the camera's rotation ``R_C_Cprev[1]`` (3,3) when given).
 
-        Returns the updated (seen, lost)."""
-        just_lost = [
-            t for t in self.tracks.values() if not t.seen and t.missed == 1 and t.status == "confirmed"
-        ]
-        if not just_lost or not seen:
-            return seen, lost
-        for old in sorted(just_lost, key=lambda t: t.id):
-            best, best_cos = None, max(cos_r, float(np.cos(0.5 * self.link_rad)))
-            for y in seen:
-                if y.id <= old.id or y.label != old.label:
-                    continue
-                cs = float(y.b_C @ old.b_C)
-                d = float(np.linalg.norm(y.flow_rad_s - old.flow_rad_s))
-                thr = self.flow_abs + self.flow_rel * max(
-                    float(np.linalg.norm(y.flow_rad_s)), float(np.linalg.norm(old.flow_rad_s))
-                )
-                if cs > best_cos and d < thr:
-                    best, best_cos = y, cs
-            if best is None:
-                continue
-            y = best
-            old.members, old.member_b_C, old.b_C = y.members, y.member_b_C, y.b_C
-            old.flow_rad_s, old.sigma_rad = y.flow_rad_s, y.sigma_rad
-            old.hits += 1
-            old.missed = 0
-            old.seen = True
-            y.status = "lost"
-            y.seen = False
-            del self.tracks[y.id]
-            seen = [old if t is y else t for t in seen]
-            lost.append(y)
-        return seen, lost
+        Args:
+            t_s: frame time (s); R_C_Cprev: as in ``update``.
+        Returns:
+            the tracks lost this frame (unseen for more than ``max_missed`` frames)."""
+        dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
+        self._last_t_s = t_s
+        R1 = R_C_Cprev.get(1) if R_C_Cprev else None
+        lost = []
+        for tr in list(self.tracks.values()):
+            tr.seen = False
+            if self._coast_one(tr, dt_s, R1):
+                lost.append(tr)
+        return lost
+
+    # ----------------------------------------------------------------------------- helpers
+    def _background(self, ids: np.ndarray) -> np.ndarray:
+        """(N,) bool: live feature ids (N,) marked as extended texture (marks expire after
+        ``BG_FRAMES`` frames, so an obstacle taken for texture gets another chance)."""
+        keep = self._bg_until > self._frame
+        if not np.all(keep):
+            self._bg_ids, self._bg_until = self._bg_ids[keep], self._bg_until[keep]
+        if not len(self._bg_ids) or not len(ids):
+            return np.zeros(len(ids), bool)
+        k = np.minimum(np.searchsorted(self._bg_ids, ids), len(self._bg_ids) - 1)
+        return self._bg_ids[k] == ids
+
+    def _mark_background(self, fids: np.ndarray) -> None:
+        """Mark feature ids (K,) as extended texture for the next ``BG_FRAMES`` frames."""
+        allid = np.concatenate([self._bg_ids, fids])
+        until = np.concatenate([self._bg_until, np.full(len(fids), self._frame + self.BG_FRAMES)])
+        order = np.argsort(allid, kind="stable")
+        self._bg_ids, self._bg_until = allid[order], until[order]
+
+    def _keep_min(self) -> int:
+        """Members a track needs to stay seen (tracks of small isolated obstacles: 1)."""
+        return max(2, self.min_features // 2)
+
+    def _set_seen(
+        self,
+        tr: ObstacleTrack,
+        members: np.ndarray,
+        member_b_C: np.ndarray,
+        b_C: np.ndarray,
+        flow: np.ndarray,
+        sigma: float,
+    ) -> None:
+        tr.members, tr.member_b_C, tr.b_C, tr.flow_rad_s = members, member_b_C, b_C, flow
+        tr.sigma_rad = float(sigma)
+        tr.hits += 1
+        tr.missed = 0
+        tr.seen = True
+        if tr.status == "tentative" and tr.hits >= self.confirm_frames:
+            tr.status = "confirmed"
+
+    def _coast_one(self, tr: ObstacleTrack, dt_s: float, R1: np.ndarray | None) -> bool:
+        """One unseen frame of ``tr``; True when it is lost now (and dropped from ``tracks``)."""
+        tr.members = np.zeros(0, np.int64)
+        tr.member_b_C = np.zeros((0, 3))
+        tr.missed += 1
+        # coast on the predicted bearing: b <- normalise(R_C_Cprev b + flow dt) (flow: tangent,
+        # rad/s, rotation-compensated when R_C_Cprev is given), so new features found where
+        # the obstacle went revive it under its old id
+        if self.coast_predict and dt_s > 0:
+            b_pred = R1 @ tr.b_C if R1 is not None else tr.b_C
+            tr.b_C = _normalise(b_pred + tr.flow_rad_s * dt_s)
+        if tr.missed > self.max_missed:
+            tr.status = "lost"
+            del self.tracks[tr.id]
+            return True
+        return False
+
+    def _agree(self, f: np.ndarray, fn: np.ndarray, g: np.ndarray, loose: float = 1.0) -> np.ndarray:
+        """Flows f (..., 3) (norms fn (...)) and g (..., 3) agree (rad/s):
+        ``|f - g| < loose (flow_abs + flow_rel max(|f|, |g|))``."""
+        d = np.linalg.norm(f - g, axis=-1)
+        return d < loose * (self.flow_abs + self.flow_rel * np.maximum(fn, np.linalg.norm(g, axis=-1)))
+
+    @staticmethod
+    def _owners(ids: np.ndarray, tracks: list[ObstacleTrack]) -> np.ndarray:
+        """owner[i]: index (into ``tracks``) of the track live feature i belonged to, or -1."""
+        n, T = len(ids), len(tracks)
+        owner = np.full(n, -1, np.intp)
+        if not (T and n):
+            return owner
+        lens = [len(t.members) for t in tracks]
+        if not sum(lens):
+            return owner
+        order = np.argsort(ids, kind="stable")
+        sids = ids[order]
+        mem = np.concatenate([t.members for t in tracks])
+        mem_t = np.repeat(np.arange(T), lens)
+        k = np.minimum(np.searchsorted(sids, mem), n - 1)
+        ok = sids[k] == mem
+        owner[order[k[ok]]] = mem_t[ok]
+        return owner
 
     @staticmethod
     def _track_flow(
@@ -380,7 +476,6 @@ class ObstacleGrouper:
         has = cnt >= 3
         return np.where(has[:, None], sums / np.maximum(cnt, 1)[:, None], old), has
 
-    # ----------------------------------------------------------------------------- helpers
     def _flows(
         self, ft: FeatureTracker, t_s: float, R: dict[int, np.ndarray] | None
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -391,10 +486,10 @@ class ObstacleGrouper:
         b_then, t_then, valid = ft.bearing_ago(self.flow_frames)
         if R:
             n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)
+            b_then = b_then.copy()
             for k, Rk in R.items():
                 sel = n_back == k
                 if np.any(sel):
-                    b_then = b_then.copy()
                     b_then[sel] = b_then[sel] @ np.asarray(Rk).T
         dt = t_s - t_then
         valid &= dt > 0
@@ -402,17 +497,37 @@ class ObstacleGrouper:
         flow[valid] = (ft.b_C[valid] - b_then[valid]) / dt[valid, None]
         return flow, valid
 
+    def _pieces(
+        self, free: np.ndarray, b: np.ndarray, flow: np.ndarray, age: np.ndarray, cos_link: float
+    ) -> tuple[list[np.ndarray], np.ndarray]:
+        """Pieces (rows into the live features) that may start or revive a track, and per piece
+        whether it is a small isolated one (fewer than min_features)."""
+        out, small = [], []
+        n_near: np.ndarray | None = None  # per free feature: live features within link_rad, itself included
+        for rows in self._components(free, b, flow):
+            is_small = len(rows) < self.min_features
+            if is_small:
+                if len(rows) < self.min_features_isolated or np.any(age[rows] < self.isolated_min_age):
+                    continue
+                if n_near is None:
+                    n_near = np.zeros(len(b), np.int64)
+                    n_near[free] = (b[free] @ b.T > cos_link).sum(axis=1)
+                # isolated: every member's neighbours are members (the component is a connected one)
+                if np.any(n_near[rows] > len(rows)):
+                    continue
+            out.append(rows)
+            small.append(is_small)
+        return out, np.array(small, bool)
+
     def _components(self, free: np.ndarray, b: np.ndarray, flow: np.ndarray) -> list[np.ndarray]:
-        """Connected components (union-find) of the free features, cut to max_radius_rad pieces."""
+        """Connected components of the free features (graph: within link_rad and flows agreeing),
+        cut to max_radius_rad pieces."""
         m = len(free)
         if m == 0:
             return []
         bf, ff = b[free], flow[free]
-        close = (bf @ bf.T) > np.cos(self.link_rad)
         fn = np.linalg.norm(ff, axis=1)
-        d = np.linalg.norm(ff[:, None, :] - ff[None, :, :], axis=2)
-        agree = d < self.flow_abs + self.flow_rel * np.maximum(fn[:, None], fn[None, :])
-        adj = close & agree
+        adj = ((bf @ bf.T) > np.cos(self.link_rad)) & self._agree(ff[:, None, :], fn[:, None], ff[None, :, :])
         # connected components by min-label propagation: each feature takes the smallest label
         # among its neighbours until nothing changes (at most the graph's diameter rounds)
         labels = np.arange(m)
@@ -424,44 +539,106 @@ class ObstacleGrouper:
             if np.array_equal(nxt, labels):
                 break
             labels = nxt
-        roots = labels
         out: list[np.ndarray] = []
         cos_r = np.cos(self.max_radius_rad)
-        for r in np.unique(roots):
-            comp = np.flatnonzero(roots == r)
-            if len(comp) < min(self.min_features, self.min_features_isolated):
+        lo = min(self.min_features, self.min_features_isolated)
+        order = np.argsort(labels, kind="stable")
+        roots, starts, counts = np.unique(labels[order], return_index=True, return_counts=True)
+        for s, c in zip(starts, counts, strict=True):
+            if c < lo:
                 continue
-            if len(comp) < self.min_features:  # judged by the caller (isolated or not)
+            comp = order[s : s + c]
+            if c < self.min_features:  # judged by the caller (isolated or not)
                 out.append(free[comp])
                 continue
             while len(comp):
-                c = _normalise(bf[comp].mean(0))
-                if np.all(bf[comp] @ c > cos_r):
+                cen = _normalise(bf[comp].mean(0))
+                cc = bf[comp] @ cen
+                if np.all(cc > cos_r):
                     out.append(free[comp])
                     break
                 # cut: a piece around the member farthest from the centre, so the rest stays compact
-                far = comp[np.argmin(bf[comp] @ c)]
-                piece = comp[bf[comp] @ bf[far] > np.cos(self.max_radius_rad)]
+                far = comp[np.argmin(cc)]
+                piece = comp[bf[comp] @ bf[far] > cos_r]
                 c2 = _normalise(bf[piece].mean(0))
-                piece = comp[bf[comp] @ c2 > cos_r]
-                if not len(piece):
-                    piece = np.array([far])
-                out.append(free[piece])
-                comp = np.setdiff1d(comp, piece)
+                inside = bf[comp] @ c2 > cos_r
+                piece = comp[inside] if np.any(inside) else np.array([far])
+                if len(piece) >= self.min_features:
+                    out.append(free[piece])
+                comp = comp[~inside] if np.any(inside) else comp[comp != far]
         return out
 
-    def _revive(self, tracks: list[ObstacleTrack], c: np.ndarray, owner: np.ndarray) -> int | None:
-        """Index of a coasting track (unseen last frame, no members now) whose bearing is within
-        max_radius of the group centre ``c`` (3,), or None."""
-        taken = set(np.unique(owner[owner >= 0]).tolist())
-        best, best_cos = None, np.cos(self.max_radius_rad)
-        for ti, tr in enumerate(tracks):
-            if tr.missed == 0 or ti in taken or tr.hits == 0:
-                continue
-            cs = float(c @ tr.b_C)
-            if cs > best_cos:
-                best, best_cos = ti, cs
-        return best
+    def _embedded(
+        self,
+        rep: np.ndarray,
+        reach: np.ndarray,
+        tflow: np.ndarray,
+        tidx: np.ndarray,
+        b: np.ndarray,
+        flow: np.ndarray,
+        fvalid: np.ndarray,
+        owner: np.ndarray,
+        model,
+    ) -> np.ndarray:
+        """Per track (rep (A,3) unit bearings in C, reach (A,) rad = farthest member's angle,
+        tflow (A,3) rad/s, tidx (A,) its index in ``owner``): True when it lies on extended
+        texture: the non-member features within ``reach + link_rad`` surround it (they lie in at
+        least ``extended_sectors`` of the 8 sectors around it, sectors whose outer edge is outside
+        the lens (``model.max_angle_rad`` off +z) not held against it, and in at least 4), and the
+        flow field they span, fitted as an affine function of the position and taken at the
+        track, agrees with the track's flow (no motion boundary around it)."""
+        A = len(rep)
+        out = np.zeros(A, bool)
+        cand = np.flatnonzero(fvalid)
+        if not len(cand):
+            return out
+        outer = np.minimum(reach + self.link_rad, np.pi)
+        ti, j = np.nonzero(rep @ b[cand].T > np.cos(outer)[:, None])
+        i = cand[j]
+        ok = owner[i] != tidx[ti]
+        ti, i = ti[ok], i[ok]
+        # tangent basis (e1, e2) at each rep; position (x, y) and sector of each neighbour
+        ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+        e1 = _normalise(np.cross(ref, rep))
+        e2 = np.cross(rep, e1)
+        d = b[i] - rep[ti]
+        x = np.einsum("ij,ij->i", d, e1[ti])
+        y = np.einsum("ij,ij->i", d, e2[ti])
+        sec = np.floor((np.arctan2(y, x) + np.pi) * (4.0 / np.pi)).astype(np.intp) % 8
+        occ = np.zeros((A, 8), bool)
+        occ[ti, sec] = True
+        # a sector is visible when the point at `outer` in its middle direction is inside the lens
+        mid = -np.pi + (np.arange(8) + 0.5) * (np.pi / 4.0)
+        z = np.cos(outer)[:, None] * rep[:, 2:3] + np.sin(outer)[:, None] * (
+            np.cos(mid)[None, :] * e1[:, 2:3] + np.sin(mid)[None, :] * e2[:, 2:3]
+        )
+        vis = z > np.cos(model.max_angle_rad)
+        surrounded = ((occ & vis).sum(1) >= 4) & ((vis & ~occ).sum(1) <= 8 - self.extended_sectors)
+        if not np.any(surrounded):
+            return out
+        # affine flow field of the neighbours: f(x, y) = c0 + c1 x + c2 y per tangent component,
+        # least squares (normal equations, a small ridge on the slopes); at the track: c0
+        s = self.link_rad
+        rows = np.stack([np.ones_like(x), x / s, y / s], 1)  # (P, 3), slopes per link_rad
+        fxy = np.stack([np.einsum("ij,ij->i", flow[i], e1[ti]), np.einsum("ij,ij->i", flow[i], e2[ti])], 1)
+        # per track sums by bincount over (track, entry) (a ufunc.at is ten times slower)
+        key = ti[:, None] * 9 + np.arange(9)[None, :]
+        N = np.bincount(key.ravel(), (rows[:, :, None] * rows[:, None, :]).reshape(-1), A * 9).reshape(
+            A, 3, 3
+        )
+        key = ti[:, None] * 6 + np.arange(6)[None, :]
+        rhs = np.bincount(key.ravel(), (rows[:, :, None] * fxy[:, None, :]).reshape(-1), A * 6).reshape(
+            A, 3, 2
+        )
+        N += np.diag([1e-9, 1e-3, 1e-3]) * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
+        c0 = np.linalg.solve(N[surrounded], rhs[surrounded])[:, 0, :]  # (S, 2)
+        tf = np.stack([np.einsum("ij,ij->i", tflow, e1), np.einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
+        gap = np.linalg.norm(c0 - tf, axis=1)
+        thr = self.flow_abs + self.flow_rel * np.maximum(
+            np.linalg.norm(c0, axis=1), np.linalg.norm(tf, axis=1)
+        )
+        out[surrounded] = gap < self.extended_loose * thr
+        return out
 
     def _rad_per_px(self, ft: FeatureTracker) -> float:
         cx, cy, r = ft.model.image_circle()
