@@ -589,6 +589,51 @@ def _absolutize(value: Any) -> Any:
     return value
 
 
+# ---------------------------------------------------------------------------------- shipped presets
+def configs_dir() -> Path:
+    """The folder of the shipped configs (``configs/*.yaml``) and scenario presets (``scenarios/``).
+
+    ``pipeline/_configs`` is a link to the repository's ``configs/`` and ships as package data, so the
+    same path works from a source checkout, an editable install and a ``pip install .`` (where the
+    wheel holds copies of the files). A checkout without symbolic links falls back to the repository
+    folder beside the package.
+    """
+    here = Path(__file__).resolve().parent
+    for d in (here / "_configs", here.parent / "configs"):
+        if d.is_dir():
+            return d
+    raise ConfigError(
+        f"the shipped configs are missing: neither {here / '_configs'} nor {here.parent / 'configs'} "
+        "is a folder (reinstall fisheye-des)"
+    )
+
+
+def scenarios_dir() -> Path:
+    """The folder of the simulator's scenario presets (``configs/scenarios/*.yaml``)."""
+    return configs_dir() / "scenarios"
+
+
+def find_preset(ref: str | Path, folder: Path | None = None, what: str = "config file") -> Path:
+    """A YAML file: ``ref`` itself when it exists, else a shipped preset of that name (``.yaml`` optional)
+    in ``folder`` (default :func:`configs_dir`), e.g. ``mono_forward`` or ``scenarios/demo``.
+
+    Raises:
+        ConfigError: neither a file nor a preset; the message lists the presets there are.
+    """
+    p = Path(ref).expanduser()
+    if p.is_file():
+        return p
+    folder = configs_dir() if folder is None else folder
+    for cand in (folder / p, folder / f"{p}.yaml"):
+        if cand.is_file():
+            return cand
+    names = sorted(q.stem for q in folder.glob("*.yaml"))
+    raise ConfigError(
+        f"{ref}: {what} not found (neither a file nor a preset in {folder}; "
+        f"presets: {', '.join(names) or 'none'})"
+    )
+
+
 def load_config(
     path: str | Path | None = None,
     overrides: list[str] | tuple[str, ...] = (),
@@ -597,7 +642,8 @@ def load_config(
     """Load and validate a config.
 
     Args:
-        path: YAML file, or None for the defaults.
+        path: YAML file (or the name of a shipped preset, see :func:`find_preset`), or None for the
+            defaults.
         overrides: ``section.key=value`` strings (``--set``); values are parsed as YAML scalars/lists and
             typed by the model; relative paths in them are relative to the current directory.
         cli: dotted keys set by dedicated command-line flags (e.g. ``{"inputs.videos": [...]}``), applied
@@ -606,7 +652,7 @@ def load_config(
     Raises:
         ConfigError: naming the file and line (or the ``--set`` item) and the closest valid key.
     """
-    cfg_path = Path(path).expanduser().resolve() if path is not None else None
+    cfg_path = find_preset(path).resolve() if path is not None else None
     if cfg_path is not None:
         data, lines = _read_yaml(cfg_path)
         base_dir = cfg_path.parent

@@ -25,8 +25,10 @@ DEFAULT_RESOLUTION = (640, 360)
 
 
 def scenarios_dir() -> Path:
-    """``configs/scenarios`` of the repository this package runs from."""
-    return Path(__file__).resolve().parents[2] / "configs" / "scenarios"
+    """The scenario presets: ``configs/scenarios``, shipped with the package (``pipeline.config``)."""
+    from pipeline.config import scenarios_dir as shipped
+
+    return shipped()
 
 
 def _pct(v: Any) -> str:
@@ -64,7 +66,7 @@ def run_demo(
     pole's bounding sphere is as wide as the pole is tall); their range error is given separately.
     """
     from estimators.errors import ConfigError
-    from pipeline.config import load_config
+    from pipeline.config import find_preset, load_config
     from pipeline.evaluate import evaluate, format_table, range_metrics, write_outputs
     from pipeline.run import run, wants_grey
     from pipeline.sim.scene import load_scenario
@@ -73,13 +75,7 @@ def run_demo(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    scn_path = Path(scenario) if scenario is not None else scenarios_dir() / DEFAULT_SCENARIO
-    if not scn_path.is_file() and (scenarios_dir() / scn_path).is_file():
-        scn_path = scenarios_dir() / scn_path
-    if not scn_path.is_file() and (scenarios_dir() / f"{scn_path}.yaml").is_file():
-        scn_path = scenarios_dir() / f"{scn_path}.yaml"
-    if not scn_path.is_file():
-        raise ConfigError(f"{scenario}: scenario not found (neither a file nor a name in {scenarios_dir()})")
+    scn_path = find_preset(DEFAULT_SCENARIO if scenario is None else scenario, scenarios_dir(), "scenario")
     wall: dict[str, float] = {}
     cli: dict[str, Any] = {
         "outputs.annotated_video": True,

@@ -208,3 +208,30 @@ def test_front_end_scalar_options_reach_the_front_end():
     fe = build_frontend(cfg, mono_rig())
     assert fe.densify_every == 3 and fe.densify_below == 8  # the front end's own default kept
     assert load_config(None).tracker.frontend_options() == {}
+
+
+def test_shipped_presets_are_package_data_and_found_by_name(tmp_path, monkeypatch):
+    """configs/ ships inside the package (pipeline/_configs links to it; pyproject's package-data takes
+    every YAML there), so `demo` and preset names work without the repository (a `pip install .`)."""
+    import fnmatch
+    import tomllib
+
+    from pipeline.config import configs_dir, find_preset, scenarios_dir
+
+    link = REPO / "pipeline" / "_configs"
+    assert link.is_symlink() and link.resolve() == (REPO / "configs").resolve()
+    assert configs_dir().resolve() == (REPO / "configs").resolve()
+    patterns = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    shipped = patterns.get("pipeline", [])
+    files = [p.relative_to(REPO / "configs").as_posix() for p in (REPO / "configs").rglob("*.yaml")]
+    assert len(files) >= 16  # 4 configs + 12 scenarios
+    missing = [f for f in files if not any(fnmatch.fnmatch(f"_configs/{f}", pat) for pat in shipped)]
+    assert not missing, f"not shipped by pyproject package-data: {missing}"
+    # names resolve from any working directory
+    monkeypatch.chdir(tmp_path)
+    assert find_preset("mono_forward") == configs_dir() / "mono_forward.yaml"
+    assert find_preset("demo", scenarios_dir()) == scenarios_dir() / "demo.yaml"
+    assert load_config("stereo_030").rig.cameras  # a preset name as CONFIG
+    with pytest.raises(ConfigError, match="mono_forward") as e:  # the message lists the presets
+        find_preset("mono_forwad")
+    assert "not found" in str(e.value)
