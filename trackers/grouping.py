@@ -734,3 +734,17 @@ class BoxTracker:
                     lost.append(tr)
                     del self.tracks[tid]
         return seen, lost
+
+    def coast(self) -> list[ObstacleTrack]:
+        """A frame without a usable image: every track goes unseen; returns those lost now
+        (unseen for more than ``max_missed`` frames)."""
+        lost = []
+        for tid in list(self.tracks):
+            tr = self.tracks[tid]
+            tr.seen = False
+            tr.missed += 1
+            if tr.missed > self.max_missed:
+                tr.status = "lost"
+                lost.append(tr)
+                del self.tracks[tid]
+        return lost
