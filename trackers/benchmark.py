@@ -145,7 +145,6 @@ def run_benchmark(
     max_frames: int | None = None,
     margin_px: float = 2.0,
     use_poses: bool = False,
-    trace: dict[int, dict[int, set[int]]] | None = None,
     **frontend_options: Any,
 ) -> dict[str, Any]:
     """Run the FrontEnd over a simulated scene and measure it (see the module docstring).
@@ -153,8 +152,6 @@ def run_benchmark(
     Wall-clock rates (``fps``) suffer from other processes on a shared machine; ``fps_cpu`` uses
     this process's CPU time (``time.process_time``), which with one OpenCV thread and the decoder
     on ``threads`` threads too is the work done (decode and front end booked apart).
-
-    ``trace``: if given, filled with {frame: {obstacle id: ids of the tracks on it}}.
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
@@ -236,8 +233,6 @@ def run_benchmark(
                 if best is not None:
                     on.setdefault(best, set()).add(o.track_id)
                     alive_on[o.track_id].add(best)
-        if trace is not None:
-            trace[f] = on
         for o in line["obstacles"]:
             oid = int(o["id"])
             if not any(o.get("visible", {}).values()):

@@ -240,7 +240,7 @@ class FeatureTracker:
         self._prev_pyr = None
 
     def track(
-        self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None, detect: bool = True
+        self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None
     ) -> tuple[Features, dict[str, float]]:
         """Track the live features into ``grey`` and top up coverage.
 
@@ -248,7 +248,6 @@ class FeatureTracker:
             grey: (H, W) uint8 frame of this camera (the calibration's size).
             frame, t_s: frame index and time (s).
             image: the original frame passed to the detector (BGR or grey); default ``grey``.
-            detect: allow (re-)detection this frame.
         Returns:
             (the live Features, seconds spent {"track": ..., "detect": ...}).
         """
@@ -265,7 +264,7 @@ class FeatureTracker:
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
         self._frames_since_detect += 1
-        if detect and self._need_detection():
+        if self._need_detection():
             self._detect(image if image is not None else grey, float(t_s))
             self._frames_since_detect = 0
         t2 = time.perf_counter()

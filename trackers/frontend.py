@@ -27,7 +27,7 @@ from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
-STAGES = ("detect", "track", "group", "associate", "report")
+STAGES = ("resize", "detect", "track", "group", "associate", "report")
 _OPTION_GROUPS = (
     "detector_options",
     "features",
@@ -94,8 +94,9 @@ class FrontEnd:
             so small obstacles keep enough features.
 
     Attributes:
-        timings: seconds of the last frame per stage (detect, track, group, associate, report: the
-            observations built from the tracks), summed over the cameras.
+        timings: seconds of the last frame per stage (resize: frames wider than max_width shrunk,
+            detect, track, group, associate, report: the observations built from the tracks), summed
+            over the cameras.
     """
 
     def __init__(self, rig, detector: str | Detector = "orb", **options: Any) -> None:
@@ -214,17 +215,19 @@ class FrontEnd:
             raise InputError(f"FrontEnd.process: unknown cameras {extra}; the rig has {list(self.cams)}")
         if not np.isfinite(t_s):
             raise InputError(f"FrontEnd.process: expected a finite t_s, got {t_s!r}")
+        tm = dict.fromkeys(STAGES, 0.0)
         checked = {}
         for name, img in images.items():
             w, h = self.calib_size[name]
             img = check_image(name, img, w, h)
             if self.scale[name] != 1.0:
                 m = self.cams[name].model
+                t0 = time.perf_counter()
                 if name not in self.boxers:  # keypoints only: shrink the grey frame (a third the work)
                     img = to_grey(img)
                 img = cv2.resize(img, (m.width, m.height), interpolation=cv2.INTER_AREA)
+                tm["resize"] += time.perf_counter() - t0
             checked[name] = img
-        tm = dict.fromkeys(STAGES, 0.0)
         rot = self._rotations(T_W_B)
         seen: dict[str, list[ObstacleTrack]] = {}
         lost: list[ObstacleTrack] = []
@@ -268,7 +271,7 @@ class FrontEnd:
                         ft.densify(grey, np.array([t.uv for t in small]), np.array(radii), frame, t_s)
                     tm["detect"] += time.perf_counter() - t0
                 else:
-                    s1, l1 = [], self._coast(gr.tracks)
+                    s1, l1 = [], gr.coast(t_s, self._camera_rotations(cam, rot))
                 s += s1
                 lost += l1
             if name in self.boxers:
@@ -279,7 +282,7 @@ class FrontEnd:
                     t0 = time.perf_counter()
                     s2, l2 = self.boxers[name].update(cam, det)
                 else:
-                    s2, l2 = [], self._coast(self.boxers[name].tracks)
+                    s2, l2 = [], self.boxers[name].coast()
                 tm["group"] += time.perf_counter() - t0
                 s += s2
                 lost += l2
@@ -314,24 +317,6 @@ class FrontEnd:
             return True
         lo, hi, _, _ = cv2.minMaxLoc(grey, mask)
         return bool(hi - lo >= 24)
-
-    def _coast(self, tracks: dict[int, ObstacleTrack]) -> list[ObstacleTrack]:
-        lost = []
-        for tid in list(tracks):
-            tr = tracks[tid]
-            tr.seen = False
-            tr.members = np.zeros(0, np.int64)
-            tr.missed += 1
-            mm = (
-                self.groupers[tr.camera].max_missed
-                if tr.camera in self.groupers and tid in self.groupers[tr.camera].tracks
-                else self.boxers[tr.camera].max_missed
-            )
-            if tr.missed > mm:
-                tr.status = "lost"
-                lost.append(tr)
-                del tracks[tid]
-        return lost
 
     def _rotations(self, T_W_B) -> dict[int, np.ndarray] | None:
         """{k: R_Bnow_Bk} for the last frames, from the given poses (None without poses)."""
