@@ -312,7 +312,8 @@ class _FeatureRays:
     """
 
     def __init__(self, capacity: int = 1024) -> None:
-        self.index: dict[int, int] = {}
+        self.ids = np.zeros(0, dtype=np.int64)  # known feature ids, sorted
+        self.id_rows = np.zeros(0, dtype=np.int64)  # their rows
         self.size = 0
         self.A = np.zeros((capacity, 3, 3))
         self.y = np.zeros((capacity, 3))
@@ -333,32 +334,43 @@ class _FeatureRays:
             setattr(self, name, b)
 
     def rows(self, ids: np.ndarray, b_W: np.ndarray) -> np.ndarray:
-        """Row of each feature id (M,), allocating rows (first bearing b_W (M, 3)) for new ids."""
-        index = self.index
-        out = [index.get(f, -1) for f in ids.tolist()]
-        rows = np.asarray(out, dtype=np.int64)
-        new = np.flatnonzero(rows < 0)
+        """Row of each feature id (M,), allocating rows (first bearing b_W (M, 3)) for new ids, in
+        the order of their first appearance (an id can repeat within one call: several cameras)."""
+        known = self.ids
+        if len(known):
+            pos = np.minimum(np.searchsorted(known, ids), len(known) - 1)
+            found = known[pos] == ids
+            rows = np.where(found, self.id_rows[pos], -1)
+        else:
+            found = np.zeros(len(ids), dtype=bool)
+            rows = np.full(len(ids), -1, dtype=np.int64)
+        new = np.flatnonzero(~found)
         if len(new):
-            self._grow(self.size + len(new))
-            for k in new.tolist():
-                f = int(ids[k])
-                r = index.get(f)
-                if r is None:  # (an id can repeat within one call: several cameras)
-                    r = index[f] = self.size
-                    self.b0[r] = b_W[k]
-                    self.A[r] = 0.0  # (rows past size may hold compacted-away data)
-                    self.y[r] = 0.0
-                    self.cc[r] = 0.0
-                    self.n[r] = 0.0
-                    self.size += 1
-                rows[k] = r
+            uniq, first, inv = np.unique(ids[new], return_index=True, return_inverse=True)
+            rank = np.empty(len(uniq), dtype=np.int64)
+            rank[np.argsort(first, kind="stable")] = np.arange(len(uniq))
+            r_new = self.size + rank  # row of each new id (by first appearance)
+            self._grow(self.size + len(uniq))
+            self.b0[r_new] = b_W[new[first]]
+            self.A[r_new] = 0.0  # (rows past size may hold compacted-away data)
+            self.y[r_new] = 0.0
+            self.cc[r_new] = 0.0
+            self.n[r_new] = 0.0
+            self.size += len(uniq)
+            rows[new] = r_new[inv.reshape(-1)]
+            all_ids = np.concatenate([known, uniq])
+            all_rows = np.concatenate([self.id_rows, r_new])
+            order = np.argsort(all_ids, kind="stable")
+            self.ids, self.id_rows = all_ids[order], all_rows[order]
         return rows
 
     def add(
-        self, rows: np.ndarray, b_W: np.ndarray, c_W: np.ndarray, t_s: float, memory_s: float = 0.0
+        self, rows: np.ndarray, b_W: np.ndarray, c_W: np.ndarray, t_s: float, memory_s: float = 0.0,
+        unique: bool = False,
     ) -> None:
-        """Add one ray per entry: rows (M,) (unique), unit bearings b_W (M, 3), centres c_W (M, 3), in
-        W, at t_s (s). memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
+        """Add one ray per entry: rows (M,), unit bearings b_W (M, 3), centres c_W (M, 3), in W, at
+        t_s (s); ``unique``: the caller knows the rows are distinct (one sum per row, no
+        np.add.at). memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
         (exponential forgetting: a tracked corner drifts over the object, so old rays stop meeting
         the point it tracks now)."""
         if memory_s > 0:  # forget old rays: w = exp(-(t - t_last) / memory_s)
@@ -369,10 +381,17 @@ class _FeatureRays:
             self.n[rows] *= f
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
         Pc = np.einsum("kij,kj->ki", Pm, c_W)
-        np.add.at(self.A, rows, Pm)
-        np.add.at(self.y, rows, Pc)
-        np.add.at(self.cc, rows, np.sum(Pc * c_W, axis=1))
-        np.add.at(self.n, rows, 1.0)
+        cPc = np.sum(Pc * c_W, axis=1)
+        if unique:
+            self.A[rows] += Pm
+            self.y[rows] += Pc
+            self.cc[rows] += cPc
+            self.n[rows] += 1.0
+        else:
+            np.add.at(self.A, rows, Pm)
+            np.add.at(self.y, rows, Pc)
+            np.add.at(self.cc, rows, cPc)
+            np.add.at(self.n, rows, 1.0)
         self.last_t[rows] = t_s
 
     def prune(self, t_s: float, max_unseen_s: float) -> None:
@@ -382,7 +401,9 @@ class _FeatureRays:
             return
         remap = -np.ones(self.size, dtype=np.int64)
         remap[keep] = np.arange(int(keep.sum()))
-        self.index = {k: int(remap[r]) for k, r in self.index.items() if keep[r]}
+        r = remap[self.id_rows]
+        alive = r >= 0
+        self.ids, self.id_rows = self.ids[alive], r[alive]
         m = int(keep.sum())
         for name in ("A", "y", "b0", "last_t", "cc", "n"):
             a = getattr(self, name)
@@ -550,11 +571,20 @@ class ObstacleFusion:
         t1 = perf()
         t_est = t1 - t0 - t_end
         batch: list[tuple[_Track, _Sighting]] = []
+        rest: list[tuple[_Track, _Sighting]] = []
         for tr, sg, _status in work:
             if tr.feature_range is not None and (self.settings.feature_ranging_moving or not tr.moving):
                 batch.append((tr, sg))  # member features fit static points: they range the track
             else:
-                t_est += self._process(tr, sg)
+                rest.append((tr, sg))
+        if rest:
+            te = perf()
+            need = [sg for tr, sg in rest if tr.feature_stereo is None and len(sg.views) >= 2]
+            fixes = iter(self._stereo_batch(need) if need else ())
+            t_est += perf() - te
+            for tr, sg in rest:
+                fix = next(fixes) if tr.feature_stereo is None and len(sg.views) >= 2 else None
+                t_est += self._process(tr, sg, fix)
         if batch:
             self._set_from_features_batch(batch, fc)
         reports.extend(self._reports([(tr, status) for tr, _sg, status in work], fc))
@@ -611,7 +641,8 @@ class ObstacleFusion:
 
         Returns (work, feats): work = [(track, sighting, status)] in ``todo``'s order; feats =
         (ids (M,), b_W (M, 3), c_W (M, 3), track index (M,), camera index (M,)) of all member
-        features (track by track, each track's views in the rig's order), or None without any.
+        features (track by track, each track's views in the rig's order) and the first views'
+        bearings b_W (G, 3), or None without any feature.
         """
         floor = self.settings.bearing_sigma_floor_rad
         cam_index = self._cam_index
@@ -664,7 +695,9 @@ class ObstacleFusion:
                     m = fcam == k
                     if m.any():
                         FB[m] = FB[m] @ R_W_C[k].T
-            feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam)
+            first_view = np.flatnonzero(np.diff(np.array(trk_l, dtype=np.int64), prepend=-1))
+            feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam,
+                     B[first_view])
         offs = (np.cumsum(fcnt) - fcnt).tolist()
         cnts = fcnt.tolist()
         o_W = T_W_B.t
@@ -703,17 +736,18 @@ class ObstacleFusion:
             return float(s)
         return max(self._speed(t_a), self._speed(t_b))
 
-    def _process(self, tr: _Track, sg: _Sighting) -> float:
+    def _process(self, tr: _Track, sg: _Sighting, stereo_fix=None) -> float:
         """Update one track that its member features do not range (``_set_from_features_batch``
         does those): stereo / mono initialisation or prediction and bearing / point updates, then
-        the bounds. Returns the seconds spent on estimates (stereo fixes, mono pairs)."""
+        the bounds. stereo_fix: ``_stereo_batch``'s result for this sighting (tracks seen by two
+        cameras without a feature stereo fix). Returns the seconds spent on estimates."""
         s = self.settings
         t0 = time.perf_counter()
         stereo = None
         if tr.feature_stereo is not None:  # the common features' own stereo range (no ghosts)
             stereo = self._stereo_from_features(tr, sg)
         elif len(sg.views) >= 2:
-            stereo = self._stereo(sg)
+            stereo = stereo_fix
         if stereo is not None and tr.feature_stereo is None and tr.feature_range is not None:
             # two independent ranges: a stereo fix from the representative bearings that disagrees
             # with the member features' range by > 3 sigma is a mismatch of the two cameras'
@@ -777,20 +811,33 @@ class ObstacleFusion:
         return rep
 
     # ------------------------------------------------------------------------------- estimates
-    def _stereo(self, sg: _Sighting):
-        """Triangulate the first two views: (p_W (3,), R (3, 3), nothing) or None when unusable."""
-        va, vb = sg.views[0], sg.views[1]
-        sigma = math.sqrt(0.5 * (va.sigma_rad**2 + vb.sigma_rad**2))
-        tri = geometry.triangulate(va.c_W, va.b_W, vb.c_W, vb.b_W, origin=vb.c_W, bearing_sigma_rad=sigma)
-        if not isinstance(tri, geometry.Triangulation):
-            return None
-        if tri.range_sigma_m > self.settings.stereo_max_rel_sigma * tri.range_m:
-            return None
-        # rays that miss each other by more than 4 sigma of their depths: not one point
-        if tri.miss_m > 4.0 * math.sqrt(2.0) * sigma * max(tri.depth_a_m, tri.depth_b_m):
-            return None
-        c_mid = 0.5 * (va.c_W + vb.c_W)
-        return tri.p, _ray_covariance(tri.p - c_mid, tri.range_sigma_m, sigma)
+    def _stereo_batch(self, sightings: list[_Sighting]) -> list:
+        """Triangulate the first two views of each sighting (``geometry.triangulate_batch``, the
+        midpoint method): per sighting (p_W (3,), R (3, 3)) or None when unusable (degenerate,
+        range sigma above stereo_max_rel_sigma of the range, or rays that miss each other by more
+        than 4 sqrt(2) sigma times their depth). Range sigma is linear in the bearing sigma
+        (first order), so the batch runs at sigma 1 and each row is scaled by its own
+        sigma = sqrt((sigma_a^2 + sigma_b^2) / 2)."""
+        va = [sg.views[0] for sg in sightings]
+        vb = [sg.views[1] for sg in sightings]
+        c_a = np.array([v.c_W for v in va])
+        c_b = np.array([v.c_W for v in vb])
+        sa = np.array([v.sigma_rad for v in va])
+        sb = np.array([v.sigma_rad for v in vb])
+        sigma = np.sqrt(0.5 * (sa * sa + sb * sb))
+        tri = geometry.triangulate_batch(c_a, np.array([v.b_W for v in va]), c_b,
+                                         np.array([v.b_W for v in vb]), origin=c_b, bearing_sigma_rad=1.0)
+        sig_r = tri.range_sigma_m * sigma
+        ok = (tri.valid & (sig_r <= self.settings.stereo_max_rel_sigma * tri.range_m)
+              & (tri.miss_m <= 4.0 * math.sqrt(2.0) * sigma * np.maximum(tri.depth_a_m, tri.depth_b_m)))
+        out: list = [None] * len(sightings)
+        k = np.flatnonzero(ok)
+        if len(k):
+            c_mid = 0.5 * (c_a[k] + c_b[k])
+            R = _ray_covariances(tri.p[k] - c_mid, sig_r[k], sigma[k])
+            for j, kk in enumerate(k.tolist()):
+                out[kk] = (tri.p[kk], R[j])
+        return out
 
     def _mono_init_pair(self, tr: _Track, sg: _Sighting):
         """(past sighting, Triangulation) with enough parallax, or a reason string."""
@@ -847,6 +894,7 @@ class ObstacleFusion:
         nsig = s.bounds_noise_sigmas
         idx: list[int] = []
         ca_l, ba_l, cb_l, bb_l, D_l, dl_l = [], [], [], [], [], []
+        D_cache: dict[float, float] = {}
         for i, (tr, sg, _st) in enumerate(work):
             hist = tr.history
             t_now = sg.t_s
@@ -863,7 +911,10 @@ class ObstacleFusion:
             ba_l.append(va.b_W)
             cb_l.append(vb.c_W)
             bb_l.append(vb.b_W)
-            D_l.append(self._max_speed(h.t_s, t_now) * (t_now - h.t_s))  # eq. 3.11-3.13: FC = GC = v dt
+            D = D_cache.get(h.t_s)
+            if D is None:  # eq. 3.11-3.13: FC = GC = v dt (one per earlier frame)
+                D = D_cache[h.t_s] = self._max_speed(h.t_s, t_now) * (t_now - h.t_s)
+            D_l.append(D)
             dl_l.append(nsig * math.hypot(va.sigma_rad, vb.sigma_rad))
         if not idx:
             return
@@ -918,20 +969,20 @@ class ObstacleFusion:
         All groups are computed in one vectorised pass (group medians by sorting).
 
         feats: (ids (M,), b_W (M, 3), c_W (M, 3), track index (M,), camera index (M,)) of this frame's
-        member features (``_sightings``), or None.
+        member features and the first views' bearings (G, 3) (``_sightings``), or None.
         """
         s = self.settings
         fs = self._features
         fs.prune(t_s, s.lost_after_s)
         if feats is None:
             return
-        ids, b_now, c_now, g, cam = feats
+        ids, b_now, c_now, g, cam = feats[:5]
         rows = fs.rows(ids, b_now)
         ncam = len(self._cam_index)
         _, first = np.unique(rows * ncam + cam, return_index=True)  # one ray per feature and camera
-        fs.add(rows[first], b_now[first], c_now[first], t_s, s.feature_memory_s)
+        fs.add(rows[first], b_now[first], c_now[first], t_s, s.feature_memory_s, unique=ncam == 1)
         if ncam > 1:
-            self._feature_stereo(work, ids, b_now, c_now, g, cam)
+            self._feature_stereo(work, b_now, c_now, feats[5])
         if not s.feature_ranging:
             return
         G = len(work)
@@ -950,13 +1001,12 @@ class ObstacleFusion:
         if int(good.sum()) < n_min:
             return
         g, rows, b_now, c_now = g[good], rows[good], b_now[good], c_now[good]
-        A = fs.A[rows]
-        det = np.linalg.det(A)
+        adj, det = _adjugate_det3(fs.A[rows])
         ok = det > 1e-12
-        g, rows, b_now, c_now, A = g[ok], rows[ok], b_now[ok], c_now[ok], A[ok]
+        g, rows, b_now, c_now = g[ok], rows[ok], b_now[ok], c_now[ok]
         if len(g) < n_min:
             return
-        Ainv = np.linalg.inv(A)
+        Ainv = adj[ok] / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
         p = np.einsum("kij,kj->ki", Ainv, fs.y[rows])  # A_f p_f = y_f
         o = work[0][1].o_W
         r_vec = p - o
@@ -978,7 +1028,7 @@ class ObstacleFusion:
         # (crossing motion) fit no static point and their range would be wrong
         chi = fs.residual2(rows, p) / (2.0 * (s.feature_sigma_rad * depth) ** 2)
         chi_med = _group_median(g, chi, G)
-        b_rep = np.stack([sg.views[0].b_W for _tr, sg, _st in work])
+        b_rep = feats[5]  # (G, 3) first views' bearings
         ang = np.arccos(np.clip(np.sum(b_now * b_rep[g], axis=1), -1.0, 1.0))
         med_all = _group_median(g, r, G)
         mad_all = _group_median(g, np.abs(r - med_all[g]), G)
@@ -1007,7 +1057,7 @@ class ObstacleFusion:
             zk = float(z[k])
             tr.feature_range = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
 
-    def _feature_stereo(self, work, ids, b_now, c_now, g, cam) -> None:
+    def _feature_stereo(self, work, b_now: np.ndarray, c_now: np.ndarray, b_rep: np.ndarray) -> None:
         """Stereo ranges of the features one track's first two views share (same id, same frame).
 
         For each shared feature the two rays (camera a, camera b) are triangulated (midpoint of
@@ -1023,22 +1073,50 @@ class ObstacleFusion:
         weighted by stereo_spread_weight, and added to the reported range sigma in quadrature.
         """
         s = self.settings
-        ia_l, ib_l, gg_l = [], [], []
+        # the ids both views of a track list: one intersection of (track, id) keys for all tracks
+        # (first occurrences, sorted by track then id: np.intersect1d per track, concatenated)
+        ga_l, ia_l, ida_l, ib_l, idb_l = [], [], [], [], []
         for gi, (_tr, sg, _st) in enumerate(work):
             if len(sg.views) < 2:
                 continue
             va, vb = sg.views[0], sg.views[1]
-            if not len(va.feature_ids) or not len(vb.feature_ids):
+            na, nb = len(va.feature_ids), len(vb.feature_ids)
+            if not na or not nb:
                 continue
-            _, ka, kb = np.intersect1d(va.feature_ids, vb.feature_ids, assume_unique=False,
-                                       return_indices=True)
-            if len(ka):
-                ia_l.append(ka + sg.f0[0])
-                ib_l.append(kb + sg.f0[1])
-                gg_l.append(np.full(len(ka), gi, dtype=np.int64))
-        if not ia_l:
+            ga_l.append((gi, na, nb))
+            ia_l.append(sg.f0[0])
+            ib_l.append(sg.f0[1])
+            ida_l.append(va.feature_ids)
+            idb_l.append(vb.feature_ids)
+        if not ga_l:
             return
-        ia, ib, gg = np.concatenate(ia_l), np.concatenate(ib_l), np.concatenate(gg_l)
+        gi_a = np.array(ga_l, dtype=np.int64)
+        ida, idb = np.concatenate(ida_l), np.concatenate(idb_l)
+        ga = np.repeat(gi_a[:, 0], gi_a[:, 1])
+        gb = np.repeat(gi_a[:, 0], gi_a[:, 2])
+        # global index of each entry: its view's offset + its position in the view
+        ia_all = np.repeat(np.array(ia_l, dtype=np.int64) - (np.cumsum(gi_a[:, 1]) - gi_a[:, 1]),
+                           gi_a[:, 1]) + np.arange(len(ida))
+        ib_all = np.repeat(np.array(ib_l, dtype=np.int64) - (np.cumsum(gi_a[:, 2]) - gi_a[:, 2]),
+                           gi_a[:, 2]) + np.arange(len(idb))
+        lo = min(int(ida.min()), int(idb.min()))
+        span = max(int(ida.max()), int(idb.max())) - lo + 1
+        if span < 2**40 and len(work) < 2**22:
+            _, ka, kb = np.intersect1d((ga << 40) + (ida - lo), (gb << 40) + (idb - lo),
+                                       assume_unique=False, return_indices=True)
+            ia, ib, gg = ia_all[ka], ib_all[kb], ga[ka]
+        else:  # ids too far apart for one key: one intersection per track
+            ia_p, ib_p, gg_p = [], [], []
+            oa = ob = 0
+            for (gi, na, nb), fa, fb in zip(ga_l, ida_l, idb_l, strict=True):
+                _, ka, kb = np.intersect1d(fa, fb, assume_unique=False, return_indices=True)
+                ia_p.append(ia_all[oa + ka])
+                ib_p.append(ib_all[ob + kb])
+                gg_p.append(np.full(len(ka), gi, dtype=np.int64))
+                oa, ob = oa + na, ob + nb
+            ia, ib, gg = np.concatenate(ia_p), np.concatenate(ib_p), np.concatenate(gg_p)
+        if not len(ia):
+            return
         o = work[0][1].o_W
         c_a, b_a, c_b, b_b = c_now[ia], b_now[ia], c_now[ib], b_now[ib]
         # midpoint of the common perpendicular: depths s, t of the closest points c_a + s b_a,
@@ -1064,7 +1142,6 @@ class ObstacleFusion:
             return
         G = len(work)
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
-        b_rep = np.stack([sg.views[0].b_W for _tr, sg, _st in work])
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
@@ -1358,7 +1435,7 @@ class ObstacleFusion:
                 if tr.bounded_now:
                     srcs = srcs | {"bounds"}
                 kw["source"] = "+".join(x for x in ("mono", "stereo", "bounds") if x in srcs)
-                out[k] = TrackReport(**kw)
+                out[k] = _new_report(kw)
         if without:
             trs = [items[k][0] for k in without]
             b_B = np.array([tr.last_views[0].b_W for tr in trs]) @ R_B_W.T
@@ -1367,7 +1444,7 @@ class ObstacleFusion:
                 kw = self._report_common(tr, items[k][1])
                 kw.update(bearing_body=b_B[j], unobservable_reason=tr.reason or tr.bounds_reason,
                           source="bounds" if tr.bounds is not None else "")
-                out[k] = TrackReport(**kw)
+                out[k] = _new_report(kw)
         return out  # type: ignore[return-value]
 
     @staticmethod
@@ -1385,6 +1462,38 @@ class ObstacleFusion:
             innovation=tr.innovation,
             attributes=tr.attributes,
         )
+
+
+def _report_maker():
+    """A TrackReport constructor for the hot path. TrackReport is a frozen dataclass whose __init__
+    sets its 19 fields one by one through object.__setattr__ (~4x the cost of the rest of a report);
+    when it has no __post_init__ (nothing to validate) and keeps its fields in __dict__, the report
+    is built by filling __dict__ with the defaults and the given fields (the same object as
+    TrackReport(**kw); tests compare them). Otherwise the constructor itself is used."""
+    import dataclasses
+
+    flds = dataclasses.fields(TrackReport)
+    if (hasattr(TrackReport, "__post_init__") or hasattr(TrackReport, "__slots__")
+            or any(f.default is dataclasses.MISSING and f.default_factory is not dataclasses.MISSING
+                   and f.name != "attributes" for f in flds)):
+        return lambda kw: TrackReport(**kw)
+    defaults = {f.name: f.default for f in flds if f.default is not dataclasses.MISSING}
+    required = tuple(f.name for f in flds if f.default is dataclasses.MISSING)
+    new = object.__new__
+
+    def make(kw: dict) -> TrackReport:
+        if "attributes" not in kw or any(k not in kw for k in required):
+            return TrackReport(**kw)
+        rep = new(TrackReport)
+        d = rep.__dict__
+        d.update(defaults)
+        d.update(kw)
+        return rep
+
+    return make
+
+
+_new_report = _report_maker()
 
 
 def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np.ndarray:
@@ -1407,6 +1516,26 @@ def _ray_covariances(d: np.ndarray, sigma_along_m: np.ndarray, sigma_rad: np.nda
     eye = np.eye(3)
     return ((sigma_along_m**2)[:, None, None] * uu + (s_t**2)[:, None, None] * (eye - uu)
             + eye * 1e-12)
+
+
+def _adjugate_det3(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Adjugate (K, 3, 3) and determinant (K,) of K 3x3 matrices A (K, 3, 3), by cofactors
+    (A^-1 = adj(A) / det(A); LAPACK's batched inv / det cost ~10x more on 3x3 matrices)."""
+    a, b, c = A[:, 0, 0], A[:, 0, 1], A[:, 0, 2]
+    d, e, f = A[:, 1, 0], A[:, 1, 1], A[:, 1, 2]
+    g, h, i = A[:, 2, 0], A[:, 2, 1], A[:, 2, 2]
+    adj = np.empty_like(A)
+    adj[:, 0, 0] = e * i - f * h
+    adj[:, 0, 1] = c * h - b * i
+    adj[:, 0, 2] = b * f - c * e
+    adj[:, 1, 0] = f * g - d * i
+    adj[:, 1, 1] = a * i - c * g
+    adj[:, 1, 2] = c * d - a * f
+    adj[:, 2, 0] = d * h - e * g
+    adj[:, 2, 1] = b * g - a * h
+    adj[:, 2, 2] = a * e - b * d
+    det = a * adj[:, 0, 0] + b * adj[:, 1, 0] + c * adj[:, 2, 0]
+    return adj, det
 
 
 def _tcross(a, b) -> tuple[float, float, float]:

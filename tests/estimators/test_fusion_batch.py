@@ -1,0 +1,90 @@
+"""The vectorised helpers of estimators.fusion against independent references (numpy, closed forms)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from estimators.fusion import (
+    _adjugate_det3,
+    _FeatureRays,
+    _new_report,
+    _noisy_bound_rays_batch,
+    _ray_covariance,
+    _ray_covariances,
+)
+from estimators.records import TrackReport
+
+
+def test_adjugate_det3_matches_numpy_inverse_and_determinant():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(50, 3, 3))
+    A = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(3)
+    adj, det = _adjugate_det3(A)
+    np.testing.assert_allclose(det, np.linalg.det(A), rtol=1e-10)
+    np.testing.assert_allclose(adj / det[:, None, None], np.linalg.inv(A), rtol=1e-8, atol=1e-12)
+
+
+def test_ray_covariances_match_the_single_point_form():
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(7, 3)) * 5
+    s_along = rng.uniform(0.01, 1.0, 7)
+    s_rad = rng.uniform(1e-4, 1e-2, 7)
+    R = _ray_covariances(d, s_along, s_rad)
+    for k in range(7):
+        np.testing.assert_allclose(R[k], _ray_covariance(d[k], s_along[k], s_rad[k]), rtol=1e-12, atol=1e-18)
+        u = d[k] / np.linalg.norm(d[k])
+        assert math.isclose(u @ R[k] @ u, s_along[k] ** 2 + 1e-12, rel_tol=1e-9)
+
+
+def test_noisy_bound_rays_turn_ray_b_by_delta_in_the_epipolar_plane():
+    c_a = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    c_b = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # second pair: zero baseline
+    b_a = np.array([[0.6, 0.1, 0.8], [0.0, 0.0, 1.0]])
+    b_b = np.array([[0.0, 0.0, 1.0], [0.0, math.sin(0.1), math.cos(0.1)]])
+    delta = np.array([0.01, 0.2])
+    own, ca, ba, cb, bb = _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta)
+    rows0 = np.flatnonzero(own == 0)
+    assert len(rows0) == 3  # b_b, +-delta (ray a is ~0.64 rad away: not within delta)
+    n = np.array([0.0, -1.0, 0.0])  # (c_b - c_a) x b_b = x x z = -y
+    ang = sorted(math.atan2(float(n @ np.cross(b_b[0], d)), float(b_b[0] @ d)) for d in bb[rows0])
+    np.testing.assert_allclose(ang, [-0.01, 0.0, 0.01], atol=1e-12)
+    np.testing.assert_allclose(bb[rows0] @ n, 0.0, atol=1e-12)
+    np.testing.assert_allclose(ba[rows0] @ n, 0.0, atol=1e-12)  # ray a projected into the plane
+    np.testing.assert_allclose(np.linalg.norm(ba[rows0], axis=1), 1.0)
+    # zero baseline: plane of the two bearings, ray b within delta of ray a: ray a itself is added
+    rows1 = np.flatnonzero(own == 1)
+    assert len(rows1) == 4
+    assert any(np.allclose(d, b_a[1]) for d in bb[rows1])
+    np.testing.assert_array_equal(ca[own == 1], c_a[[1] * 4])
+    np.testing.assert_array_equal(cb[own == 1], c_b[[1] * 4])
+
+
+def test_feature_rows_first_appearance_and_prune():
+    fr = _FeatureRays(capacity=2)
+    b = np.tile([0.0, 0.0, 1.0], (5, 1))
+    r = fr.rows(np.array([40, 7, 40, 9, 7]), b)
+    np.testing.assert_array_equal(r, [0, 1, 0, 2, 1])
+    r = fr.rows(np.array([9, 100, 40]), b[:3])
+    np.testing.assert_array_equal(r, [2, 3, 0])
+    fr.add(np.array([0, 1, 2, 3]), b[:4], np.zeros((4, 3)), t_s=0.0)
+    fr.add(np.array([0, 3]), b[:2], np.zeros((2, 3)), t_s=1.0, unique=True)
+    np.testing.assert_array_equal(fr.n[:4], [2, 1, 1, 2])
+    fr.prune(1.0, max_unseen_s=0.5)  # ids 7 and 9 dropped: rows of 40 and 100 compacted
+    assert fr.size == 2
+    np.testing.assert_array_equal(fr.rows(np.array([100, 40]), b[:2]), [1, 0])
+    np.testing.assert_array_equal(fr.n[:2], [2, 2])
+    np.testing.assert_array_equal(fr.rows(np.array([7]), b[:1]), [2])  # a forgotten id is new again
+    assert fr.n[2] == 0
+
+
+def test_fast_report_equals_the_constructor():
+    kw = dict(id=3, status="confirmed", camera=["cam0", "cam1"], bearing_body=np.array([1.0, 0.0, 0.0]),
+              range_m=4.0, range_sigma_m=0.2, range_min_m=1.0, range_max_m=None, label="orb", gated=2,
+              nis=1.5, innovation=np.array([1e-3, -2e-3]), attributes={"a": 1},
+              position_body_m=np.array([4.0, 0.0, 0.0]), source="mono+stereo", ttc_s=3.0)
+    fast, ref = _new_report(dict(kw)), TrackReport(**kw)
+    assert type(fast) is TrackReport
+    assert fast.to_json() == ref.to_json()
+    assert set(vars(fast)) == set(vars(ref))
