@@ -115,6 +115,7 @@ class Sample:
     thesis_range_m: float | None = None
     thesis_speed_mps: float | None = None
     hit: str = "obstacle"  # pipeline mode: the evaluator's association ("obstacle" | "near")
+    obstacle: int | None = None  # pipeline mode: the evaluator's obstacle id
 
 
 # ------------------------------------------------------------------------------------- scenes
@@ -497,6 +498,10 @@ def format_table(m: dict, title: str = "") -> str:
         f"{_fmt(m.get('bounds_coverage_all'), True)})  stereo moving {m.get('stereo_vel_n')} (with velocity "
         f"{_fmt(m.get('stereo_vel_share'), True)})  NEES tracks {m.get('nees_n_tracks')}"
         + (f"  near-miss reports left out {_fmt(m.get('near_share'), True)}" if m.get("near_share") else "")
+        + (f"\nmono obstacle-frames (by truth: stationary, 3-20 m, >= 10 deg off, >= 1 s) with a "
+           f"ranged report on the obstacle: {_fmt(m.get('mono_obstacle_coverage'), True)} of "
+           f"{m.get('mono_eligible_n')}"
+           if m.get("mono_eligible_n") else "")
     )
     return "\n".join(lines)
 
@@ -528,6 +533,12 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
 
         raise ConfigError(f"accuracy: unknown mode {opts.mode!r}; expected 'bearings' or 'pipeline'")
     metrics = summarize(samples)
+    if opts.mode == "pipeline":  # obstacle-frames the mono metric could score, share with a range
+        n_el = sum(v.get("mono_eligible_n") or 0 for v in per_scene.values())
+        n_cov = sum((v.get("mono_obstacle_coverage") or 0.0) * (v.get("mono_eligible_n") or 0)
+                    for v in per_scene.values())
+        metrics["mono_eligible_n"] = n_el
+        metrics["mono_obstacle_coverage"] = n_cov / n_el if n_el else None
     title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
              f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
     table = format_table(metrics, title)
@@ -613,6 +624,10 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
         rows = score_reports(truth, frames)
         ss = _samples_from_rows(truth, frames, rows, opts)
         per_scene[name] = summarize(ss)
+        elig = _mono_eligible(truth)
+        cov = _mono_covered(ss, elig)
+        per_scene[name]["mono_eligible_n"] = len(elig)
+        per_scene[name]["mono_obstacle_coverage"] = len(cov) / len(elig) if elig else None
         samples.extend(ss)
         if progress:
             progress(f"{name}: {len(ss)} scored reports")
@@ -663,6 +678,43 @@ def _replay_fusion(fusion: ObstacleFusion, path: Path) -> tuple[list[dict], str]
     return frames, note
 
 
+def _mono_eligible(truth) -> set[tuple[float, int]]:
+    """(t_s rounded to 1 us, obstacle id) of the mono metric's obstacle-frames by the truth alone:
+    mono rig, stationary, continuously visible for >= 1 s, nearest surface 3-20 m away, centre
+    >= 10 deg off the flight direction (gt.jsonl and the trajectory)."""
+    out: set[tuple[float, int]] = set()
+    if truth.scn.rig.kind != "mono":
+        return out
+    first: dict[int, float] = {}
+    for g in truth.gt:
+        t = float(g["t_s"])
+        vis = {int(o["id"]): o for o in g["obstacles"] if any(o["visible"].values())}
+        for oid in list(first):
+            if oid not in vis:
+                del first[oid]
+        if not truth.traj.covers(t):
+            continue
+        T_W_B = truth.traj.pose_at(t)
+        v = truth.traj.velocity_at(t)
+        spd = float(np.linalg.norm(v))
+        fwd = v / spd if spd > 1e-6 else T_W_B.R[:, 0]
+        for oid, o in vis.items():
+            first.setdefault(oid, t)
+            d = np.asarray(o["p_W"], float) - T_W_B.t
+            off = math.degrees(math.acos(float(np.clip(fwd @ d / np.linalg.norm(d), -1, 1))))
+            if (not o["moving"] and t - first[oid] >= 1.0 and 3.0 <= o["surface_range_m"] <= 20.0
+                    and off >= 10.0):
+                out.add((round(t, 6), oid))
+    return out
+
+
+def _mono_covered(samples: list[Sample], eligible: set[tuple[float, int]]) -> set[tuple[float, int]]:
+    """The eligible obstacle-frames with at least one ranged report whose bearing hits the obstacle."""
+    return {(round(s.t_s, 6), s.obstacle) for s in samples
+            if s.hit == "obstacle" and s.range_m is not None and s.obstacle is not None
+            and (round(s.t_s, 6), s.obstacle) in eligible}
+
+
 def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -> list[Sample]:
     """Samples of pipeline mode from the evaluator's rows (reports associated with obstacles)."""
     by_key = {
@@ -706,7 +758,7 @@ def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -
             n_views=len(cam) if isinstance(cam, list) else 1,
             range_m=r.range_m, range_sigma_m=r.range_sigma_m, range_min_m=r.range_min_m,
             range_max_m=r.range_max_m, source=str(tr.get("source", "")), speed_mps=tr.get("speed_mps"),
-            stereo_fed="stereo" in str(tr.get("source", "")), hit=r.hit,
+            stereo_fed="stereo" in str(tr.get("source", "")), hit=r.hit, obstacle=r.obstacle_id,
         )
         if r.v_est_W is not None and s.speed_true > 1e-6:
             ve = np.asarray(r.v_est_W, float)

@@ -168,3 +168,35 @@ def test_replayed_fusion_over_recorded_observations_reports_the_same(tmp_path):
     assert replayed == ran and note == ""
     path.write_bytes(pickle.dumps({"trackers_hash": "older front end", "frames": rec.frames}))
     assert "changed" in _replay_fusion(ObstacleFusion(rig, traj), path)[1]
+
+
+def test_mono_obstacle_frames_eligible_by_truth_and_covered_by_reports():
+    """The coverage line of pipeline mode: obstacle-frames the mono metric could score, from the
+    truth alone (hand-made: body at (5 t, 0, 0) flying along +x), and those with a ranged report."""
+    from types import SimpleNamespace
+
+    from pipeline.accuracy import _mono_covered, _mono_eligible
+
+    traj = SimpleNamespace(
+        covers=lambda t: True,
+        pose_at=lambda t: SimpleNamespace(t=np.array([5.0 * t, 0.0, 0.0]), R=np.eye(3)),
+        velocity_at=lambda t: np.array([5.0, 0.0, 0.0]),
+    )
+
+    def ob(i, p, moving=False, surf=8.0):
+        return {"id": i, "p_W": p, "moving": moving, "surface_range_m": surf, "visible": {"cam0": True}}
+
+    gt = [{"t_s": t, "obstacles": [
+        ob(1, [10.0, 5.0, 0.0]),  # at t = 1: (5, 5, 0) from the body, 45 deg off the flight direction
+        ob(2, [40.0, 0.5, 0.0]),  # < 1 deg off: never eligible
+        ob(3, [10.0, -5.0, 0.0], moving=True),  # moving: never
+        ob(4, [10.0, 8.0, 0.0], surf=25.0),  # beyond 20 m: never
+    ]} for t in (0.0, 0.5, 1.0, 1.5)]
+    truth = SimpleNamespace(scn=SimpleNamespace(rig=SimpleNamespace(kind="mono")), gt=gt, traj=traj)
+    elig = _mono_eligible(truth)
+    assert elig == {(1.0, 1), (1.5, 1)}  # in view since t = 0: eligible from t = 1 s on
+    reps = [_s(t_s=1.0, obstacle=1), _s(t_s=1.5, obstacle=1, range_m=None),
+            _s(t_s=1.5, obstacle=1, hit="near")]  # unranged / near miss: not covered
+    assert _mono_covered(reps, elig) == {(1.0, 1)}
+    truth.scn.rig.kind = "stereo"
+    assert _mono_eligible(truth) == set()
