@@ -372,6 +372,15 @@ class LiveConfig(_Section):
         description="bool: when a camera entry is a video file, replay it at its real frame rate "
         "(testing without a camera).",
     )
+    grabber_nice: int | None = Field(
+        -5,
+        ge=-20,
+        le=19,
+        description="int: Linux nice value of the camera-reading threads (lower = sooner; the pipeline's "
+        "thread keeps the process's own), so that frames are read on time while the pipeline is busy on "
+        "the same core. Below the process's own value it needs CAP_SYS_NICE; without it the threads keep "
+        "the process's value (summary.json says which applied). null: leave them as they are.",
+    )
 
 
 # ------------------------------------------------------------------------------------------- outputs

@@ -166,6 +166,7 @@ class Grabber:
         reconnect_max_s: float = 5.0,
         stall_timeout_s: float = 2.0,
         clock: Callable[[], float] = time.monotonic,
+        nice: int | None = None,
     ):
         self.open_reader = open_reader
         self.name = name
@@ -182,6 +183,8 @@ class Grabber:
         self.stale = 0
         self.reconnects = 0
         self.lag = RunningStats()  # seconds from a replayed frame's due time to its publication
+        self.nice_wanted = nice
+        self.nice: int | None = None  # the thread's nice value as it runs (Linux), None when not read
         self.last_error: str | None = None
         self._reader = None
         self._thread = threading.Thread(target=self._loop, name=f"grab-{name}", daemon=True)
@@ -203,7 +206,25 @@ class Grabber:
             self.grabbed += 1
             self._cond.notify_all()
 
+    def _set_nice(self) -> None:
+        """Give this (the grabber's) thread the nice value asked for, when the OS allows it."""
+        import os
+
+        if not hasattr(os, "setpriority") or not hasattr(threading, "get_native_id"):
+            return
+        tid = threading.get_native_id()
+        if self.nice_wanted is not None:
+            try:
+                os.setpriority(os.PRIO_PROCESS, tid, int(self.nice_wanted))  # Linux: per thread
+            except OSError:  # no CAP_SYS_NICE: the thread keeps the process's value
+                pass
+        try:
+            self.nice = os.getpriority(os.PRIO_PROCESS, tid)
+        except OSError:
+            self.nice = None
+
     def _loop(self) -> None:
+        self._set_nice()
         backoff = self.backoff0
         reader = self._reader
         while not self._stop.is_set():
@@ -545,7 +566,14 @@ def run_live(
     try:
         for name, factory in zip(names, readers, strict=True):
             first = factory()  # open errors (no such camera) surface here, before the run
-            g = Grabber(factory, name, lv.reconnect_initial_s, lv.reconnect_max_s, lv.stall_timeout_s)
+            g = Grabber(
+                factory,
+                name,
+                lv.reconnect_initial_s,
+                lv.reconnect_max_s,
+                lv.stall_timeout_s,
+                nice=lv.grabber_nice,
+            )
             grabbers.append(g.start(first))
     except BaseException:
         for g in grabbers:
@@ -660,6 +688,7 @@ def run_live(
             "stale_frames_dropped": {g.name: g.stale for g in grabbers},
             "frames_grabbed": {g.name: g.grabbed for g in grabbers},
             "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
+            "grabber_nice": {g.name: g.nice for g in grabbers},
             "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
             "frames_without_pose": no_pose,
             "timings": timings.summary(),
