@@ -182,6 +182,7 @@ class ObstacleGrouper:
         self._bg_ids = np.zeros(0, np.int64)
         self._bg_until = np.zeros(0, np.int64)
         self._frame = 0
+        self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -242,12 +243,34 @@ class ObstacleGrouper:
             ok &= np.einsum("ij,ij->i", b[free], rep[t_of]) > cos_r
             ok &= self._agree(flow[free], fnorm[free], tflow[t_of])  # (the last known flow if < 3 members)
             owner[free[ok]] = t_of[ok]
+        # 2b. a track short of members (coasting, or its features replaced) takes the free features
+        # within link_rad of where it was predicted to be that move like it
+        need_t = np.array([t.keep_min or self._keep_min() for t in tracks], np.int64).reshape(T)
+        cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
+        short = np.flatnonzero((cnt_now < need_t) & (hits > 0))
+        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
+        pred = rep[short] @ R1.T if R1 is not None else rep[short]
+        pred = _normalise(pred + tflow[short] * dt_s) if self.coast_predict else pred
+        if len(short) and len(free):
+            cs = b[free] @ pred.T  # (F, S)
+            ok = (cs > cos_link) & self._agree(
+                flow[free][:, None, :], fnorm[free][:, None], tflow[short][None, :, :]
+            )
+            cs = np.where(ok, cs, -2.0)
+            j = np.argmax(cs, axis=1)
+            hit = cs[np.arange(len(free)), j] > -2.0
+            owner[free[hit]] = short[j[hit]]
+            got = np.bincount(j[hit], minlength=len(short)) > 0
+            fresh_short = short[got & (cnt_now[short] == 0)]
+        else:
+            fresh_short = np.zeros(0, np.intp)
         # 3. new groups from the rest: revive a memberless track where it was predicted, else new
         free = np.flatnonzero((owner < 0) & fvalid & ~bg)
         pieces, small = self._pieces(free, b, flow, ft.age, cos_link)
         K = len(pieces)
         fresh = np.zeros(T + K, bool)  # its members are all new this frame (no motion to follow)
         keep1 = np.zeros(T + K, bool)  # a small isolated obstacle: one member keeps it seen
+        fresh[fresh_short] = True
         if K:
             rows_all = np.concatenate(pieces)
             piece_of = np.repeat(np.arange(K), [len(p) for p in pieces])
@@ -256,8 +279,7 @@ class ObstacleGrouper:
             pf = np.stack([np.bincount(piece_of, flow[rows_all, k], K) for k in range(3)], 1) / cnt_p[:, None]
             tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
             cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
-            need = np.array([t.keep_min or self._keep_min() for t in tracks], np.int64).reshape(T)
-            cand = np.flatnonzero((cnt_now < need) & (hits > 0))
+            cand = np.flatnonzero((cnt_now < need_t) & (hits > 0))
             if len(cand):
                 # where each candidate is now: b <- normalise(R_C_Cprev b + flow dt)
                 pred = rep[cand] @ R1.T if R1 is not None else rep[cand]
@@ -322,46 +344,62 @@ class ObstacleGrouper:
             ext[a_idx] = self._embedded(
                 new_rep[a_idx], reach[a_idx], tflow[a_idx], a_idx, b, flow, fvalid, owner, ft.model
             )
-        # 6. the tracks' new state, the life cycle
-        seen, lost = [], []
-        to_bg = []
-        for ti in range(T):
-            tr = tracks[ti]
-            if alive[ti]:
+        # 6. the tracks' new state, the life cycle (array work first, then one pass over tracks)
+        new_ids = [next(self._ids) if alive[ti] and not ext[ti] else -1 for ti in range(T, TK)]
+        show = np.flatnonzero(alive)
+        uv_all = np.zeros((TK, 2))
+        if len(show):
+            uv, ok = ft.model.bearing_to_pixel(new_rep[show])
+            uv_all[show[ok]] = uv[ok]
+        coast_b = rep[:T] @ R1.T if R1 is not None else rep[:T]
+        if self.coast_predict and dt_s > 0:  # b <- normalise(R_C_Cprev b + flow dt): see _coast_one
+            coast_b = _normalise(coast_b + tflow[:T] * dt_s)
+        ids_s, b_s = ids[srt], b[srt]  # members grouped by track (slices below are views)
+        st = starts.tolist()
+        sig = sigma.tolist()
+        empty_i, empty_b = np.zeros(0, np.int64), np.zeros((0, 3))
+        seen, lost, to_bg = [], [], []
+        for ti in range(TK):
+            if ti < T:
+                tr = tracks[ti]
+                if not alive[ti]:  # unseen: coast on the predicted bearing
+                    tr.seen = False
+                    tr.members, tr.member_b_C = empty_i, empty_b
+                    tr.b_C = coast_b[ti]
+                    tr.missed += 1
+                    if tr.missed > self.max_missed:
+                        tr.status = "lost"
+                        del self.tracks[tr.id]
+                        lost.append(tr)
+                    continue
                 tr.extended = tr.extended + 1 if ext[ti] else 0
                 if tr.extended >= self.extended_frames and tr.status == "tentative":
                     tr.status, tr.seen = "lost", False
-                    to_bg.append(srt[starts[ti] : starts[ti + 1]])
-                    self._coast_one(tr, 0.0, None)
+                    tr.members, tr.member_b_C = empty_i, empty_b
+                    to_bg.append(srt[st[ti] : st[ti + 1]])
                     del self.tracks[tr.id]
                     lost.append(tr)
                     continue
-                rows = srt[starts[ti] : starts[ti + 1]]
-                self._set_seen(tr, ids[rows], b[rows], new_rep[ti], tflow[ti], sigma[ti])
-                seen.append(tr)
             else:
-                tr.seen = False
-                if self._coast_one(tr, dt_s, R1):
-                    lost.append(tr)
-        for ti in range(T, TK):
-            if not alive[ti]:
-                continue
-            rows = srt[starts[ti] : starts[ti + 1]]
-            if ext[ti]:
-                to_bg.append(rows)
-                continue
-            tr = ObstacleTrack(next(self._ids), ft.name, ids[rows], new_rep[ti], hits=0, label=self.label)
-            tr.keep_min = 1 if keep1[ti] else 0
-            self.tracks[tr.id] = tr
-            self._set_seen(tr, ids[rows], b[rows], new_rep[ti], tflow[ti], sigma[ti])
+                if not alive[ti]:
+                    continue
+                if ext[ti]:  # a piece of extended texture: no track
+                    to_bg.append(srt[st[ti] : st[ti + 1]])
+                    continue
+                tid = new_ids[ti - T]
+                tr = ObstacleTrack(tid, ft.name, empty_i, new_rep[ti], hits=0, label=self.label)
+                tr.keep_min = 1 if keep1[ti] else 0
+                self.tracks[tid] = tr
+            tr.members, tr.member_b_C = ids_s[st[ti] : st[ti + 1]], b_s[st[ti] : st[ti + 1]]
+            tr.b_C, tr.flow_rad_s, tr.sigma_rad, tr.uv = new_rep[ti], tflow[ti], sig[ti], uv_all[ti]
+            tr.hits += 1
+            tr.missed = 0
+            tr.seen = True
+            if tr.status == "tentative" and tr.hits >= self.confirm_frames:
+                tr.status = "confirmed"
             seen.append(tr)
         if to_bg:
             self._mark_background(ids[np.concatenate(to_bg)])
-        if seen:
-            uv, ok = ft.model.bearing_to_pixel(np.array([t.b_C for t in seen]))
-            for t, u, v in zip(seen, uv, ok, strict=True):
-                if v:
-                    t.uv = u
         return seen, lost
 
     def coast(self, t_s: float, R_C_Cprev: dict[int, np.ndarray] | None = None) -> list[ObstacleTrack]:
@@ -404,23 +442,6 @@ class ObstacleGrouper:
     def _keep_min(self) -> int:
         """Members a track needs to stay seen (tracks of small isolated obstacles: 1)."""
         return max(2, self.min_features // 2)
-
-    def _set_seen(
-        self,
-        tr: ObstacleTrack,
-        members: np.ndarray,
-        member_b_C: np.ndarray,
-        b_C: np.ndarray,
-        flow: np.ndarray,
-        sigma: float,
-    ) -> None:
-        tr.members, tr.member_b_C, tr.b_C, tr.flow_rad_s = members, member_b_C, b_C, flow
-        tr.sigma_rad = float(sigma)
-        tr.hits += 1
-        tr.missed = 0
-        tr.seen = True
-        if tr.status == "tentative" and tr.hits >= self.confirm_frames:
-            tr.status = "confirmed"
 
     def _coast_one(self, tr: ObstacleTrack, dt_s: float, R1: np.ndarray | None) -> bool:
         """One unseen frame of ``tr``; True when it is lost now (and dropped from ``tracks``)."""
@@ -485,12 +506,13 @@ class ObstacleGrouper:
             return np.zeros((0, 3)), np.zeros(0, bool)
         b_then, t_then, valid = ft.bearing_ago(self.flow_frames)
         if R:
+            # b_then <- R_C_Cprev[k] b_then, k = frames back of each feature's sample (identity if absent)
             n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)
-            b_then = b_then.copy()
+            Rs = np.tile(np.eye(3), (self.flow_frames + 1, 1, 1))
             for k, Rk in R.items():
-                sel = n_back == k
-                if np.any(sel):
-                    b_then[sel] = b_then[sel] @ np.asarray(Rk).T
+                if 0 < k <= self.flow_frames:
+                    Rs[k] = Rk
+            b_then = np.einsum("nij,nj->ni", Rs[np.maximum(n_back, 0)], b_then)
         dt = t_s - t_then
         valid &= dt > 0
         flow = np.zeros((n, 3))
@@ -500,62 +522,57 @@ class ObstacleGrouper:
     def _pieces(
         self, free: np.ndarray, b: np.ndarray, flow: np.ndarray, age: np.ndarray, cos_link: float
     ) -> tuple[list[np.ndarray], np.ndarray]:
-        """Pieces (rows into the live features) that may start or revive a track, and per piece
-        whether it is a small isolated one (fewer than min_features)."""
-        out, small = [], []
-        n_near: np.ndarray | None = None  # per free feature: live features within link_rad, itself included
-        for rows in self._components(free, b, flow):
-            is_small = len(rows) < self.min_features
-            if is_small:
-                if len(rows) < self.min_features_isolated or np.any(age[rows] < self.isolated_min_age):
-                    continue
-                if n_near is None:
-                    n_near = np.zeros(len(b), np.int64)
-                    n_near[free] = (b[free] @ b.T > cos_link).sum(axis=1)
-                # isolated: every member's neighbours are members (the component is a connected one)
-                if np.any(n_near[rows] > len(rows)):
-                    continue
-            out.append(rows)
-            small.append(is_small)
-        return out, np.array(small, bool)
-
-    def _components(self, free: np.ndarray, b: np.ndarray, flow: np.ndarray) -> list[np.ndarray]:
-        """Connected components of the free features (graph: within link_rad and flows agreeing),
-        cut to max_radius_rad pieces."""
+        """Connected components of the free features (rows (m,) into the live features; graph:
+        within link_rad and flows agreeing), cut to max_radius_rad pieces: the pieces (rows) that
+        may start or revive a track, and per piece whether it is a small isolated one: fewer than
+        min_features features, at least min_features_isolated, all isolated_min_age frames old,
+        and no other live feature within link_rad of any of them."""
         m = len(free)
         if m == 0:
-            return []
+            return [], np.zeros(0, bool)
         bf, ff = b[free], flow[free]
-        fn = np.linalg.norm(ff, axis=1)
-        adj = ((bf @ bf.T) > np.cos(self.link_rad)) & self._agree(ff[:, None, :], fn[:, None], ff[None, :, :])
+        f2 = np.einsum("ij,ij->i", ff, ff)
+        fn = np.sqrt(f2)
+        # |f_i - f_j|^2 = |f_i|^2 + |f_j|^2 - 2 f_i.f_j;  agree: |f_i - f_j| < abs + rel max(|f_i|, |f_j|)
+        d2 = f2[:, None] + f2[None, :] - 2.0 * (ff @ ff.T)
+        thr = self.flow_abs + self.flow_rel * np.maximum(fn[:, None], fn[None, :])
+        adj = ((bf @ bf.T) > cos_link) & (d2 < thr * thr)
         # connected components by min-label propagation: each feature takes the smallest label
         # among its neighbours until nothing changes (at most the graph's diameter rounds)
         labels = np.arange(m)
         big = m + 1
         for _ in range(m):
-            nxt = np.where(adj, labels[None, :], big).min(axis=1)
-            nxt = np.minimum(nxt, labels)
+            nxt = np.minimum(np.where(adj, labels[None, :], big).min(axis=1), labels)
             nxt = nxt[nxt]  # pointer jumping speeds it up
             if np.array_equal(nxt, labels):
                 break
             labels = nxt
+        size = np.bincount(labels, minlength=m)
+        sz = size[labels]
         out: list[np.ndarray] = []
+        small: list[bool] = []
+        # small components: judged as a whole (isolated, old enough)
+        cand = (sz < self.min_features) & (sz >= self.min_features_isolated)
+        if np.any(cand):
+            ok_f = age[free] >= self.isolated_min_age
+            # isolated: a member's live neighbours (itself included) are all members
+            n_near = (bf[cand] @ b.T > cos_link).sum(axis=1)
+            ok_f[cand] &= n_near <= sz[cand]
+            bad = np.bincount(labels[cand & ~ok_f], minlength=m) > 0
+            for r in np.unique(labels[cand]):
+                if not bad[r]:
+                    out.append(free[labels == r])
+                    small.append(True)
+        # components of min_features or more: cut to max_radius pieces
         cos_r = np.cos(self.max_radius_rad)
-        lo = min(self.min_features, self.min_features_isolated)
-        order = np.argsort(labels, kind="stable")
-        roots, starts, counts = np.unique(labels[order], return_index=True, return_counts=True)
-        for s, c in zip(starts, counts, strict=True):
-            if c < lo:
-                continue
-            comp = order[s : s + c]
-            if c < self.min_features:  # judged by the caller (isolated or not)
-                out.append(free[comp])
-                continue
+        for r in np.flatnonzero(size >= self.min_features):
+            comp = np.flatnonzero(labels == r)
             while len(comp):
                 cen = _normalise(bf[comp].mean(0))
                 cc = bf[comp] @ cen
                 if np.all(cc > cos_r):
                     out.append(free[comp])
+                    small.append(False)
                     break
                 # cut: a piece around the member farthest from the centre, so the rest stays compact
                 far = comp[np.argmin(cc)]
@@ -565,8 +582,9 @@ class ObstacleGrouper:
                 piece = comp[inside] if np.any(inside) else np.array([far])
                 if len(piece) >= self.min_features:
                     out.append(free[piece])
+                    small.append(False)
                 comp = comp[~inside] if np.any(inside) else comp[comp != far]
-        return out
+        return out, np.array(small, bool)
 
     def _embedded(
         self,
@@ -641,8 +659,13 @@ class ObstacleGrouper:
         return out
 
     def _rad_per_px(self, ft: FeatureTracker) -> float:
-        cx, cy, r = ft.model.image_circle()
-        return float(ft.model.max_angle_rad / max(r, 1.0))
+        """Radians per pixel at the lens's mean scale (max angle / image circle radius), cached per
+        camera model object."""
+        if self._scale_of is not ft.model:
+            cx, cy, r = ft.model.image_circle()
+            self._scale = float(ft.model.max_angle_rad / max(r, 1.0))
+            self._scale_of = ft.model
+        return self._scale
 
 
 class BoxTracker:

@@ -218,3 +218,56 @@ def test_a_coasting_track_moves_on_with_its_flow(model):
     expected = unit([0.03, 0.0, 1.0])
     assert float(angle_between(tr.b_C, expected)) < 1e-9
     assert tr.missed == 2
+
+
+def test_a_track_keeps_its_id_when_all_its_features_are_replaced(model, rig):
+    """Blank world, one disc drifting 0.5 deg per frame; at frame 14 its texture changes (every
+    feature on it is lost and new ones are found on the same disc, moving the same way). The track
+    on the disc after the change is the one before it (revived where it was predicted)."""
+    scene = SphereScene(model, blank_env=True)
+    r = np.radians(14)
+    d0, axis, rate = unit([0.2, 0.0, 1.0]), [1, 0, 0], np.radians(0.5)
+    frames = [
+        scene.render(None, [Patch(patch_dir(d0, axis, rate, k), r, seed=8 if k < 14 else 21)])
+        for k in range(34)
+    ]
+    _, out = run(rig, frames)
+
+    def on_disc(k):
+        d = patch_dir(d0, axis, rate, k)
+        return {
+            o.track_id for o in out[k] if o.status != "lost" and members_inside(o.views[0], d, r * 1.15) > 0.9
+        }
+
+    before = set.union(*(on_disc(k) for k in range(10, 14)))
+    assert before, "no track on the disc before the change"
+    after = [on_disc(k) for k in range(26, 34)]
+    assert sum(bool(s) for s in after) >= 6, "the disc is not tracked after the change"
+    assert all(s <= before for s in after if s), f"new ids on the disc after the change: {after} vs {before}"
+
+
+def test_extended_texture_starts_few_tracks_and_the_obstacle_keeps_one(model, rig):
+    """Static camera, a textured world (one surface, no motion anywhere) and a textured disc
+    moving 0.8 deg per frame. With the extended-texture rule the world's texture is surrounded by
+    features moving like it, so it starts few tracks (at most 40 % of those without the rule,
+    which cuts it into pieces of max_radius), while the disc keeps a confirmed track."""
+    scene = SphereScene(model)
+    r = np.radians(14)
+    d0, axis, rate = unit([-0.5, 0.1, 1.0]), [0, 1, 0], np.radians(0.8)
+    frames = [scene.render(None, [Patch(patch_dir(d0, axis, rate, k), r, seed=9)]) for k in range(24)]
+    off_disc, on_disc = {}, {}
+    for sectors in (6, 0):
+        _, out = run(rig, frames, grouping={"extended_sectors": sectors})
+        n_off, n_on = [], 0
+        for k in range(12, 24):
+            d = patch_dir(d0, axis, rate, k)
+            views = [o.views[0] for o in out[k] if o.status != "lost"]
+            n_off.append(sum(members_inside(v, d, r * 1.2) < 0.5 for v in views))
+            n_on += any(
+                members_inside(v, d, r * 1.2) > 0.9 and o.status == "confirmed"
+                for o, v in zip([o for o in out[k] if o.status != "lost"], views, strict=True)
+            )
+        off_disc[sectors], on_disc[sectors] = np.mean(n_off), n_on
+    assert off_disc[0] >= 8, f"without the rule the world should be cut into many tracks: {off_disc[0]}"
+    assert off_disc[6] <= 0.4 * off_disc[0], off_disc
+    assert on_disc[6] >= 10, on_disc
