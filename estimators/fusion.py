@@ -174,6 +174,32 @@ class FusionSettings:
         feature_static_chi: largest median normalised ray residual (chi, ~1 for static points)
             for which the features are taken as static; above it the feature range is not used
             (a moving obstacle). Default 9.
+        feature_max_chi: with feature_point, the largest chi of one feature (a stereo id mismatch
+            or a corner sliding along an edge fits no static point; stereo_hover track 23: a
+            feature at 0.35 m with chi 34 ranged a pole at 1.3 m). Default 36 (the per-feature sigma
+            is ~3x small, so good features reach chi ~9; tracked scenes: mono p90 4.9 / 4.7 / 5.5 %
+            for no cut / 36 / 16).
+        feature_point: range a track at the own least-squares point of its median member feature
+            (the lower median by range of the inner half; for feature stereo the midpoint of the
+            median shared feature's two rays) instead of at the median range along the
+            representative ray. The representative ray is a centroid: on a convex obstacle it hits
+            the nearest surface while the features sit deeper, and on a track that also holds
+            background features it can cross another object (accuracy analyst's replays of the 5
+            tracked pipeline scenes, 2026-11-22: 98 % of the mono > 5 % errors were over-ranges).
+            The reported bearing then follows that point. Default True.
+        rep_stereo_with_features: triangulate the two cameras' representative bearings of a track
+            whose views both list member features but share too few ids for a feature stereo fix
+            (they are then centroids of different feature sets, i.e. different points). Default
+            False: such a track gets no stereo fix and fuses only its first view's bearing.
+        feature_min_depth_m: a feature's point must lie this far (m) in front of the camera (rays from
+            one place, e.g. hovering, meet at the camera centre). Default 0.1.
+        feature_point_sigma_k: with feature_point, the range sigma is
+            hypot(k sigma_r,f, floor r) of the chosen feature (sigma_r,f its first-order sigma,
+            see _features_batch). Default 2 (per-feature errors on the tracked scenes: median
+            |z| 2 at sigma_f = 1e-3 rad).
+        feature_range_floor_frac: the floor above, as a fraction of the range. Default 0.012 (the
+            per-feature error stops shrinking with parallax at 1.1-1.4 % of the range: KLT corners
+            drift over the surface).
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -203,6 +229,12 @@ class FusionSettings:
     feature_min_count: int = 3
     feature_inner_half: bool = True
     feature_static_chi: float = 9.0
+    feature_point: bool = True
+    feature_max_chi: float = 36.0
+    rep_stereo_with_features: bool = False
+    feature_min_depth_m: float = 0.1
+    feature_point_sigma_k: float = 2.0
+    feature_range_floor_frac: float = 0.012
     feature_mad_all_weight: float = 0.5
     feature_small_n_inflate: float = 1.0
     stereo_feature_min_count: int = 2
@@ -274,6 +306,16 @@ def tangent_basis(u: np.ndarray) -> np.ndarray:
     e1 = _cross(u, e)
     e1 /= np.linalg.norm(e1)
     return np.stack([e1, _cross(u, e1)], axis=1)
+
+
+def _group_lower_median_index(g: np.ndarray, v: np.ndarray, cnt: np.ndarray) -> np.ndarray:
+    """Index into v (K,) of the lower median of each non-empty group g (K,) (cnt (G,) = the group
+    sizes): element (n - 1) // 2 of the group sorted by v -> (number of non-empty groups,), in
+    group order."""
+    order = np.lexsort((v, g))
+    start = np.cumsum(cnt) - cnt
+    nz = cnt > 0
+    return order[start[nz] + (cnt[nz] - 1) // 2]
 
 
 _NO_FEATURES = np.zeros((0, 3))
@@ -485,6 +527,9 @@ class _Track:
     feature_range: tuple[float, float, int] | None = None  # (range, sigma, n features) this frame
     feature_stereo: tuple[float, float, int] | None = None  # stereo range from common features
     struct_sigma_m: float = 0.0  # features' spread about the representative ray (not filtered)
+    feature_point: np.ndarray | None = None  # the median member feature's own point (W), this frame
+    feature_stereo_point: np.ndarray | None = None  # the median shared feature's stereo point (W)
+    feature_stereo_fid: int | None = None  # the id of that feature (kept while it stays inner)
 
 
 class ObstacleFusion:
@@ -579,12 +624,13 @@ class ObstacleFusion:
                 rest.append((tr, sg))
         if rest:
             te = perf()
-            need = [sg for tr, sg in rest if tr.feature_stereo is None and len(sg.views) >= 2]
+            wants = [tr.feature_stereo is None and len(sg.views) >= 2 and not self._ghost_prone(tr, sg)
+                     for tr, sg in rest]
+            need = [sg for (_tr, sg), w in zip(rest, wants, strict=True) if w]
             fixes = iter(self._stereo_batch(need) if need else ())
             t_est += perf() - te
-            for tr, sg in rest:
-                fix = next(fixes) if tr.feature_stereo is None and len(sg.views) >= 2 else None
-                t_est += self._process(tr, sg, fix)
+            for (tr, sg), w in zip(rest, wants, strict=True):
+                t_est += self._process(tr, sg, next(fixes) if w else None)
         if batch:
             self._set_from_features_batch(batch, fc)
         reports.extend(self._reports([(tr, status) for tr, _sg, status in work], fc))
@@ -720,6 +766,8 @@ class ObstacleFusion:
             sg = _Sighting(t_s, frame, o_W, tuple(views), c_tup[cam_l[j - len(vs)]], tuple(f0))
             tr.feature_range = None
             tr.feature_stereo = None
+            tr.feature_point = None
+            tr.feature_stereo_point = None
             work.append((tr, sg, obs.status))
         return work, feats
 
@@ -735,6 +783,17 @@ class ObstacleFusion:
         if s is not None:
             return float(s)
         return max(self._speed(t_a), self._speed(t_b))
+
+    def _ghost_prone(self, tr: _Track, sg: _Sighting) -> bool:
+        """Whether the two cameras' representative bearings of this sighting are likely different
+        physical points: both views list member features (>= stereo_feature_min_count each) but
+        too few shared ids for a feature stereo fix. Their triangulation is then a ghost (tracked
+        stereo_hover, sphere at 1.4 m: +30 % every frame), so with rep_stereo_with_features off
+        it is not used (no stereo fix, and only the first view's bearing is fused)."""
+        if self.settings.rep_stereo_with_features or tr.feature_stereo is not None or len(sg.views) < 2:
+            return False
+        m = max(1, self.settings.stereo_feature_min_count)
+        return len(sg.views[0].feature_ids) >= m and len(sg.views[1].feature_ids) >= m
 
     def _process(self, tr: _Track, sg: _Sighting, stereo_fix=None) -> float:
         """Update one track that its member features do not range (``_set_from_features_batch``
@@ -784,8 +843,8 @@ class ObstacleFusion:
                     for v in sg.views:
                         self._bearing_update(tr, v)
                 tr.sources.add("stereo")
-            else:
-                for v in sg.views:
+            else:  # (only the first view's bearing when the two are different points: ghost)
+                for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
                     self._bearing_update(tr, v)
                 tr.sources.add("mono")
             if tr.gated_run >= s.reinit_after_gated:
@@ -982,7 +1041,7 @@ class ObstacleFusion:
         _, first = np.unique(rows * ncam + cam, return_index=True)  # one ray per feature and camera
         fs.add(rows[first], b_now[first], c_now[first], t_s, s.feature_memory_s, unique=ncam == 1)
         if ncam > 1:
-            self._feature_stereo(work, b_now, c_now, feats[5])
+            self._feature_stereo(work, ids, b_now, c_now, feats[5])
         if not s.feature_ranging:
             return
         G = len(work)
@@ -1016,7 +1075,9 @@ class ObstacleFusion:
         u = r_vec / np.maximum(r, 1e-9)[:, None]
         sig_r = s.feature_sigma_rad * np.abs(depth) * np.sqrt(
             np.maximum(np.einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
-        keep = (depth > 0) & (sig_r <= s.mono_init_max_rel_sigma * r)
+        # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
+        # one place only (hovering) all meet at the camera centre, a point of no range
+        keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
         cnt_keep = np.bincount(g[keep], minlength=G)
         keep &= cnt_keep[g] >= n_min
         if not keep.any():
@@ -1028,10 +1089,13 @@ class ObstacleFusion:
         # (crossing motion) fit no static point and their range would be wrong
         chi = fs.residual2(rows, p) / (2.0 * (s.feature_sigma_rad * depth) ** 2)
         chi_med = _group_median(g, chi, G)
+        if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
+            fit = chi <= s.feature_max_chi  # a corner sliding along an edge: not this point)
+            fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
+            g, rows, b_now, p, r, depth, sig_r = (
+                g[fit], rows[fit], b_now[fit], p[fit], r[fit], depth[fit], sig_r[fit])
         b_rep = feats[5]  # (G, 3) first views' bearings
         ang = np.arccos(np.clip(np.sum(b_now * b_rep[g], axis=1), -1.0, 1.0))
-        med_all = _group_median(g, r, G)
-        mad_all = _group_median(g, np.abs(r - med_all[g]), G)
         inner = ang <= _group_median(g, ang, G)[g]
         cnt_in = np.bincount(g[inner], minlength=G)
         if s.feature_inner_half:
@@ -1040,14 +1104,26 @@ class ObstacleFusion:
             inner[:] = True
         gi, ri, si = g[inner], r[inner], sig_r[inner]
         n_in = np.bincount(gi, minlength=G)
-        z = _group_median(gi, ri, G)
-        mad = _group_median(gi, np.abs(ri - z[gi]), G)
-        s2 = _group_median(gi, si**2, G)
-        wa = s.feature_mad_all_weight
-        sig = np.sqrt((1.4826 * mad) ** 2 + (wa * 1.4826 * mad_all) ** 2 + s2 / np.maximum(n_in, 1))
-        # few features: their MAD understates the spread (and one stray member moves the median),
-        # so widen by (1 + k / n)
-        sig = sig * (1.0 + s.feature_small_n_inflate / np.maximum(n_in, 1))
+        point = None
+        if s.feature_point:  # the lower-median inner feature's own point and sigma
+            sel = _group_lower_median_index(gi, ri, n_in)
+            z = np.zeros(G)
+            z[gi[sel]] = ri[sel]
+            sig = np.zeros(G)
+            sig[gi[sel]] = np.hypot(s.feature_point_sigma_k * si[sel], s.feature_range_floor_frac * ri[sel])
+            point = np.zeros((G, 3))
+            point[gi[sel]] = p[inner][sel]
+        else:
+            z = _group_median(gi, ri, G)
+            med_all = _group_median(g, r, G)
+            mad_all = _group_median(g, np.abs(r - med_all[g]), G)
+            mad = _group_median(gi, np.abs(ri - z[gi]), G)
+            s2 = _group_median(gi, si**2, G)
+            wa = s.feature_mad_all_weight
+            sig = np.sqrt((1.4826 * mad) ** 2 + (wa * 1.4826 * mad_all) ** 2 + s2 / np.maximum(n_in, 1))
+            # few features: their MAD understates the spread (and one stray member moves the
+            # median), so widen by (1 + k / n)
+            sig = sig * (1.0 + s.feature_small_n_inflate / np.maximum(n_in, 1))
         present = np.bincount(g, minlength=G) > 0
         for k in np.flatnonzero(present).tolist():
             tr = work[k][0]
@@ -1056,8 +1132,11 @@ class ObstacleFusion:
                 continue
             zk = float(z[k])
             tr.feature_range = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
+            if point is not None:
+                tr.feature_point = point[k]
 
-    def _feature_stereo(self, work, b_now: np.ndarray, c_now: np.ndarray, b_rep: np.ndarray) -> None:
+    def _feature_stereo(self, work, ids: np.ndarray, b_now: np.ndarray, c_now: np.ndarray,
+                        b_rep: np.ndarray) -> None:
         """Stereo ranges of the features one track's first two views share (same id, same frame).
 
         For each shared feature the two rays (camera a, camera b) are triangulated (midpoint of
@@ -1141,6 +1220,8 @@ class ObstacleFusion:
         if not ok.any():
             return
         G = len(work)
+        p_mid = (0.5 * (q_a + q_b))[ok]
+        fid = ids[ia][ok]
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
@@ -1149,6 +1230,35 @@ class ObstacleFusion:
         inner |= (np.bincount(gg[inner], minlength=G) < n_min)[gg]
         gi, ri, si = gg[inner], r[inner], sr[inner]
         n_in = np.bincount(gi, minlength=G)
+        if s.feature_point:  # the lower-median inner shared feature's own two-ray point
+            sel = _group_lower_median_index(gi, ri, n_in)
+            # the fix is fused every frame: only its random part (k sigma_r,f) is its noise; the
+            # floor (a surface offset of the tracked corners) does not average out over frames and
+            # is added to the reported sigma instead (struct_sigma_m)
+            # is added to the reported sigma instead (struct_sigma_m). The chosen feature is kept
+            # while it stays among the inner ones: the fused point must not jump between corners
+            # (that would read as velocity)
+            chosen = np.full(G, -1, dtype=np.int64)
+            chosen[gi[sel]] = sel
+            fid_i, p_i = fid[inner], p_mid[inner]
+            prev = {}
+            for k in np.flatnonzero(cnt >= n_min).tolist():
+                f_prev = work[k][0].feature_stereo_fid
+                if f_prev is not None:
+                    prev[(k, f_prev)] = None
+            if prev:
+                for j, key in enumerate(zip(gi.tolist(), fid_i.tolist(), strict=True)):
+                    if key in prev:
+                        chosen[key[0]] = j
+            for k in np.flatnonzero(cnt >= n_min).tolist():
+                j = int(chosen[k])
+                zk = float(ri[j])
+                tr = work[k][0]
+                tr.feature_stereo = (zk, max(s.feature_point_sigma_k * float(si[j]), 1e-3 * zk), int(n_in[k]))
+                tr.feature_stereo_point = p_i[j]
+                tr.feature_stereo_fid = int(fid_i[j])
+                tr.struct_sigma_m = s.feature_range_floor_frac * zk
+            return
         z = _group_median(gi, ri, G)
         mad = _group_median(gi, np.abs(ri - z[gi]), G)
         s2 = _group_median(gi, si**2, G)
@@ -1161,9 +1271,13 @@ class ObstacleFusion:
             work[k][0].struct_sigma_m = float(struct[k])
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
-        """The feature stereo range as a point on the first view's representative ray:
-        (p_W (3,), R (3, 3)) (see _point_on_ray)."""
+        """The feature stereo fix: the median shared feature's point (``feature_point``) or the
+        feature stereo range as a point on the first view's representative ray (see
+        _point_on_ray): (p_W (3,), R (3, 3))."""
         z, sig, _n = tr.feature_stereo
+        if tr.feature_stereo_point is not None:
+            p = tr.feature_stereo_point
+            return p, _ray_covariance(p - sg.o_W, sig, sg.views[0].sigma_rad)
         return self._point_on_ray(sg, z, sig)
 
     def _point_on_ray(self, sg: _Sighting, z: float, sig: float):
@@ -1180,7 +1294,8 @@ class ObstacleFusion:
 
     def _set_from_features_batch(self, batch: list[tuple[_Track, _Sighting]], fc: _FrameContext) -> None:
         """(Re)set the point of every track its member features range on its representative ray at
-        the feature range, all tracks at once, then apply the bounds of static-hypothesis ones.
+        the feature range (or at the median feature's own point, ``feature_point``), all tracks at
+        once, then apply the bounds of static-hypothesis ones.
 
         The feature estimate is cumulative (all rays of every feature), so it replaces the state
         rather than being fused again each frame (no double counting). The point is where the ray
@@ -1204,6 +1319,9 @@ class ObstacleFusion:
         d = np.where(disc > 0, -bw + np.sqrt(np.maximum(disc, 0.0)), z)
         X = np.zeros((K, 6))
         X[:, :3] = c + d[:, None] * b
+        own = [k for k, (tr, _sg) in enumerate(batch) if tr.feature_point is not None]
+        if own:  # feature_point: the median member feature's own point instead
+            X[own, :3] = np.array([batch[k][0].feature_point for k in own])
         P = np.zeros((K, 6, 6))
         P[:, :3, :3] = _ray_covariances(X[:, :3] - o, sig, sb)
         P[:, 3, 3] = P[:, 4, 4] = P[:, 5, 5] = s.static_velocity_sigma_mps**2

@@ -137,9 +137,10 @@ def _slide_run(settings: FusionSettings):
 
 
 def test_feature_range_sigma_widens_by_one_plus_k_over_n():
-    # six features, inner half n = 3: k = 3 doubles the sigma (1 + 3 / 3), the range is unchanged
-    z0, s0, n0 = _slide_run(FusionSettings(feature_small_n_inflate=0.0))
-    z3, s3, n3 = _slide_run(FusionSettings(feature_small_n_inflate=3.0))
+    # (the range on the representative ray, feature_point off) six features, inner half n = 3:
+    # k = 3 doubles the sigma (1 + 3 / 3), the range is unchanged
+    z0, s0, n0 = _slide_run(FusionSettings(feature_small_n_inflate=0.0, feature_point=False))
+    z3, s3, n3 = _slide_run(FusionSettings(feature_small_n_inflate=3.0, feature_point=False))
     assert n0 == n3 == 3
     assert z3 == z0
     assert s3 == pytest.approx(2.0 * s0, rel=1e-12)
