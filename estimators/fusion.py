@@ -192,7 +192,8 @@ class FusionSettings:
             (they are then centroids of different feature sets, i.e. different points). Default
             False: such a track gets no stereo fix and fuses only its first view's bearing.
         feature_min_depth_m: a feature's point must lie this far (m) in front of the camera (rays from
-            one place, e.g. hovering, meet at the camera centre). Default 0.1.
+            one place, e.g. hovering, meet at the camera centre). Default 0.1 (tracked stereo_hover:
+            range NEES mean 1729 -> 8.5 against 0: a stereo track ranged 0.35 m from such points).
         feature_point_sigma_k: with feature_point, the range sigma is
             hypot(k sigma_r,f, floor r) of the chosen feature (sigma_r,f its first-order sigma,
             see _features_batch). Default 2 (per-feature errors on the tracked scenes: median

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from estimators.fusion import (
     _adjugate_det3,
@@ -88,3 +89,67 @@ def test_fast_report_equals_the_constructor():
     assert type(fast) is TrackReport
     assert fast.to_json() == ref.to_json()
     assert set(vars(fast)) == set(vars(ref))
+
+
+# ----------------------------------------------------------------- feature_point (closed form)
+def _features_run(settings, feats_W, rep_W, T_s=1.5, sigma=5e-4, seed=5, rig_kind="mono", speed=5.0,
+                  feature_cams=None):
+    """A straight flight (speed m/s along x) sees fixed feature points feats_W (N, 3); the track's
+    representative point is rep_W (3,) (not one of them). Returns the last report and the body
+    origin of the last frame."""
+    from estimators.cameras import Equidistant
+    from estimators.egomotion import ConstantVelocity
+    from estimators.fusion import FusionSettings, ObstacleFusion
+    from estimators.records import CameraView, ObstacleObservation
+    from estimators.rig import mono_forward_rig, stereo_forward_rig
+
+    model = Equidistant.from_deg_per_px(0.15, 1280, 1280)
+    rig = mono_forward_rig(model) if rig_kind == "mono" else stereo_forward_rig(model, 0.30)
+    ego = ConstantVelocity(speed)
+    rng = np.random.default_rng(seed)
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+
+    def bearing(cam, T_W_B, p_W):
+        p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
+        b = p_C / np.linalg.norm(p_C)
+        e = rng.normal(scale=sigma, size=3)
+        b = b + e - (e @ b) * b
+        return b / np.linalg.norm(b)
+
+    n = int(round(T_s * 30.0))
+    for k in range(n + 1):
+        t = k / 30.0
+        T_W_B = ego.pose_at(t)
+        views = tuple(CameraView(c.name, bearing(c, T_W_B, rep_W), [0, 0], sigma,
+                                 feature_ids=np.arange(len(feats_W)),
+                                 feature_b_C=np.array([bearing(c, T_W_B, f) for f in feats_W]))
+                      if feature_cams is None or c.name in feature_cams
+                      else CameraView(c.name, bearing(c, T_W_B, rep_W), [0, 0], sigma)
+                      for c in rig)
+        (r,) = fus.step([ObstacleObservation(3, k, t, "confirmed", views)], k, t)
+    return r, ego.pose_at(n / 30.0)
+
+
+def test_feature_point_reports_the_median_features_own_point():
+    # five corners of a box face at 12-13 m; the representative point (a centroid of members at
+    # different depths) lies 1 m in front of the face, off every corner. The report must be the
+    # corner whose range is the (lower) median of the inner ones, along its own bearing.
+    feats_W = np.array([[12.0, 4.0, 0.4], [12.3, 4.2, -0.3], [12.6, 3.7, 0.1], [12.9, 4.4, 0.3],
+                        [13.2, 3.9, -0.2]])
+    rep_W = np.array([11.0, 4.05, 0.05])
+    from estimators.fusion import FusionSettings
+
+    r, T_W_B = _features_run(FusionSettings(feature_inner_half=False), feats_W, rep_W)
+    rng_true = np.linalg.norm(feats_W - T_W_B.t, axis=1)
+    k = int(np.argsort(rng_true)[(len(rng_true) - 1) // 2])  # lower median (odd: the median)
+    assert r.range_m == pytest.approx(rng_true[k], rel=0.01)
+    b_true = T_W_B.R.T @ (feats_W[k] - T_W_B.t) / rng_true[k]
+    assert math.degrees(math.acos(min(1.0, float(b_true @ r.bearing_body)))) < 0.2
+    # sigma >= the 1.2 % floor, and honest
+    assert r.range_sigma_m >= 0.012 * r.range_m * 0.999
+    assert abs(r.range_m - rng_true[k]) <= 3 * r.range_sigma_m
+    # feature_point off: the same median range, but along the representative ray
+    r_old, _ = _features_run(FusionSettings(feature_inner_half=False, feature_point=False), feats_W, rep_W)
+    b_rep = T_W_B.R.T @ (rep_W - T_W_B.t)
+    b_rep /= np.linalg.norm(b_rep)
+    assert math.degrees(math.acos(min(1.0, float(b_rep @ r_old.bearing_body)))) < 0.2
