@@ -206,6 +206,9 @@ class FusionSettings:
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
         bounds_pseudo_sigma_frac: sigma of the bound pseudo-measurement, as a fraction of the bound.
             Default 0.01.
+        bounds_min_range_m: bounds whose upper end is below this (m) are taken as inconsistent with
+            the max speed (rays that meet only at the camera), not as "the obstacle is at the
+            camera" (the pseudo-measurement drove such ranges to 1e-11 m). Default 0.1.
         lost_after_s: a track not observed for this long (s) is ended (reported once as lost).
             Default 0.5.
         reinit_after_gated: consecutive gated updates after which the filter restarts. Default 5.
@@ -245,6 +248,7 @@ class FusionSettings:
     baseline_max_age_s: float = 1.0
     bounds_noise_sigmas: float = 4.0
     bounds_pseudo_sigma_frac: float = 0.01
+    bounds_min_range_m: float = 0.1
     lost_after_s: float = 0.5
     reinit_after_gated: int = 5
     velocity_report_max_sigma_mps: float = 1.0
@@ -996,7 +1000,10 @@ class ObstacleFusion:
         for i, good, lo_i, hi_i, dlo_i in zip(idx, any_ok.tolist(), lo.tolist(), hi.tolist(),
                                               dlo.tolist(), strict=True):
             tr = work[i][0]
-            if good:
+            # an upper bound at the camera itself (below bounds_min_range_m): the rays meet only
+            # where they start, i.e. no point within the allowed motion (a hovering drone, max
+            # speed = its own speed ~0, and an obstacle that moved): inconsistent, not "at 0 m"
+            if good and not hi_i < s.bounds_min_range_m:
                 tr.bounds = geometry.RangeBounds(lo_i, None if math.isinf(hi_i) else hi_i, dlo_i, None)
             else:
                 tr.bounds_reason = "bounds unobservable: inconsistent with max speed"

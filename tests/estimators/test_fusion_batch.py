@@ -153,3 +153,29 @@ def test_feature_point_reports_the_median_features_own_point():
     b_rep = T_W_B.R.T @ (rep_W - T_W_B.t)
     b_rep /= np.linalg.norm(b_rep)
     assert math.degrees(math.acos(min(1.0, float(b_rep @ r_old.bearing_body)))) < 0.2
+
+
+def test_hover_bounds_of_a_moving_obstacle_are_inconsistent_not_zero():
+    # hovering drone (max speed = its own speed = 0) and an obstacle crossing at 1 m/s, 5 m ahead:
+    # the two rays leave one centre at different angles, so the only common point is the camera
+    # itself. No range interval is consistent with "no faster than 0 m/s": no bounds (never
+    # [0, 0], which the bound pseudo-measurement would turn into a 0 m range).
+    from estimators.cameras import Equidistant
+    from estimators.egomotion import ConstantVelocity
+    from estimators.fusion import FusionSettings, ObstacleFusion
+    from estimators.records import CameraView, ObstacleObservation
+    from estimators.rig import mono_forward_rig
+
+    rig = mono_forward_rig(Equidistant.from_deg_per_px(0.15, 1280, 1280))
+    ego = ConstantVelocity(0.0)
+    fus = ObstacleFusion(rig, ego, FusionSettings())
+    cam = rig[0]
+    for k in range(20):
+        t = k / 30.0
+        p_W = np.array([5.0, -1.0 + 1.0 * t, 0.0])
+        p_C = (cam.T_C_B @ ego.pose_at(t).inverse()).apply(p_W)
+        view = CameraView("cam0", p_C / np.linalg.norm(p_C), [0, 0], 5e-4)
+        (r,) = fus.step([ObstacleObservation(1, k, t, "confirmed", (view,))], k, t)
+    assert r.range_m is None
+    assert r.range_max_m is None and r.range_min_m is None
+    assert r.unobservable_reason  # (why: the mono pair has zero baseline)
