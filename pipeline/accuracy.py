@@ -622,7 +622,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
             lines = (rdir / "tracks.jsonl").read_text().splitlines()
             frames = [json.loads(line) for line in lines if line.strip()]
         rows = score_reports(truth, frames)
-        ss = _samples_from_rows(truth, frames, rows, opts)
+        rays = _front_end_rays(pickle.loads(obs_path.read_bytes())["frames"], rig, ego)
+        ss = _samples_from_rows(truth, frames, rows, opts, rays)
         per_scene[name] = summarize(ss)
         elig = _mono_eligible(truth)
         cov = _mono_covered(ss, elig)
@@ -715,8 +716,32 @@ def _mono_covered(samples: list[Sample], eligible: set[tuple[float, int]]) -> se
             and (round(s.t_s, 6), s.obstacle) in eligible}
 
 
-def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -> list[Sample]:
-    """Samples of pipeline mode from the evaluator's rows (reports associated with obstacles)."""
+def _front_end_rays(obs_frames, rig, ego) -> dict[tuple[float, int], list[tuple[np.ndarray, np.ndarray]]]:
+    """(t_s rounded to 1 us, track id) -> [(c_W (3,), b_W (3,)) per camera view, rig order]: the
+    front end's representative rays in W (camera centre, unit bearing), the thesis method's input."""
+    order = {n: i for i, n in enumerate(rig.names)}
+    T_B_C = {c.name: c.T_C_B.inverse() for c in rig}
+    out = {}
+    for _frame, t_s, obs in obs_frames:
+        if not ego.covers(t_s):
+            continue
+        T_W_B = ego.pose_at(t_s)
+        for o in obs:
+            vs = sorted(o.views, key=lambda v: order.get(v.camera, 0))
+            rays = []
+            for v in vs:
+                T_W_C = T_W_B @ T_B_C[v.camera]
+                rays.append((T_W_C.t, T_W_C.R @ v.b_C))
+            if rays:
+                out[(round(float(t_s), 6), int(o.track_id))] = rays
+    return out
+
+
+def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions,
+                       rays: dict | None = None) -> list[Sample]:
+    """Samples of pipeline mode from the evaluator's rows (reports associated with obstacles).
+    rays: the front end's representative rays per (t_s, track) (see _front_end_rays) for the
+    thesis's method; without them it takes the report's own bearing from the body origin."""
     by_key = {
         (round(float(fr["t_s"]), 6), int(tr["id"])): tr for fr in frames for tr in fr.get("tracks", [])
     }
@@ -764,11 +789,12 @@ def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions) -
             ve = np.asarray(r.v_est_W, float)
             dh = math.atan2(ve[1], ve[0]) - math.atan2(v_true[1], v_true[0])
             s.heading_err_deg = abs(math.degrees(math.atan2(math.sin(dh), math.cos(dh))))
-        # the thesis's two-frame method on the tracker's own bearings (rays from the body origin);
-        # tracks.jsonl has no per-camera bearings, so its two-camera (stereo) method is n/a here
+        # the thesis's two-frame method on the same track's front-end bearings (each camera's
+        # representative ray; the report's own bearing follows the fusion, e.g. a member feature's
+        # point, so it is not the thesis's input); two cameras of one frame for its stereo method
         h = hist[r.track_id]
-        h.append((r.t_s, [(T_W_B.t, b_W)]))
-        if s.n_views == 1:
-            _thesis(s, h, [(T_W_B.t, b_W)], T_W_B.t, opts.thesis_interval_s, truth.scn.fps)
+        views_now = (rays or {}).get(key) or [(T_W_B.t, b_W)]
+        h.append((r.t_s, views_now))
+        _thesis(s, h, views_now, T_W_B.t, opts.thesis_interval_s, truth.scn.fps)
         out.append(s)
     return out

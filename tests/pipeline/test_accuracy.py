@@ -200,3 +200,28 @@ def test_mono_obstacle_frames_eligible_by_truth_and_covered_by_reports():
     assert _mono_covered(reps, elig) == {(1.0, 1)}
     truth.scn.rig.kind = "stereo"
     assert _mono_eligible(truth) == set()
+
+
+def test_front_end_rays_for_the_thesis_method_are_the_cameras_rays_in_world():
+    """The thesis baseline of pipeline mode takes each view's representative ray in W: the tiny
+    scene's forward camera (optical axis = body +x, at the body origin) at t = 1 s sits at
+    (5, 0, 5) and its optical axis b_C = (0, 0, 1) points along +x; a ray 90 deg to the left
+    (b_C = (-1, 0, 0) in the optical frame x-right, y-down, z-forward) points along +y."""
+    from estimators.records import CameraView, ObstacleObservation
+    from pipeline.accuracy import _front_end_rays
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.trajectory import observer_trajectory
+
+    scn = _tiny_scene()
+    rig = build_rig(scn.rig)
+    traj = observer_trajectory(scn.observer, 2.0)
+    views = [CameraView("cam0", np.array([0.0, 0.0, 1.0]), np.zeros(2), 1e-3)]
+    left = [CameraView("cam0", np.array([-1.0, 0.0, 0.0]), np.zeros(2), 1e-3)]
+    obs = [ObstacleObservation(3, 30, 1.0, "confirmed", tuple(views)),
+           ObstacleObservation(4, 30, 1.0, "confirmed", tuple(left))]
+    rays = _front_end_rays([(30, 1.0, obs)], rig, traj)
+    (c3, b3), = rays[(1.0, 3)]
+    (_c4, b4), = rays[(1.0, 4)]
+    assert np.allclose(c3, [5.0, 0.0, 5.0], atol=1e-9)
+    assert np.allclose(b3, [1.0, 0.0, 0.0], atol=1e-9)
+    assert np.allclose(b4, [0.0, 1.0, 0.0], atol=1e-9)
