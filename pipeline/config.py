@@ -317,7 +317,8 @@ class InputsConfig(_Section):
         2,
         ge=0,
         description="int, frames: decode each video this many frames ahead in a background thread "
-        "(0 = decode in the run loop).",
+        "(0 = decode in the run loop). Used only when the process may run on more than one CPU: on one "
+        "core the thread overlaps nothing.",
     )
     grey: bool | None = Field(
         None,

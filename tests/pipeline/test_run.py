@@ -395,3 +395,18 @@ def test_cli_run_over_image_folders(tmp_path, monkeypatch):
     assert rc == 0
     recs = _lines(tmp_path / "o" / "tracks.jsonl")
     assert [x["t_s"] for x in recs] == pytest.approx([0.0, 0.125, 0.25, 0.375])
+
+
+def test_read_ahead_only_when_a_second_cpu_can_decode(tmp_path, monkeypatch):
+    """inputs.prefetch applies with two or more CPUs allowed; pinned to one, the loop decodes itself."""
+    from pipeline.sources import PrefetchSource, VideoSource
+
+    v = write_video(tmp_path / "cam0.mkv", 3)
+    cfg = load_config(None, ["ego_motion.speed_mps=1", f"inputs.videos=['{v}']", "inputs.prefetch=2"])
+    for cpus, kind in (({0}, VideoSource), ({0, 1}, PrefetchSource)):
+        monkeypatch.setattr(run_mod.os, "sched_getaffinity", lambda _pid, c=cpus: c, raising=False)
+        src = run_mod.open_inputs(cfg, mono_rig())
+        try:
+            assert type(src.sources[0]) is kind and len(list(src)) == 3
+        finally:
+            src.close()
