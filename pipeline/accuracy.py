@@ -50,7 +50,7 @@ from estimators.records import CameraView, ObstacleObservation
 from estimators.thesis import eq_3_8_mono_Y
 
 __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", "run_bearings",
-           "summarize", "format_table", "run_accuracy", "TARGETS"]
+           "summarize", "format_table", "format_scenes", "run_accuracy", "TARGETS"]
 
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenarios"
 
@@ -506,6 +506,28 @@ def format_table(m: dict, title: str = "") -> str:
     return "\n".join(lines)
 
 
+def format_scenes(per_scene: dict) -> str:
+    """One line per scene with the metrics it has samples for (which scene misses a target)."""
+    lines = ["per scene:"]
+    for name, m in per_scene.items():
+        parts = []
+        if m.get("mono_n"):
+            parts.append(f"mono {_fmt(m.get('mono_median_rel'), True)} / {_fmt(m.get('mono_p90_rel'), True)} "
+                         f"(n {m['mono_n']})")
+        for lim in (3, 8):
+            if m.get(f"stereo_{lim}m_n"):
+                parts.append(f"stereo<={lim}m {_fmt(m.get(f'stereo_{lim}m_median_rel'), True)} "
+                             f"(n {m[f'stereo_{lim}m_n']})")
+        if m.get("range_nees_mean") is not None:
+            parts.append(f"range NEES {m['range_nees_mean']:.2f}")
+        if m.get("one_sigma_share") is not None:
+            parts.append(f"1-sigma {_fmt(m['one_sigma_share'], True)}")
+        if m.get("mono_obstacle_coverage") is not None:
+            parts.append(f"mono coverage {_fmt(m['mono_obstacle_coverage'], True)}")
+        lines.append(f"  {name:22s} " + "; ".join(parts))
+    return "\n".join(lines)
+
+
 # ---------------------------------------------------------------------------------------- run
 def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progress=None) -> dict:
     """Run the harness; returns {"metrics", "per_scene", "table", "options", "elapsed_s"} and writes
@@ -542,6 +564,8 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
     title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
              f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
     table = format_table(metrics, title)
+    if opts.mode == "pipeline":
+        table += "\n" + format_scenes(per_scene)
     res = {
         "metrics": metrics,
         "per_scene": per_scene,

@@ -225,3 +225,14 @@ def test_front_end_rays_for_the_thesis_method_are_the_cameras_rays_in_world():
     assert np.allclose(c3, [5.0, 0.0, 5.0], atol=1e-9)
     assert np.allclose(b3, [1.0, 0.0, 0.0], atol=1e-9)
     assert np.allclose(b4, [0.0, 1.0, 0.0], atol=1e-9)
+
+
+def test_format_scenes_lists_only_the_metrics_a_scene_has():
+    from pipeline.accuracy import format_scenes
+
+    per = {"mono_a": summarize([_s(range_m=10.2)]),  # 2 % error
+           "stereo_b": summarize([_s(rig="stereo", n_views=2, range_true=2.0, range_m=2.02)])}
+    lines = format_scenes(per).splitlines()
+    assert lines[0] == "per scene:"
+    assert "mono 2.00 % / 2.00 % (n 1)" in lines[1] and "stereo" not in lines[1]
+    assert "stereo<=3m 1.00 % (n 1)" in lines[2] and "mono " not in lines[2]
