@@ -373,6 +373,13 @@ class LiveConfig(_Section):
         description="bool: when a camera entry is a video file, replay it at its real frame rate "
         "(testing without a camera).",
     )
+    sync_tolerance_s: float = Field(
+        0.02,
+        ge=0,
+        description="float, s: several cameras: the frame of each other camera nearest in time to the "
+        "first camera's (video t_s for replays, else arrival time) joins it when within this; otherwise "
+        "the first camera's frame is processed alone and counted (summary: frames_without_partner).",
+    )
     grabber_nice: int | None = Field(
         -5,
         ge=-20,

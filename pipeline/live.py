@@ -21,6 +21,7 @@ import http.server
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +48,7 @@ from pipeline.sources import PacedSource, Source, VideoSource, open_capture
 __all__ = [
     "LIVE_SWITCH_INTERVAL_S",
     "LiveFrame",
+    "frame_time",
     "Grabber",
     "CaptureReader",
     "SourceReader",
@@ -76,6 +78,11 @@ class LiveFrame:
     t_s: float | None
     image: np.ndarray
     arrival_s: float
+
+
+def frame_time(f: LiveFrame) -> float:
+    """The time cameras are paired by: the video's own ``t_s`` (replays), else the arrival (monotonic)."""
+    return f.arrival_s if f.t_s is None else f.t_s
 
 
 class CaptureReader:
@@ -176,6 +183,7 @@ class Grabber:
         self.clock = clock
         self._cond = threading.Condition()
         self._latest: LiveFrame | None = None
+        self._recent: deque[LiveFrame] = deque(maxlen=8)  # the last frames, to pair cameras by time
         self._taken_seq = -1
         self._stop = threading.Event()
         self.finished = False
@@ -203,6 +211,7 @@ class Grabber:
             if arrival_s is not None:
                 self.lag.add(max(0.0, now - arrival_s))
             self._latest = LiveFrame(self.grabbed, t_s, image, now if arrival_s is None else arrival_s)
+            self._recent.append(self._latest)
             self.grabbed += 1
             self._cond.notify_all()
 
@@ -286,6 +295,25 @@ class Grabber:
             if self._latest is not None and self._latest.seq > self._taken_seq:
                 self._taken_seq = self._latest.seq
             return self._latest
+
+    def nearest(self, t: float, tolerance_s: float) -> LiveFrame | None:
+        """Of this camera's last few frames, the one whose time (:func:`frame_time`) is nearest ``t``,
+        if within ``tolerance_s``; waits up to ``tolerance_s`` for a frame at or after ``t`` to arrive
+        (the partner of another camera's frame may be a moment behind it). None when there is none."""
+        deadline = time.monotonic() + tolerance_s
+        with self._cond:
+            while not self.finished and (not self._recent or frame_time(self._recent[-1]) < t):
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
+            if not self._recent:
+                return None
+            best = min(self._recent, key=lambda f: abs(frame_time(f) - t))
+            if abs(frame_time(best) - t) > tolerance_s:
+                return None
+            self._taken_seq = max(self._taken_seq, best.seq)
+            return best
 
     def stop(self, timeout_s: float = 5.0) -> None:
         self._stop.set()
@@ -591,6 +619,7 @@ def run_live(
             on_event(f"preview: {video.path}")
     latency = RunningStats()  # arrival -> line written = waited (arrival -> taken) + processing
     waited, processing = RunningStats(), RunningStats()
+    unpaired: dict[str, int] = {}  # lead frames another camera had no frame within the tolerance for
     timings = StageTimings()
     frames = 0
     no_pose = 0
@@ -619,9 +648,13 @@ def run_live(
                 continue
             images = {names[0]: lead.image}
             for g, n in zip(grabbers[1:], names[1:], strict=True):
-                f = g.peek()  # the newest frame of the other cameras
+                # the other cameras' frame of the same instant (nearest in time, within the tolerance);
+                # without one the lead frame goes on alone and the miss is counted
+                f = g.nearest(frame_time(lead), lv.sync_tolerance_s)
                 if f is not None:
                     images[n] = f.image
+                else:
+                    unpaired[n] = unpaired.get(n, 0) + 1
             if lead.t_s is not None:
                 t_s = lead.t_s
             elif lv.clock == "unix":
@@ -691,6 +724,7 @@ def run_live(
             "grabber_nice": {g.name: g.nice for g in grabbers},
             "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
             "frames_without_pose": no_pose,
+            "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},
             "timings": timings.summary(),
             "parameters": cfg.model_dump(mode="json"),
         }

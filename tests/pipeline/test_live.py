@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, write_video
+from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
 
 from estimators.egomotion import ConstantVelocity
 from estimators.errors import SourceError
@@ -304,3 +304,32 @@ def test_a_replay_behind_schedule_shows_as_latency_not_as_a_late_arrival(tmp_pat
     assert s["replay_lag"]["cam0"]["median_s"] >= 0.3
     # the split adds up: waited (arrival -> taken) + processing (taken -> line written)
     assert s["latency_waited"]["median_s"] >= 0.3 and s["latency_processing"]["n"] == r.frames
+
+
+def test_stereo_live_pairs_the_cameras_frames_by_time(tmp_path):
+    """Each camera's frame of the same instant goes in together (frame k of both videos has grey level
+    4k); a camera whose times never come within live.sync_tolerance_s is left out and counted."""
+    times = [k / 20 for k in range(12)]
+    v0 = write_video(tmp_path / "cam0.mkv", 12, times=times)
+    v1 = write_video(tmp_path / "cam1.mkv", 12, times=times)
+    v2 = write_video(tmp_path / "far" / "cam1.mkv", 12, times=[t + 0.5 for t in times])
+    rig = stereo_rig()
+    for other, paired in ((v1, True), (v2, False)):
+        front = FakeFrontEnd(rig)
+        r = run_live(
+            _cfg(),
+            tmp_path / f"out_{paired}",
+            rig=rig,
+            egomotion=ConstantVelocity(5.0),
+            frontend=front,
+            fusion=FakeFusion(),
+            readers=[make_reader_factory(str(v0), "cam0"), make_reader_factory(str(other), "cam1")],
+        )
+        assert r.frames >= 6
+        missed = r.summary["frames_without_partner"]["cam1"]
+        if paired:
+            with_both = [c[2] for c in front.calls if "cam1" in c[2]]
+            assert len(with_both) >= r.frames - 1 and missed <= 1  # one miss at most: a very late partner
+            assert all(im["cam0"] == im["cam1"] for im in with_both)  # the same frame index
+        else:
+            assert missed == r.frames and all(set(c[2]) == {"cam0"} for c in front.calls)
