@@ -157,7 +157,7 @@ def run_benchmark(
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
     (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
     """
-    from trackers.frontend import FrontEnd
+    from trackers.frontend import STAGES, FrontEnd
 
     cv2.setNumThreads(int(threads))
     rig, caps, stamps, gt, specs = open_scene(Path(scene_dir), threads=int(threads))
@@ -170,7 +170,7 @@ def run_benchmark(
     c_B = {c.name: c.centre_B for c in rig.cameras}
     rad_px = {c.name: c.model.max_angle_rad / max(c.model.image_circle()[2], 1.0) for c in rig.cameras}
     t_decode = t_front = c_decode = c_front = 0.0
-    stage = dict.fromkeys(("detect", "track", "group", "associate"), 0.0)
+    stage = dict.fromkeys(STAGES, 0.0)
     first_seen: dict[int, float] = {}
     due: dict[int, int] = {}
     covered: dict[int, int] = {}

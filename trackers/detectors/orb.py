@@ -87,7 +87,7 @@ class OrbDetector(Detector):
         kps = self._orb.detect(grey, None)
         if not kps:
             return Detections.empty()
-        uv = np.array([k.pt for k in kps], dtype=np.float32)
+        uv = cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32)
         sc = np.array([k.response for k in kps], dtype=np.float32)
         if mask is not None:
             m = np.asarray(mask)
@@ -112,7 +112,7 @@ class OrbDetector(Detector):
         if des is None or not kps:
             return Detections.empty()
         return Detections(
-            keypoints=np.array([k.pt for k in kps], np.float32),
+            keypoints=cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32),
             scores=np.array([k.response for k in kps], np.float32),
             descriptors=des,
         )
