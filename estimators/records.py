@@ -9,6 +9,8 @@ B (FLU); ``p_W`` / ``v_W`` in the world frame W. Units SI.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -107,11 +109,15 @@ def azimuth_elevation_deg(b_B: np.ndarray) -> tuple[float, float]:
 
 
 def _opt_float(x: float | None) -> float | None:
-    return None if x is None else float(x)
+    return x if x is None or type(x) is float else float(x)
 
 
 def _opt_list(a: np.ndarray | None) -> list[float] | None:
-    return None if a is None else [float(v) for v in np.asarray(a).reshape(-1)]
+    if a is None:
+        return None
+    if type(a) is np.ndarray and a.dtype == np.float64:
+        return a.reshape(-1).tolist()  # plain floats, one C call
+    return [float(v) for v in np.asarray(a).reshape(-1)]
 
 
 @dataclass(frozen=True)
@@ -146,35 +152,63 @@ class TrackReport:
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of CONVENTIONS.md, all values plain Python (finite floats or null)."""
-        b = np.asarray(self.bearing_body, dtype=float).reshape(3)
-        az, el = azimuth_elevation_deg(b)
+        return reports_to_json([self])[0]
+
+
+def _null_nonfinite(d: dict[str, Any]) -> dict[str, Any]:
+    """Replace non-finite floats (and lists holding one) by None in place: JSON has no NaN/inf."""
+    for k, v in d.items():
+        if isinstance(v, float) and not math.isfinite(v):
+            d[k] = None
+        elif isinstance(v, list) and any(isinstance(x, float) and not math.isfinite(x) for x in v):
+            d[k] = None
+    return d
+
+
+def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True) -> list[dict[str, Any]]:
+    """The JSON objects of CONVENTIONS.md for several reports at once (one frame's ``tracks``).
+
+    The (N, 3) body bearings go through numpy together: azimuth = atan2(y, x), elevation =
+    asin(z / |b|), in degrees, as :func:`azimuth_elevation_deg`. Values are plain Python.
+
+    Args:
+        reports: N ``TrackReport``s.
+        null_nonfinite: replace NaN/inf values by None (True). A writer whose JSON encoder refuses
+            non-finite numbers may pass False and call again with True only when the encoder refuses.
+    """
+    n = len(reports)
+    if n == 0:
+        return []
+    B = np.array([r.bearing_body for r in reports], dtype=float).reshape(n, 3)
+    x, y, z = B[:, 0], B[:, 1], B[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        az = np.degrees(np.arctan2(y, x))  # azimuth = atan2(y, x): 0 = nose, +90 = left
+        el = np.degrees(np.arcsin(np.clip(z / np.sqrt(x * x + y * y + z * z), -1.0, 1.0)))  # asin(z/|b|)
+    out = []
+    for r, b, a, e in zip(reports, B.tolist(), az.tolist(), el.tolist(), strict=True):
         d: dict[str, Any] = {
-            "id": int(self.id),
-            "status": self.status,
-            "camera": self.camera,
-            "bearing_body": [float(v) for v in b],
-            "azimuth_deg": az,
-            "elevation_deg": el,
-            "range_m": _opt_float(self.range_m),
-            "range_sigma_m": _opt_float(self.range_sigma_m),
-            "range_min_m": _opt_float(self.range_min_m),
-            "range_max_m": _opt_float(self.range_max_m),
-            "position_body_m": _opt_list(self.position_body_m),
-            "velocity_world_mps": _opt_list(self.velocity_world_mps),
-            "speed_mps": _opt_float(self.speed_mps),
-            "ttc_s": _opt_float(self.ttc_s),
-            "source": self.source,
-            "label": self.label,
-            "nis": _opt_float(self.nis),
-            "innovation": _opt_list(self.innovation),
-            "gated": int(self.gated),
-            "unobservable_reason": self.unobservable_reason,
+            "id": int(r.id),
+            "status": r.status,
+            "camera": r.camera,
+            "bearing_body": b,
+            "azimuth_deg": a,
+            "elevation_deg": e,
+            "range_m": _opt_float(r.range_m),
+            "range_sigma_m": _opt_float(r.range_sigma_m),
+            "range_min_m": _opt_float(r.range_min_m),
+            "range_max_m": _opt_float(r.range_max_m),
+            "position_body_m": _opt_list(r.position_body_m),
+            "velocity_world_mps": _opt_list(r.velocity_world_mps),
+            "speed_mps": _opt_float(r.speed_mps),
+            "ttc_s": _opt_float(r.ttc_s),
+            "source": r.source,
+            "label": r.label,
+            "nis": _opt_float(r.nis),
+            "innovation": _opt_list(r.innovation),
+            "gated": int(r.gated),
+            "unobservable_reason": r.unobservable_reason,
         }
-        if self.attributes:
-            d["attributes"] = self.attributes
-        for k, v in d.items():  # never emit NaN/inf: JSON has no such numbers
-            if isinstance(v, float) and not np.isfinite(v):
-                d[k] = None
-            elif isinstance(v, list) and any(isinstance(x, float) and not np.isfinite(x) for x in v):
-                d[k] = None
-        return d
+        if r.attributes:
+            d["attributes"] = r.attributes
+        out.append(_null_nonfinite(d) if null_nonfinite else d)
+    return out

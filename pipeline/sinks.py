@@ -70,64 +70,21 @@ def write_json(path: str | Path, obj: Any) -> Path:
 _dumps = json.JSONEncoder(allow_nan=False, separators=(", ", ": ")).encode  # json.dumps' own format
 
 
-def _f(x: Any) -> Any:
-    return x if x is None or type(x) is float else float(x)
-
-
-def _v(a: Any) -> Any:
-    return None if a is None else (a.tolist() if type(a) is np.ndarray else [float(v) for v in a])
-
-
 def report_dicts(tracks: Iterable[Any]) -> list[dict]:
     """The ``tracks.jsonl`` objects of one frame's reports (``TrackReport``s, or dicts taken as they are).
 
-    The fields of ``TrackReport.to_json()``, built for all reports together: the (N, 3) body bearings
-    in one array, azimuth/elevation (degrees: ``atan2(y, x)`` and ``asin(z / |b|)``, as
-    ``estimators.records.azimuth_elevation_deg``) vectorised. Non-finite numbers are NOT replaced
-    here: :class:`TracksWriter` encodes with ``allow_nan=False`` and, on a non-finite value, falls back
-    to ``to_json()`` (which nulls them), so the line written is always the same.
+    ``TrackReport``s go through ``estimators.records.reports_to_json`` together, with non-finite
+    numbers NOT replaced: :class:`TracksWriter` encodes with ``allow_nan=False`` and, on a non-finite
+    value, falls back to ``to_json()`` (which nulls them), so the line written is always the same.
     """
-    from estimators.records import TrackReport
+    from estimators.records import TrackReport, reports_to_json
 
     items = list(tracks)
     fast = [k for k, t in enumerate(items) if type(t) is TrackReport]
     if len(fast) < len(items):
         items = [t.to_json() if hasattr(t, "to_json") and type(t) is not TrackReport else t for t in items]
-    if not fast:
-        return items
-    reps = [items[k] for k in fast]
-    B = np.array([r.bearing_body for r in reps], dtype=float).reshape(len(reps), 3)
-    x, y, z = B[:, 0], B[:, 1], B[:, 2]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        az = np.degrees(np.arctan2(y, x))  # azimuth = atan2(y, x): 0 = nose, +90 = left
-        el = np.degrees(np.arcsin(np.clip(z / np.sqrt(x * x + y * y + z * z), -1.0, 1.0)))  # asin(z/|b|)
-    Bl, azl, ell = B.tolist(), az.tolist(), el.tolist()
-    for j, r in enumerate(reps):
-        d: dict[str, Any] = {
-            "id": int(r.id),
-            "status": r.status,
-            "camera": r.camera,
-            "bearing_body": Bl[j],
-            "azimuth_deg": azl[j],
-            "elevation_deg": ell[j],
-            "range_m": _f(r.range_m),
-            "range_sigma_m": _f(r.range_sigma_m),
-            "range_min_m": _f(r.range_min_m),
-            "range_max_m": _f(r.range_max_m),
-            "position_body_m": _v(r.position_body_m),
-            "velocity_world_mps": _v(r.velocity_world_mps),
-            "speed_mps": _f(r.speed_mps),
-            "ttc_s": _f(r.ttc_s),
-            "source": r.source,
-            "label": r.label,
-            "nis": _f(r.nis),
-            "innovation": _v(r.innovation),
-            "gated": int(r.gated),
-            "unobservable_reason": r.unobservable_reason,
-        }
-        if r.attributes:
-            d["attributes"] = r.attributes
-        items[fast[j]] = d
+    for k, d in zip(fast, reports_to_json([items[k] for k in fast], null_nonfinite=False), strict=True):
+        items[k] = d
     return items
 
 
