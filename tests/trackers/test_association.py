@@ -207,3 +207,39 @@ def test_stereo_feature_ids_name_one_physical_point_in_both_views(stereo_scene):
     assert ok.sum() >= 10
     assert np.mean(pts[0][1][ok] == pts[1][1][ok]) >= 0.9
     assert np.median(np.linalg.norm(pts[0][0][ok] - pts[1][0][ok], axis=1) / pts[0][2][ok]) < tol
+
+
+def test_stereo_klt_on_lens_crops_equals_full_frames():
+    """stereo_klt on the lens crops (as the front end runs it, FeatureTracker.roi with origins on
+    multiples of 16 px) finds the same features at the same pixels as on the full frames: a camera
+    turned 3 degrees about y sees a world at infinity (pure rotation), so every match must also sit
+    where the model projects R b_a (checked to 0.3 px)."""
+    import itertools
+
+    import cv2
+
+    from estimators.rig import Camera, forward_T_C_B
+    from tests.trackers.conftest import SphereScene
+    from trackers.association import stereo_klt
+    from trackers.detectors import make_detector
+    from trackers.features import FeatureTracker
+
+    model = equidistant(640, 480)
+    scene = SphereScene(model)
+    R_b_a = rot_axis([0, 1, 0], np.radians(3.0)).T  # b_b = R_b_a b_a
+    img_a, img_b = scene.render(None), scene.render(R_b_a.T)
+    ft = FeatureTracker(Camera("a", model, forward_T_C_B()), make_detector("orb"), ids=itertools.count(1))
+    ft.track(img_a, 0, 0.0)
+    assert ft.roi[0] % 16 == 0 and ft.roi[1] % 16 == 0 and ft.roi != (0, 0, 640, 480)
+    x0, y0, x1, y1 = ft.roi
+    crop = lambda im: np.ascontiguousarray(im[y0:y1, x0:x1])  # noqa: E731
+    off = np.array([x0, y0], float)
+    cv2.setNumThreads(1)
+    uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
+    full = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t)
+    cropped = stereo_klt(crop(img_a), crop(img_b), b_a, uv_a, model, R_b_a, t, off_a=off, off_b=off)
+    assert len(full[0]) > 100
+    np.testing.assert_array_equal(full[0], cropped[0])
+    np.testing.assert_allclose(full[1], cropped[1], atol=1e-3)
+    expected, _ = model.bearing_to_pixel(b_a[cropped[0]] @ R_b_a.T)
+    assert np.median(np.linalg.norm(cropped[1] - expected, axis=1)) < 0.3
