@@ -48,11 +48,10 @@ from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.fusion_stats import nees_interval
 from estimators.records import CameraView, ObstacleObservation
 from estimators.thesis import eq_3_8_mono_Y
+from pipeline.config import scenarios_dir
 
 __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", "run_bearings",
            "summarize", "format_table", "format_scenes", "run_accuracy", "TARGETS"]
-
-SCENARIO_DIR = Path(__file__).resolve().parents[1] / "configs" / "scenarios"
 
 # The numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -129,7 +128,7 @@ def preset_scenarios(quick: bool):
     ]
     out = []
     for n in names:
-        p = SCENARIO_DIR / f"{n}.yaml"
+        p = scenarios_dir() / f"{n}.yaml"
         if p.is_file():
             out.append(load_scenario(p))
     return out
@@ -612,7 +611,7 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
     samples: list[Sample] = []
     per_scene: dict = {}
     for name in names:
-        scn = load_scenario(SCENARIO_DIR / f"{name}.yaml")
+        scn = load_scenario(scenarios_dir() / f"{name}.yaml")
         if opts.quick:  # long enough for "after 1 s in view"
             scn = scn.model_copy(update={"duration_s": max(scn.duration_s, 2.0)})
         sdir = root / "scenes" / name
