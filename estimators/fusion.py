@@ -196,6 +196,9 @@ class FusionSettings:
             feature_min_count member features that do not range it. Default False (null range
             then; the accuracy analyst's replays: mono p90 4.9 -> 4.2 %, range NEES mean 8.6 -> 5.5,
             ranged share 100 -> 85 %).
+        moving_mono_max_s: a moving-hypothesis (stereo-fed) track seen by one camera only reports no
+            range once its last range measurement (stereo fix, feature range) is older than this
+            (s): bearings alone do not range a moving obstacle. Default 0.3.
         feature_min_depth_m: a feature's point must lie this far (m) in front of the camera (rays from
             one place, e.g. hovering, meet at the camera centre). Default 0.1 (tracked stereo_hover:
             range NEES mean 1729 -> 8.5 against 0: a stereo track ranged 0.35 m from such points).
@@ -245,6 +248,7 @@ class FusionSettings:
     feature_max_chi: float = 36.0
     rep_stereo_with_features: bool = False
     rep_ray_mono_with_features: bool = False
+    moving_mono_max_s: float = 0.3
     feature_min_depth_m: float = 0.1
     feature_point_sigma_k: float = 2.5
     feature_range_floor_frac: float = 0.015
@@ -492,9 +496,10 @@ class _FrameContext:
     """What every track's report of one frame shares: T_W_B's inverse rotation R_B_W (3, 3), the
     body origin o_W (3,) m and the drone's velocity v_drone_W (3,) m/s, in W."""
 
-    __slots__ = ("R_B_W", "o_W", "v_drone_W")
+    __slots__ = ("R_B_W", "o_W", "v_drone_W", "t_s")
 
-    def __init__(self, T_W_B: Pose, v_drone_W: np.ndarray) -> None:
+    def __init__(self, T_W_B: Pose, v_drone_W: np.ndarray, t_s: float = 0.0) -> None:
+        self.t_s = t_s
         self.R_B_W = T_W_B.R.T
         self.o_W = T_W_B.t
         self.v_drone_W = np.asarray(v_drone_W, dtype=float)
@@ -544,6 +549,7 @@ class _Track:
     feature_point: np.ndarray | None = None  # the median member feature's own point (W), this frame
     feature_stereo_point: np.ndarray | None = None  # the median shared feature's stereo point (W)
     feature_stereo_fid: int | None = None  # the id of that feature (kept while it stays inner)
+    t_ranged: float = -math.inf  # last time a range measurement (stereo, features) fed the state
 
 
 class ObstacleFusion:
@@ -606,7 +612,7 @@ class ObstacleFusion:
             T_W_B = self.egomotion.pose_at(t_s)
         except InputError as e:
             raise InputError(f"frame {frame} (t_s={t_s:.6f} s): ego-motion: {e}") from e
-        fc = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s))
+        fc = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s), t_s)
         reports: list[TrackReport] = []
         seen: set[int] = set()
         todo: list[tuple[_Track, ObstacleObservation]] = []
@@ -863,6 +869,7 @@ class ObstacleFusion:
                     for v in sg.views:
                         self._bearing_update(tr, v)
                 tr.sources.add("stereo")
+                tr.t_ranged = sg.t_s
             else:  # (only the first view's bearing when the two are different points: ghost)
                 for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
                     self._bearing_update(tr, v)
@@ -1358,6 +1365,7 @@ class ObstacleFusion:
                 tr.kf.x = X[k]
                 tr.kf.P = P[k]
             tr.t_kf = sg.t_s
+            tr.t_ranged = sg.t_s
             tr.gated_run = 0
             tr.reason = None
             tr.sources.add("mono")
@@ -1403,6 +1411,7 @@ class ObstacleFusion:
         tr.t_kf = sg.t_s
         tr.moving = True
         tr.sources.add("stereo")
+        tr.t_ranged = sg.t_s
         tr.gated_run = 0
         tr.reason = None
 
@@ -1537,8 +1546,14 @@ class ObstacleFusion:
         """
         s = self.settings
         out: list[TrackReport | None] = [None] * len(items)
-        with_kf = [k for k, (tr, _st) in enumerate(items) if tr.kf is not None]
-        without = [k for k, (tr, _st) in enumerate(items) if tr.kf is None]
+        # a moving-hypothesis track that one camera alone has seen for longer than
+        # moving_mono_max_s: its range is unobservable (a bearing does not range a moving
+        # obstacle), so none is reported while its filter waits for the next stereo fix
+        hold = s.moving_mono_max_s
+        t_now = fc.t_s
+        stale = [tr.kf is not None and tr.moving and t_now - tr.t_ranged > hold for tr, _st in items]
+        with_kf = [k for k, (tr, _st) in enumerate(items) if tr.kf is not None and not stale[k]]
+        without = [k for k, (tr, _st) in enumerate(items) if tr.kf is None or stale[k]]
         R_B_W = fc.R_B_W
         if with_kf:
             trs = [items[k][0] for k in with_kf]
@@ -1583,7 +1598,10 @@ class ObstacleFusion:
             b_B /= np.sqrt(_dot_rows(b_B, b_B))[:, None]
             for j, (k, tr) in enumerate(zip(without, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
-                kw.update(bearing_body=b_B[j], unobservable_reason=tr.reason or tr.bounds_reason,
+                why = tr.reason or tr.bounds_reason
+                if tr.kf is not None:
+                    why = f"moving obstacle seen by one camera for > {hold:g} s (range unobservable)"
+                kw.update(bearing_body=b_B[j], unobservable_reason=why,
                           source="bounds" if tr.bounds is not None else "")
                 out[k] = _new_report(kw)
         return out  # type: ignore[return-value]

@@ -179,3 +179,36 @@ def test_hover_bounds_of_a_moving_obstacle_are_inconsistent_not_zero():
     assert r.range_m is None
     assert r.range_max_m is None and r.range_min_m is None
     assert r.unobservable_reason  # (why: the mono pair has zero baseline)
+
+
+def test_moving_track_seen_by_one_camera_loses_its_range_after_moving_mono_max_s():
+    # a stereo pair flying at 3 m/s ranges an obstacle crossing at 1.8 m/s (moving hypothesis);
+    # then the second camera loses it. One bearing does not range a moving obstacle: the range
+    # stays reported for moving_mono_max_s (0.3 s) after the last stereo fix, then is null.
+    from estimators.cameras import Equidistant
+    from estimators.egomotion import ConstantVelocity
+    from estimators.fusion import FusionSettings, ObstacleFusion
+    from estimators.records import CameraView, ObstacleObservation
+    from estimators.rig import stereo_forward_rig
+
+    rig = stereo_forward_rig(Equidistant.from_deg_per_px(0.15, 1280, 1280), 0.30)
+    ego = ConstantVelocity(3.0)
+    fus = ObstacleFusion(rig, ego, FusionSettings())
+    rng = np.random.default_rng(8)
+    v_W = np.array([-1.0, 1.5, 0.0])
+    ranged = []
+    for k in range(46):  # 1.5 s; cam1 sees it for the first 0.8 s only
+        t = k / 30.0
+        T_W_B = ego.pose_at(t)
+        p_W = np.array([8.0, -3.0, 0.3]) + v_W * t
+        views = []
+        for c in rig:
+            if c.name == "cam1" and t > 0.8:
+                continue
+            p_C = (c.T_C_B @ T_W_B.inverse()).apply(p_W)
+            b = p_C / np.linalg.norm(p_C) + rng.normal(scale=3e-4, size=3)
+            views.append(CameraView(c.name, b / np.linalg.norm(b), [0, 0], 5e-4))
+        (r,) = fus.step([ObstacleObservation(2, k, t, "confirmed", tuple(views))], k, t)
+        ranged.append((t, r.range_m is not None))
+    assert all(ok for t, ok in ranged if 0.3 <= t <= 0.8 + 0.3 - 1e-6)
+    assert not any(ok for t, ok in ranged if t > 0.8 + 0.3 + 1e-6)
