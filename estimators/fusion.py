@@ -492,6 +492,17 @@ def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
     return np.where(cnt > 0, 0.5 * (vs[lo] + vs[hi]), 0.0)
 
 
+class _Bounds:
+    """A track's moving-obstacle range interval this frame (m, from the body origin; range_max_m
+    None = unbounded): the fields of geometry.RangeBounds the fusion reads, in a slotted class."""
+
+    __slots__ = ("range_min_m", "range_max_m")
+
+    def __init__(self, range_min_m: float, range_max_m: float | None) -> None:
+        self.range_min_m = range_min_m
+        self.range_max_m = range_max_m
+
+
 class _FrameContext:
     """What every track's report of one frame shares: T_W_B's inverse rotation R_B_W (3, 3), the
     body origin o_W (3,) m and the drone's velocity v_drone_W (3,) m/s, in W."""
@@ -538,7 +549,7 @@ class _Track:
     last_seen_t: float = 0.0
     last_views: tuple[_View, ...] = ()
     cameras: tuple[str, ...] = ()
-    bounds: geometry.RangeBounds | None = None
+    bounds: _Bounds | None = None
     bounds_reason: str | None = None
     reason: str | None = None
     bounded_now: bool = False
@@ -1008,25 +1019,22 @@ class ObstacleFusion:
             np.array(ca_l), np.array(ba_l), np.array(cb_l), np.array(bb_l), np.array(dl_l))
         D = np.array(D_l)[rows]
         o = np.broadcast_to(work[0][1].o_W, c_a.shape)
-        r_min, r_max, d_min, _d_max, ok = geometry.moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, o)
+        r_min, r_max, _d_min, _d_max, ok = geometry.moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, o)
         G = len(idx)
         lo = np.full(G, np.inf)
         hi = np.full(G, -np.inf)
-        dlo = np.full(G, np.inf)
         own = rows[ok]
         np.minimum.at(lo, own, r_min[ok])
         np.maximum.at(hi, own, r_max[ok])
-        np.minimum.at(dlo, own, d_min[ok])
         any_ok = np.zeros(G, dtype=bool)
         any_ok[own] = True
-        for i, good, lo_i, hi_i, dlo_i in zip(idx, any_ok.tolist(), lo.tolist(), hi.tolist(),
-                                              dlo.tolist(), strict=True):
+        for i, good, lo_i, hi_i in zip(idx, any_ok.tolist(), lo.tolist(), hi.tolist(), strict=True):
             tr = work[i][0]
             # an upper bound at the camera itself (below bounds_min_range_m): the rays meet only
             # where they start, i.e. no point within the allowed motion (a hovering drone, max
             # speed = its own speed ~0, and an obstacle that moved): inconsistent, not "at 0 m"
             if good and not hi_i < s.bounds_min_range_m:
-                tr.bounds = geometry.RangeBounds(lo_i, None if math.isinf(hi_i) else hi_i, dlo_i, None)
+                tr.bounds = _Bounds(lo_i, None if math.isinf(hi_i) else hi_i)
             else:
                 tr.bounds_reason = "bounds unobservable: inconsistent with max speed"
 
@@ -1582,15 +1590,13 @@ class ObstacleFusion:
                 kw = self._report_common(tr, items[k][1])
                 kw.update(bearing_body=b_B[j], range_m=rng_l[j], range_sigma_m=sig[j],
                           position_body_m=p_B[j])
-                srcs = tr.sources
                 if vel_ok.get(j, False):
                     v_W = X[j, 3:].copy()
                     kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
                 if rw[j] < 0 and ww[j] > 1e-12:
                     kw["ttc_s"] = -rw[j] / ww[j]
-                if tr.bounded_now:
-                    srcs = srcs | {"bounds"}
-                kw["source"] = "+".join(x for x in ("mono", "stereo", "bounds") if x in srcs)
+                srcs = tr.sources
+                kw["source"] = _source_name("mono" in srcs, "stereo" in srcs, tr.bounded_now)
                 out[k] = _new_report(kw)
         if without:
             trs = [items[k][0] for k in without]
@@ -1640,8 +1646,10 @@ def _report_maker():
     required = tuple(f.name for f in flds if f.default is dataclasses.MISSING)
     new = object.__new__
 
+    required_keys = frozenset(required)
+
     def make(kw: dict) -> TrackReport:
-        if "attributes" not in kw or any(k not in kw for k in required):
+        if not kw.keys() >= required_keys:
             return TrackReport(**kw)
         rep = new(TrackReport)
         d = rep.__dict__
@@ -1653,6 +1661,17 @@ def _report_maker():
 
 
 _new_report = _report_maker()
+
+_SOURCE_NAMES = {
+    (m, st, b): "+".join(x for x, on in (("mono", m), ("stereo", st), ("bounds", b)) if on)
+    for m in (False, True) for st in (False, True) for b in (False, True)
+}
+
+
+def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
+    """A report's ``source``: the sources that fed it joined by "+", in the order mono, stereo,
+    bounds (CONVENTIONS.md)."""
+    return _SOURCE_NAMES[(mono, stereo, bounds)]
 
 
 def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np.ndarray:
