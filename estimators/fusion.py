@@ -1363,6 +1363,12 @@ class ObstacleFusion:
         P = np.zeros((K, 6, 6))
         P[:, :3, :3] = _ray_covariances(X[:, :3] - o, sig, sb)
         P[:, 3, 3] = P[:, 4, 4] = P[:, 5, 5] = s.static_velocity_sigma_mps**2
+        # a moving-hypothesis track whose features fit static points: its velocity is assumed
+        # (0), not measured, so it keeps the velocity prior's sigma (and reports no velocity)
+        mov = [k for k, (tr, _sg) in enumerate(batch) if tr.moving]
+        if mov:
+            vp = self._velocity_prior_sigma(fc.t_s) ** 2
+            P[mov, 3, 3] = P[mov, 4, 4] = P[mov, 5, 5] = vp
         r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
         v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
