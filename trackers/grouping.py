@@ -1,14 +1,16 @@
 """Features -> obstacle tracks in one camera: proximity on the unit sphere plus consistent motion.
 
-Per frame (all steps are array operations over the features and tracks, no per-track Python
-except building the output):
+Per frame (array operations over the features and tracks; Python loops only over the tracks to
+write their new state and over components wide enough to be cut):
 
 1. Each track keeps its member features that are still alive and still move with it: a member
    whose rotation-compensated flow differs from the track's mean flow by more than
    ``flow_abs_rad_s + flow_rel * |flow|`` leaves, and so does one farther than ``max_radius_rad``
    from the track's representative bearing.
 2. Unassigned features old enough to have a flow join the track of their nearest member within
-   ``link_rad`` when their flow agrees.
+   ``link_rad`` when their flow agrees; a track short of members (coasting, or its features
+   replaced) takes the free features within ``link_rad`` of where it was predicted to be that
+   move like it.
 3. The rest are grouped by connected components of the graph "angular distance < link_rad and flow
    agrees"; a component wider than ``max_radius_rad`` is cut into pieces of that radius. A piece of
    at least ``min_features`` features (or a small isolated one, see ``min_features_isolated``)
@@ -16,10 +18,13 @@ except building the output):
    frame) when it lies within ``max_radius_rad`` of where that track was predicted to be and moves
    like it (closest pairs first); otherwise it starts a tentative track.
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
-   moving with it surround it, i.e. lie in at least ``extended_sectors`` of 8 angular sectors
-   around it (sectors outside the lens do not count against it). A bounded obstacle has a motion
+   surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
+   outside the lens do not count against it) and the flow field they span (an affine fit in the
+   tangent plane) agrees with the track's flow at the track. A bounded obstacle has a motion
    boundary or empty space around most of it; a piece of a textured surface does not. An embedded
-   piece starts no track; a track embedded ``extended_frames`` frames in a row is dropped (lost).
+   piece starts no track and a tentative track embedded ``extended_frames`` frames in a row is
+   dropped (lost); their features start no new group for ``BG_FRAMES`` frames (they may still
+   join a track they move with).
 5. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
    than ``max_missed`` frames -> lost (reported once, then dropped). An unseen track coasts: its
    bearing moves on with its last flow (and the camera's rotation when given).
@@ -111,7 +116,8 @@ class ObstacleGrouper:
         extended_sectors: a track is on extended texture when features moving with it lie in at
             least this many of the 8 sectors around it (empty sectors outside the lens excepted,
             at least 4 occupied); 0 turns the rule off.
-        extended_frames: frames in a row a track may be on extended texture before it is dropped.
+        extended_frames: frames in a row a tentative track may be on extended texture before it
+            is dropped (confirmed tracks are kept).
         centre_gain: pull of the representative bearing towards the member mean per frame.
         sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
         label: label of the tracks (the detector's name).
@@ -136,7 +142,6 @@ class ObstacleGrouper:
         coast_predict: bool = True,
         extended_sectors: int = 6,
         extended_frames: int = 3,
-        extended_loose: float = 1.0,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
         label: str = "orb",
@@ -172,7 +177,6 @@ class ObstacleGrouper:
         self.coast_predict = bool(coast_predict)
         self.extended_sectors = int(extended_sectors)
         self.extended_frames = int(extended_frames)
-        self.extended_loose = float(extended_loose)
         self.centre_gain = float(centre_gain)
         self.sigma_floor_px = float(sigma_floor_px)
         self.label = label
@@ -232,8 +236,9 @@ class ObstacleGrouper:
                 bad = ~self._agree(flow[sel], fnorm[sel], tflow[o], loose) & has_flow[o]
                 owner[sel[bad]] = -1
         tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
-        # 2. unassigned features with a flow join the track of their nearest member
-        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
+        # 2. unassigned features with a flow join the track of their nearest member (features
+        # marked as extended texture too: they start no new group, but may move with a track)
+        free = np.flatnonzero((owner < 0) & fvalid)
         memb = np.flatnonzero(owner >= 0)
         if len(free) and len(memb):
             cosd = b[free] @ b[memb].T
@@ -248,7 +253,7 @@ class ObstacleGrouper:
         need_t = np.array([t.keep_min or self._keep_min() for t in tracks], np.int64).reshape(T)
         cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
         short = np.flatnonzero((cnt_now < need_t) & (hits > 0))
-        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
+        free = np.flatnonzero((owner < 0) & fvalid)
         pred = rep[short] @ R1.T if R1 is not None else rep[short]
         pred = _normalise(pred + tflow[short] * dt_s) if self.coast_predict else pred
         if len(short) and len(free):
@@ -655,7 +660,7 @@ class ObstacleGrouper:
         thr = self.flow_abs + self.flow_rel * np.maximum(
             np.linalg.norm(c0, axis=1), np.linalg.norm(tf, axis=1)
         )
-        out[surrounded] = gap < self.extended_loose * thr
+        out[surrounded] = gap < thr
         return out
 
     def _rad_per_px(self, ft: FeatureTracker) -> float:
