@@ -43,19 +43,38 @@ class CameraView:
     feature_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def __post_init__(self) -> None:
-        b = np.asarray(self.b_C, dtype=float).reshape(-1)
-        if b.shape != (3,) or not np.all(np.isfinite(b)) or abs(np.linalg.norm(b) - 1.0) > 1e-6:
+        # The front end builds ~100 of these a frame: checks in plain floats, arrays converted only
+        # when they are not already float64/int64 of the right shape.
+        b = self.b_C
+        if type(b) is not np.ndarray or b.dtype != np.float64 or b.shape != (3,):
+            b = np.asarray(b, dtype=float).reshape(-1)
+        if b.shape != (3,):
             raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
-        if not (np.isfinite(self.sigma_rad) and self.sigma_rad > 0):
+        x, y, z = b.tolist()
+        n2 = x * x + y * y + z * z  # NaN or inf in any component -> n2 not finite
+        if not (math.isfinite(n2) and abs(math.sqrt(n2) - 1.0) <= 1e-6):
+            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
+        sig = float(self.sigma_rad)
+        if not (math.isfinite(sig) and sig > 0):
             raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {self.sigma_rad!r}")
-        ids = np.asarray(self.feature_ids, dtype=np.int64).reshape(-1)
-        fb = check_rows("CameraView.feature_b_C", self.feature_b_C, 3)
+        ids = self.feature_ids
+        if type(ids) is not np.ndarray or ids.dtype != np.int64 or ids.ndim != 1:
+            ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+        fb = self.feature_b_C
+        if type(fb) is np.ndarray and fb.dtype == np.float64 and fb.ndim == 2 and fb.shape[1] == 3:
+            if fb.size and not np.isfinite(fb).all():
+                raise InputError("CameraView.feature_b_C: contains NaN or infinite values")
+        else:
+            fb = check_rows("CameraView.feature_b_C", fb, 3)
         if len(ids) != len(fb):
             raise InputError(
                 f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"
             )
+        uv = self.uv
+        if type(uv) is not np.ndarray or uv.dtype != np.float64 or uv.shape != (2,):
+            uv = np.asarray(uv, dtype=float).reshape(2)
         object.__setattr__(self, "b_C", b)
-        object.__setattr__(self, "uv", np.asarray(self.uv, dtype=float).reshape(2))
+        object.__setattr__(self, "uv", uv)
         object.__setattr__(self, "feature_ids", ids)
         object.__setattr__(self, "feature_b_C", fb)
 
