@@ -192,7 +192,10 @@ class TrackerConfig(_Section):
         "distance between neighbouring features of one obstacle, at the lens's mean scale), "
         "max_radius_px (px, largest distance of a member from its track's representative point), "
         "flow_abs_rad_s (rad/s), flow_rel, min_features (int), min_age (frames), confirm_frames (frames), "
-        "max_missed (frames).",
+        "max_missed (frames), extended_sectors (int, 0-8: a new piece of features surrounded in this "
+        "many of 8 sectors by features moving with it is part of a large textured surface and starts no "
+        "track; 0 turns the rule off), extended_frames (frames a tentative track may be judged so before "
+        "it is dropped).",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,
