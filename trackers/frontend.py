@@ -271,7 +271,7 @@ class FrontEnd:
                         ft.densify(grey, np.array([t.uv for t in small]), np.array(radii), frame, t_s)
                     tm["detect"] += time.perf_counter() - t0
                 else:
-                    s1, l1 = [], gr.coast(t_s, self._camera_rotations(cam, rot))
+                    s1, l1 = [], gr.coast(t_s, self._camera_rotations(self._R_C_B[name], rot))
                 s += s1
                 lost += l1
             if name in self.boxers:

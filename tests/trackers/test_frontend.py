@@ -9,6 +9,7 @@ from estimators.cameras import Equidistant
 from estimators.errors import ConfigError, InputError
 from estimators.records import ObstacleObservation
 from estimators.rig import mono_forward_rig
+from estimators.se3 import Pose
 from tests.trackers.conftest import SphereScene
 from trackers.frontend import STAGES, FrontEnd
 
@@ -40,24 +41,27 @@ BAD = [
 ]
 
 
+@pytest.mark.parametrize("with_pose", [False, True], ids=["no pose", "pose"])
 @pytest.mark.parametrize("case,build,exc", BAD, ids=[b[0] for b in BAD])
-def test_bad_input(model, rig, case, build, exc):
+def test_bad_input(model, rig, case, build, exc, with_pose):
     """Each bad frame either raises the expected error with a message naming the problem, or gives
-    an empty/non-crashing result; after it the front end keeps working on good frames."""
+    an empty/non-crashing result; after it the front end keeps working on good frames. With a body
+    pose given (as run/live do), tracks coast through the bad frame with the camera's rotation."""
     fe = FrontEnd(rig)
     g = good_grey(model)
+    pose = {"T_W_B": Pose.identity()} if with_pose else {}
     for k in range(3):
-        fe.process({"cam0": g}, k, k / 30)
+        fe.process({"cam0": g}, k, k / 30, **pose)
     if exc is not None:
         with pytest.raises(exc) as ei:
-            fe.process(build(g), 3, 0.1)
+            fe.process(build(g), 3, 0.1, **pose)
         assert "cam" in str(ei.value) or "mapping" in str(ei.value)
     else:
-        out = fe.process(build(g), 3, 0.1)
+        out = fe.process(build(g), 3, 0.1, **pose)
         assert all(isinstance(o, ObstacleObservation) for o in out)
         if case in ("black", "saturated", "saturated BGR", "flat grey", "camera missing (dropped)"):
             assert [o for o in out if o.status != "lost"] == []
-    out = fe.process({"cam0": g}, 4, 4 / 30)  # recovers
+    out = fe.process({"cam0": g}, 4, 4 / 30, **pose)  # recovers
     assert isinstance(out, list)
 
 
