@@ -295,6 +295,11 @@ class FusionSettings:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"FusionSettings.{name}: expected a value > 0, got {getattr(self, name)}")
+        if not 0.0 <= self.feature_point_quantile <= 1.0:
+            raise ConfigError(
+                "FusionSettings.feature_point_quantile: expected a quantile in [0, 1], "
+                f"got {self.feature_point_quantile}"
+            )
         if int(self.reinit_after_gated) != self.reinit_after_gated or self.reinit_after_gated < 1:
             raise ConfigError(
                 f"FusionSettings.reinit_after_gated: expected an integer >= 1, got {self.reinit_after_gated}"

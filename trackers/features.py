@@ -119,7 +119,7 @@ class FeatureTracker:
             mismatch is kept (issue 4: fewer dying features on textured obstacles).
         margin_px: lens-circle margin (features closer to the circle's edge are dropped).
 
-    KLT runs on the lens circle's bounding box (``roi``, origin on a multiple of 8 px so the
+    KLT runs on the lens circle's bounding box (``roi``, origin on a multiple of 16 px so the
     crop's pyramid levels sample the frame's own grid): the same tracks as on the full frame
     (checked on a 1280x720 bench clip: same verdicts, positions within 0.001 px) for about half
     the pyramid work. Feature velocities are in px per second (``t_s``), so the KLT prediction

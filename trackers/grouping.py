@@ -445,7 +445,7 @@ class ObstacleGrouper:
         self._bg_ids, self._bg_until = allid[order], until[order]
 
     def _keep_min(self) -> int:
-        """Members a track needs to stay seen (tracks of small isolated obstacles: 1)."""
+        """Members a track needs to stay seen: half of min_features, at least 2."""
         return max(2, self.min_features // 2)
 
     def _coast_one(self, tr: ObstacleTrack, dt_s: float, R1: np.ndarray | None) -> bool:

@@ -24,13 +24,6 @@ DEFAULT_SCENARIO = "demo.yaml"  # stereo: ranges, bounds and obstacle velocity; 
 DEFAULT_RESOLUTION = (640, 360)
 
 
-def scenarios_dir() -> Path:
-    """The scenario presets: ``configs/scenarios``, shipped with the package (``pipeline.config``)."""
-    from pipeline.config import scenarios_dir as shipped
-
-    return shipped()
-
-
 def _pct(v: Any) -> str:
     return "-" if v is None else f"{100 * v:.1f}%"
 
@@ -66,7 +59,7 @@ def run_demo(
     pole's bounding sphere is as wide as the pole is tall); their range error is given separately.
     """
     from estimators.errors import ConfigError
-    from pipeline.config import find_preset, load_config
+    from pipeline.config import find_preset, load_config, scenarios_dir
     from pipeline.evaluate import evaluate, format_table, range_metrics, write_outputs
     from pipeline.run import run, wants_grey
     from pipeline.sim.scene import load_scenario

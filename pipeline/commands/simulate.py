@@ -26,7 +26,9 @@ def _parse_resolution(text: str | None) -> tuple[int, int] | None:
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate_cmd(
-        scenario: Annotated[Path, typer.Argument(help="Scenario YAML (see configs/scenarios/).")],
+        scenario: Annotated[
+            Path, typer.Argument(help="Scenario YAML, or a shipped preset's name (e.g. demo, mono_straight).")
+        ],
         out: Annotated[Path, typer.Option("--out", "-o", help="Output folder (created).")],
         frames: Annotated[
             int | None, typer.Option("--frames", help="Number of frames (default: duration x fps).")
@@ -43,10 +45,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Render raw fisheye video of a scenario and write videos, camchain.yaml, trajectory.tum,
         scene.yaml and gt.jsonl into OUT."""
+        from pipeline.config import find_preset, scenarios_dir
         from pipeline.sim.scene import load_scenario
         from pipeline.sim.writer import simulate
 
-        scn = load_scenario(scenario)
+        scn = load_scenario(find_preset(scenario, scenarios_dir(), "scenario"))
         res = simulate(scn, out, frames=frames, seconds=seconds, resolution=_parse_resolution(resolution),
                        progress=progress, grey=grey)
         w, h = res.resolution

@@ -433,7 +433,7 @@ def test_bad_observation_input():
 
 @pytest.mark.parametrize(
     "kw", [{"max_accel_mps2": -1.0}, {"gate_probability": 1.0}, {"lost_after_s": 0.0},
-           {"max_speed_mps": float("nan")}, {"reinit_after_gated": 0}]
+           {"max_speed_mps": float("nan")}, {"reinit_after_gated": 0}, {"feature_point_quantile": 1.5}]
 )
 def test_settings_validation(kw):
     with pytest.raises(ConfigError, match="FusionSettings"):

@@ -86,6 +86,10 @@ class OrbDetector(Detector):
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
         """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8."""
         grey = to_grey(image)
+        if mask is not None and np.shape(mask)[:2] != grey.shape[:2]:
+            raise InputError(
+                f"orb: mask of shape {np.shape(mask)} for a {grey.shape[:2]} image; expected the same size"
+            )
         kps = self._orb.detect(grey, None)
         if not kps:
             return Detections.empty()
@@ -105,10 +109,6 @@ class OrbDetector(Detector):
                 sc = np.array([k.response for k in kps], dtype=np.float32)
         if mask is not None:
             m = np.asarray(mask)
-            if m.shape[:2] != grey.shape[:2]:
-                raise InputError(
-                    f"orb: mask of shape {m.shape} for a {grey.shape[:2]} image; expected the same size"
-                )
             ui = np.clip(np.rint(uv[:, 0]).astype(np.intp), 0, m.shape[1] - 1)
             vi = np.clip(np.rint(uv[:, 1]).astype(np.intp), 0, m.shape[0] - 1)
             inside = np.flatnonzero(m[vi, ui] > 0)
