@@ -47,6 +47,7 @@ from pipeline.sources import PacedSource, Source, VideoSource, open_capture
 
 __all__ = [
     "LIVE_SWITCH_INTERVAL_S",
+    "PAIR_WAIT_SLACK_S",
     "LiveFrame",
     "frame_time",
     "Grabber",
@@ -62,6 +63,12 @@ __all__ = [
 
 #: Python's thread switch interval (s) while ``run_live`` runs (``sys.setswitchinterval``).
 LIVE_SWITCH_INTERVAL_S = 0.0005
+
+#: Scheduling slack (s) added to two frame intervals: how long a camera's partner frame is waited for.
+PAIR_WAIT_SLACK_S = 0.1
+
+#: Longest single condition wait (s), so waits re-read the injected clock.
+_WAIT_POLL_S = 0.05
 
 
 @dataclass(frozen=True)
@@ -130,7 +137,13 @@ class CaptureReader:
 class SourceReader:
     """A recorded :class:`Source` (e.g. a paced video replay) read frame by frame; it ends at its end.
 
-    ``arrival_s``: for a :class:`PacedSource`, when the last frame was due (``time.monotonic()``), i.e.
+    A :class:`PacedSource` is paced here (same rule: frame k is due at ``start + (t_k - t_0) / speed``
+    on its clock) so that :meth:`set_start` can give the replays of one rig a common start: each
+    replay's schedule then agrees with the others' whenever each camera was opened (a camera opened
+    late publishes its overdue frames at once, with their due time as arrival), instead of starting
+    when its own thread first reads. Without ``set_start`` the schedule starts at the first read.
+
+    ``arrival_s``: for a paced replay, when the last frame was due (clock of the PacedSource), i.e.
     when a camera would have delivered it; the grabber takes that as the frame's arrival, so a replay
     that falls behind its schedule shows as latency, not as a later arrival. None otherwise.
     """
@@ -139,13 +152,37 @@ class SourceReader:
 
     def __init__(self, source: Source):
         self.source = source
-        self._it = iter(source)
+        self._paced = source if isinstance(source, PacedSource) else None
+        self._it = iter(source.inner if self._paced is not None else source)
         self.arrival_s: float | None = None
+        self.start_s: float | None = None  # the schedule's start (clock of the PacedSource)
+        self._t0: float | None = None
+
+    def set_start(self, start_s: float) -> None:
+        """Start the replay's schedule at ``start_s`` (s, the PacedSource's clock, e.g. monotonic)."""
+        self.start_s = float(start_s)
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
         f = next(self._it, None)
-        self.arrival_s = getattr(self.source, "last_due_s", None)
-        return (None, None) if f is None else (f.image, f.t_s)
+        p = self._paced
+        if p is None:
+            self.arrival_s = getattr(self.source, "last_due_s", None)
+            return (None, None) if f is None else (f.image, f.t_s)
+        if f is None:
+            p.error = p.inner.error
+            return None, None
+        if self.start_s is None:
+            self.start_s = p.clock()
+        if self._t0 is None:
+            self._t0 = f.t_s
+        due = self.start_s + (f.t_s - self._t0) / p.speed  # due = start + (t_k - t_0) / speed
+        wait = due - p.clock()
+        if wait > 0:
+            p.sleep(wait)
+        p.last_due_s, p.last_arrival_s = due, p.clock()
+        p.frames_read += 1
+        self.arrival_s = due
+        return f.image, f.t_s
 
     def close(self) -> None:
         self.source.close()
@@ -184,6 +221,8 @@ class Grabber:
         self._cond = threading.Condition()
         self._latest: LiveFrame | None = None
         self._recent: deque[LiveFrame] = deque(maxlen=8)  # the last frames, to pair cameras by time
+        self._last_publish_s: float | None = None  # clock when the last frame was published
+        self._started_s: float | None = None  # clock when the thread was started
         self._taken_seq = -1
         self._stop = threading.Event()
         self.finished = False
@@ -200,6 +239,7 @@ class Grabber:
     def start(self, reader: Any = None) -> Grabber:
         """Start the thread; ``reader``: an already opened reader (so open errors reach the caller)."""
         self._reader = reader
+        self._started_s = self.clock()
         self._thread.start()
         return self
 
@@ -208,6 +248,7 @@ class Grabber:
             if self._latest is not None and self._latest.seq > self._taken_seq:
                 self.stale += 1  # never taken: dropped in favour of the newer frame
             now = self.clock()
+            self._last_publish_s = now
             if arrival_s is not None:
                 self.lag.add(max(0.0, now - arrival_s))
             self._latest = LiveFrame(self.grabbed, t_s, image, now if arrival_s is None else arrival_s)
@@ -276,16 +317,17 @@ class Grabber:
             self._cond.notify_all()
 
     def take(self, timeout_s: float) -> LiveFrame | None:
-        """The newest frame not taken yet; waits up to ``timeout_s``. None on timeout or when finished."""
-        deadline = time.monotonic() + timeout_s
+        """The newest frame not taken yet; waits up to ``timeout_s`` (s, on ``clock``). None on timeout
+        or when finished."""
         with self._cond:
+            deadline = self.clock() + timeout_s
             while self._latest is None or self._latest.seq <= self._taken_seq:
                 if self.finished:
                     return None
-                left = deadline - time.monotonic()
+                left = deadline - self.clock()
                 if left <= 0:
                     return None
-                self._cond.wait(left)
+                self._cond.wait(min(left, _WAIT_POLL_S))
             self._taken_seq = self._latest.seq
             return self._latest
 
@@ -296,17 +338,40 @@ class Grabber:
                 self._taken_seq = self._latest.seq
             return self._latest
 
-    def nearest(self, t: float, tolerance_s: float) -> LiveFrame | None:
-        """Of this camera's last few frames, the one whose time (:func:`frame_time`) is nearest ``t``,
-        if within ``tolerance_s``; waits up to ``tolerance_s`` for a frame at or after ``t`` to arrive
-        (the partner of another camera's frame may be a moment behind it). None when there is none."""
-        deadline = time.monotonic() + tolerance_s
+    def _pair_wait_s(self) -> float:
+        """How long (s, on ``clock``) :meth:`nearest` waits for a frame at or after the lead's time:
+        two of this camera's frame intervals (from its recent frame times) plus scheduling slack, at
+        most ``stall_timeout_s``; ``stall_timeout_s`` while the interval is unknown. Caller holds the
+        lock."""
+        if len(self._recent) < 2:
+            return self.stall_timeout_s
+        span = frame_time(self._recent[-1]) - frame_time(self._recent[0])
+        if not span > 0:
+            return self.stall_timeout_s
+        interval = span / (len(self._recent) - 1)
+        return min(self.stall_timeout_s, 2.0 * interval + PAIR_WAIT_SLACK_S)
+
+    def nearest(self, t: float, tolerance_s: float, wait_s: float | None = None) -> LiveFrame | None:
+        """This camera's frame of frame time ``t`` (another camera's frame; s, :func:`frame_time`).
+
+        Pairing is in frame time: of the last few frames, the one whose time is nearest ``t`` joins
+        when ``|time - t| <= tolerance_s``. Waiting is in wall time (on ``clock``) and separate from the
+        tolerance: until this camera has a frame at or after ``t`` (so the nearest one is known),
+        at most ``wait_s`` (default: about two frame intervals, see :meth:`_pair_wait_s`), and not
+        at all for a camera that published nothing for ``stall_timeout_s`` (stopped) or finished.
+        None when there is no frame within the tolerance.
+        """
         with self._cond:
+            now = self.clock()
+            deadline = now + (self._pair_wait_s() if wait_s is None else float(wait_s))
+            last = self._last_publish_s if self._last_publish_s is not None else self._started_s
+            if last is not None:  # a stopped camera (nothing for stall_timeout_s) is not waited for
+                deadline = min(deadline, last + self.stall_timeout_s)
             while not self.finished and (not self._recent or frame_time(self._recent[-1]) < t):
-                left = deadline - time.monotonic()
+                left = deadline - self.clock()
                 if left <= 0:
                     break
-                self._cond.wait(left)
+                self._cond.wait(min(left, _WAIT_POLL_S))
             if not self._recent:
                 return None
             best = min(self._recent, key=lambda f: abs(frame_time(f) - t))
@@ -591,9 +656,22 @@ def run_live(
             m = rig[name].model
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
     grabbers: list[Grabber] = []
+    opened: list[Any] = []
     try:
-        for name, factory in zip(names, readers, strict=True):
-            first = factory()  # open errors (no such camera) surface here, before the run
+        for factory in readers:
+            opened.append(factory())  # open errors (no such camera) surface here, before the run
+    except BaseException:
+        for r in opened:
+            r.close()
+        raise
+    # Replayed files of one rig share one schedule start, set once all are open: a camera that took
+    # longer to open does not run behind the others (pairing is by the videos' own t_s).
+    start_replays = time.monotonic()
+    for r in opened:
+        if hasattr(r, "set_start"):
+            r.set_start(start_replays)
+    try:
+        for name, factory, first in zip(names, readers, opened, strict=True):
             g = Grabber(
                 factory,
                 name,
@@ -606,6 +684,8 @@ def run_live(
     except BaseException:
         for g in grabbers:
             g.stop()
+        for r in opened[len(grabbers) :]:
+            r.close()
         raise
 
     writer = TracksWriter(out / TRACKS_NAME)
@@ -619,7 +699,7 @@ def run_live(
             on_event(f"preview: {video.path}")
     latency = RunningStats()  # arrival -> line written = waited (arrival -> taken) + processing
     waited, processing = RunningStats(), RunningStats()
-    unpaired: dict[str, int] = {}  # lead frames another camera had no frame within the tolerance for
+    unpaired: dict[str, int] = {}  # processed lead frames another camera had no frame within tolerance for
     timings = StageTimings()
     frames = 0
     no_pose = 0
@@ -647,14 +727,16 @@ def run_live(
                     break
                 continue
             images = {names[0]: lead.image}
+            missing = []
             for g, n in zip(grabbers[1:], names[1:], strict=True):
-                # the other cameras' frame of the same instant (nearest in time, within the tolerance);
-                # without one the lead frame goes on alone and the miss is counted
+                # the other cameras' frame of the same instant (nearest in frame time, within the
+                # tolerance; waited for about two of its frame intervals); without one the lead frame
+                # goes on alone and the miss is counted (below, once the frame is processed)
                 f = g.nearest(frame_time(lead), lv.sync_tolerance_s)
                 if f is not None:
                     images[n] = f.image
                 else:
-                    unpaired[n] = unpaired.get(n, 0) + 1
+                    missing.append(n)
             if lead.t_s is not None:
                 t_s = lead.t_s
             elif lv.clock == "unix":
@@ -671,6 +753,8 @@ def run_live(
                     no_pose += 1
                     continue
             last_t_s = t_s
+            for n in missing:  # counted for processed frames only: frames_without_partner <= frames
+                unpaired[n] = unpaired.get(n, 0) + 1
             # The body pose lets the front end take the drone's own rotation out of feature motion.
             obs = frontend.process(images, lead.seq, t_s, T_W_B=egomotion.pose_at(t_s))
             timings.add_all(getattr(frontend, "timings", None))
