@@ -52,7 +52,9 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--reuse-frontend",
                 help="Pipeline mode: replay the fusion over the front end's observations recorded by an "
-                "earlier run into the same --out (runs/<scene>/observations.pkl) instead of tracking again.",
+                "earlier run into the same --out (runs/<scene>/observations.pkl) instead of tracking again; "
+                "a recording made with other trackers/ sources, --quick, scenario text or front-end "
+                "config is recorded again, not replayed.",
             ),
         ] = False,
     ) -> None:
