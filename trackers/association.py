@@ -161,3 +161,53 @@ def stereo_klt(
     good &= okb
     good &= epipolar_residual(b_a[idx], bb, R_b_a, t_b_a) < np.sin(epipolar_rad)
     return idx[good], uv_b[good], bb[good]
+
+
+def klt_links(d2_px2: np.ndarray, link_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (KLT-found point, other camera's feature) that name one physical point.
+
+    A feature of camera a found in camera b's image by stereo KLT (``stereo_klt``: forward-backward
+    and epipolar checked) lands on camera b's own feature of that point when b tracks it. A pair is
+    kept when each is the other's nearest, their distance is at most ``link_px`` and no other of
+    b's features (nor another found point) lies within ``2 link_px`` (unambiguous).
+
+    Args:
+        d2_px2: (K, M) squared pixel distances between K found points in b and b's M features.
+        link_px: largest distance, pixels of b's tracked image.
+    Returns:
+        (i (J,) rows of the found points, j (J,) columns of b's features), row-paired.
+    """
+    d2 = np.asarray(d2_px2, float)
+    if not d2.size:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    r2 = link_px**2
+    j = np.argmin(d2, axis=1)
+    i = np.arange(len(d2))
+    best = d2[i, j]
+    mutual = np.argmin(d2, axis=0)[j] == i
+    # ambiguity: a second candidate within 2 link_px on either side
+    near = d2 <= 4 * r2
+    unique = (near.sum(axis=1) == 1) & (near.sum(axis=0)[j] == 1)
+    keep = (best <= r2) & mutual & unique
+    return i[keep], j[keep]
+
+
+def consistent_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct id pairs in which every id has one partner only.
+
+    Args:
+        ids_a, ids_b: (K,) int feature ids of cameras a and b, row-paired (possibly repeated pairs
+            from several matchers).
+    Returns:
+        (ids_a (J,), ids_b (J,)): the unique pairs, minus those whose a id or b id is paired with
+        another partner too (conflicting evidence links nothing).
+    """
+    ia = np.asarray(ids_a, np.int64).reshape(-1)
+    ib = np.asarray(ids_b, np.int64).reshape(-1)
+    if not len(ia):
+        return ia, ib
+    pairs = np.unique(np.stack([ia, ib], axis=1), axis=0)
+    _, inv_a, cnt_a = np.unique(pairs[:, 0], return_inverse=True, return_counts=True)
+    _, inv_b, cnt_b = np.unique(pairs[:, 1], return_inverse=True, return_counts=True)
+    ok = (cnt_a[inv_a] == 1) & (cnt_b[inv_b] == 1)
+    return pairs[ok, 0], pairs[ok, 1]

@@ -10,6 +10,7 @@ reference-camera (the rig's first) feature is reported under that feature's id (
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from collections import deque
@@ -22,7 +23,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import match_features, stereo_klt
+from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -113,13 +114,16 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        bad = sorted(set(a) - {"every", "epipolar_deg", "max_hamming", "min_votes"})
+        bad = sorted(set(a) - {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px"})
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
         self.assoc_every = int(a.get("every", 5))
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))
         self.min_votes = int(a.get("min_votes", 3))
+        # a reference feature found by stereo KLT within this distance of exactly one of the other
+        # camera's features (and nothing else within twice it) is the same physical point
+        self.klt_link_px = float(a.get("klt_link_px", 1.5))
         # frames wider than max_width are tracked downscaled (the camera model scaled alike, so
         # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
         mw = options.get("max_width", 1280)
@@ -420,8 +424,8 @@ class FrontEnd:
             pairs: dict[tuple[int, int], int] = {}
             # votes 1: ORB descriptors of members matched under the epipolar constraint
             m = match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming)
-            if a == self.rig.cameras[0].name and len(m):
-                self.link_features(b, fa[m[:, 0]], fb[m[:, 1]])
+            ref_a = a == self.rig.cameras[0].name
+            link_a, link_b = [fa[m[:, 0]]], [fb[m[:, 1]]]  # physical-point links (ref id, b's id)
             for i, j in m:
                 key = (int(oa[i]), int(ob[j]))
                 pairs[key] = pairs.get(key, 0) + 1
@@ -436,6 +440,12 @@ class FrontEnd:
                 for i, jj in zip(idx[near], j[near], strict=True):
                     key = (int(ua[2][i]), int(ub[2][jj]))
                     pairs[key] = pairs.get(key, 0) + 1
+                if ref_a:
+                    ia, ib = klt_links(d2, self.klt_link_px)
+                    link_a.append(self.trackers[a].ids[ua[0][idx[ia]]])
+                    link_b.append(self.trackers[b].ids[ub[0][ib]])
+            if ref_a:
+                self.link_features(b, *consistent_pairs(np.concatenate(link_a), np.concatenate(link_b)))
             if not pairs:
                 continue
             best_a: dict[int, tuple[int, int]] = {}
@@ -526,6 +536,12 @@ class FrontEnd:
         with >= 3 found, the track gets a view there: bearing = mean of the found members' bearings
         plus the reference offset of the representative point from its members' mean, rotated into
         that camera (R_b_a). These views carry the same feature ids as the reference members.
+
+        A track that already has a view in camera b (its own grouper's track, linked by
+        ``_associate``) gets the reference members found there the same way added to that view
+        under their reference ids (``_add_found_members``; ``seen[b]`` then holds a copy, the
+        grouper's track is not changed), so close obstacles, whose two cameras' independently
+        detected corners rarely coincide, still have physical-point ids in both views.
         """
         ref = self.rig.cameras[0].name
         out: dict[str, list[ObstacleTrack]] = {}
@@ -535,6 +551,7 @@ class FrontEnd:
         for b in self.cams:
             if b == ref or b not in greys:
                 continue
+            self._add_found_members(seen, ref, b)
             have = {self._global(t.id) for t in seen.get(b, [])}
             todo = [
                 t
@@ -576,6 +593,53 @@ class FrontEnd:
                 )
                 out.setdefault(b, []).append(v)
         return out
+
+    def _add_found_members(self, seen: dict[str, list[ObstacleTrack]], ref: str, b: str) -> None:
+        """Replace, in ``seen[b]``, camera b's grouper tracks that share a global id with a confirmed
+        reference track by copies whose members also hold the reference members found in b's image
+        by stereo KLT (ids: the reference ids; bearings: where KLT found them, (K, 3) unit in C_b).
+        b's own members keep their ids mapped to the reference ones (``link_features``); a reference
+        id already among them is not added twice."""
+        ft = self.trackers[ref]
+        grouper = self.groupers.get(b)
+        if grouper is None or not seen.get(b):
+            return
+        refs: dict[int, ObstacleTrack] = {}
+        for t in seen[ref]:
+            if t.status == "confirmed" and t.label == self.label and len(t.members) >= 3:
+                refs.setdefault(self._global(t.id), t)
+        slots = [
+            (k, tb, refs[g])
+            for k, tb in enumerate(seen[b])
+            if (g := self._global(tb.id)) in refs
+            and grouper.tracks.get(tb.id) is tb
+            and len(tb.member_b_C) == len(tb.members)
+        ]
+        if not slots:
+            return
+        mem = np.concatenate([tr.members for _, _, tr in slots])
+        own = np.repeat(np.arange(len(slots)), [len(tr.members) for _, _, tr in slots])
+        rows, which = self._rows(ft, mem)
+        own, mem = own[which], mem[which]
+        idx, _, bb = self._stereo(ref, b, rows)
+        if not len(idx):
+            return
+        pid = self._pid.get(b, {})
+        for si, (k, tb, _) in enumerate(slots):
+            pos = np.flatnonzero(own[idx] == si)
+            if not len(pos):
+                continue
+            mapped = np.fromiter((pid.get(i, i) for i in tb.members.tolist()), np.int64, len(tb.members))
+            # a reference id found by KLT is placed where KLT found it, also when one of b's members
+            # is linked to it (descriptor links on a near object can pair neighbouring corners along
+            # the epipolar line; KLT starts from the reference feature's own patch)
+            found = mem[idx[pos]]
+            keep = ~np.isin(mapped, found)
+            seen[b][k] = dataclasses.replace(
+                tb,
+                members=np.concatenate([mapped[keep], found]),
+                member_b_C=np.concatenate([tb.member_b_C[keep], bb[pos]]),
+            )
 
     def _members_of(self, gid: int, camera: str) -> bool:
         """Whether global track gid already has a live local track in ``camera``."""
