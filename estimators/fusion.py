@@ -760,13 +760,7 @@ class ObstacleFusion:
         vcam = np.array(cam_l, dtype=np.int64)
         fcnt = np.fromiter((len(f) for f in fid_l), dtype=np.int64, count=len(fid_l))
         M = int(fcnt.sum())
-        if ncam == 1:
-            B = B @ R_W_C[0].T
-        else:
-            for k in range(ncam):
-                m = vcam == k
-                if m.any():
-                    B[m] = B[m] @ R_W_C[k].T
+        B = _rotate_rows(B, vcam, R_W_C)
         B /= np.sqrt(B[:, 0] * B[:, 0] + B[:, 1] * B[:, 1] + B[:, 2] * B[:, 2])[:, None]
         b_rows = list(B)
         feats = None
@@ -774,13 +768,7 @@ class ObstacleFusion:
             ids = np.concatenate(fid_l)
             FB = np.concatenate(fb_l)
             fcam = np.repeat(vcam, fcnt)
-            if ncam == 1:
-                FB = FB @ R_W_C[0].T
-            else:
-                for k in range(ncam):
-                    m = fcam == k
-                    if m.any():
-                        FB[m] = FB[m] @ R_W_C[k].T
+            FB = _rotate_rows(FB, fcam, R_W_C)
             first_view = np.flatnonzero(np.diff(np.array(trk_l, dtype=np.int64), prepend=-1))
             feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam,
                      B[first_view])
@@ -1688,6 +1676,17 @@ def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
     bounds (CONVENTIONS.md)."""
     return _SOURCE_NAMES[(mono, stereo, bounds)]
 
+
+
+def _rotate_rows(X: np.ndarray, cam: np.ndarray, R_W_C) -> np.ndarray:
+    """Rows of X (N, 3), each in its camera's frame ``cam`` (N,) index into R_W_C, rotated to W."""
+    if len(R_W_C) == 1:
+        return X @ R_W_C[0].T
+    for k, R in enumerate(R_W_C):
+        m = cam == k
+        if m.any():
+            X[m] = X[m] @ R.T
+    return X
 
 def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np.ndarray:
     """Covariance (3, 3) of a point at offset d (3,) from a sensor: sigma_along_m along d and
