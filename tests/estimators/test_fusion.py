@@ -115,32 +115,37 @@ def test_hover_mono_range_is_unobservable_with_bounds():
     assert j["range_m"] is None and j["source"] == "bounds"
 
 
+SLIDE_FEATS_W = np.array([14.0, 4.0, 0.5]) + np.array(
+    [[0, 0.3, 0.3], [0, -0.3, 0.3], [0.2, 0, -0.3], [-0.2, 0.2, 0], [0, 0, 0.4], [0.1, -0.2, -0.1]]
+)
+
+
 def _slide_run(settings: FusionSettings):
-    """Six fixed feature points around (14, 4, 0.5) while the representative point slides."""
+    """Six fixed feature points around (14, 4, 0.5) while the representative point slides 1.2 m up
+    the object over a 5 m/s flight. Returns (fusion, last report)."""
     rng = np.random.default_rng(3)
     rig = mono_forward_rig(MODEL)
     ego = ConstantVelocity(5.0)
-    offsets = np.array([[0, 0.3, 0.3], [0, -0.3, 0.3], [0.2, 0, -0.3], [-0.2, 0.2, 0], [0, 0, 0.4],
-                        [0.1, -0.2, -0.1]])
-    feats_W = np.array([14.0, 4.0, 0.5]) + offsets
     fus = ObstacleFusion(rig, ego, settings)
     sigma = 5e-4
     for k in range(46):
         t = k / FPS
         T_W_B = ego.pose_at(t)
         rep_W = np.array([14.0, 4.0, 0.5 + 0.8 * (t - 0.75)])
-        fb = np.array([_bearing(rig[0], T_W_B, f, sigma, rng) for f in feats_W])
+        fb = np.array([_bearing(rig[0], T_W_B, f, sigma, rng) for f in SLIDE_FEATS_W])
         view = CameraView("cam0", _bearing(rig[0], T_W_B, rep_W, sigma, rng), [0, 0], sigma,
                           feature_ids=np.arange(6), feature_b_C=fb)
-        fus.step([ObstacleObservation(5, k, t, "confirmed", (view,))], k, t)
-    return fus._tracks[5].feature_range
+        (r,) = fus.step([ObstacleObservation(5, k, t, "confirmed", (view,))], k, t)
+    return fus, r
 
 
 def test_feature_range_sigma_widens_by_one_plus_k_over_n():
     # (the range on the representative ray, feature_point off) six features, inner half n = 3:
     # k = 3 doubles the sigma (1 + 3 / 3), the range is unchanged
-    z0, s0, n0 = _slide_run(FusionSettings(feature_small_n_inflate=0.0, feature_point=False))
-    z3, s3, n3 = _slide_run(FusionSettings(feature_small_n_inflate=3.0, feature_point=False))
+    f0, _ = _slide_run(FusionSettings(feature_small_n_inflate=0.0, feature_point=False))
+    f3, _ = _slide_run(FusionSettings(feature_small_n_inflate=3.0, feature_point=False))
+    z0, s0, n0 = f0._tracks[5].feature_range
+    z3, s3, n3 = f3._tracks[5].feature_range
     assert n0 == n3 == 3
     assert z3 == z0
     assert s3 == pytest.approx(2.0 * s0, rel=1e-12)
@@ -150,25 +155,10 @@ def test_member_features_range_a_track_whose_representative_bearing_slides():
     # six fixed feature points around (14, 4, 0.5); the representative point slides 1.2 m up the
     # object over the flight (as a tracker's centroid does when members come and go): its bearing
     # parallax alone is biased, the features' multi-view triangulations are not
-    rng = np.random.default_rng(3)
-    rig = mono_forward_rig(MODEL)
-    ego = ConstantVelocity(5.0)
-    offsets = np.array([[0, 0.3, 0.3], [0, -0.3, 0.3], [0.2, 0, -0.3], [-0.2, 0.2, 0], [0, 0, 0.4],
-                        [0.1, -0.2, -0.1]])
-    feats_W = np.array([14.0, 4.0, 0.5]) + offsets
-    fus = ObstacleFusion(rig, ego, FusionSettings())
-    sigma = 5e-4
-    for k in range(46):
-        t = k / FPS
-        T_W_B = ego.pose_at(t)
-        rep_W = np.array([14.0, 4.0, 0.5 + 0.8 * (t - 0.75)])
-        fb = np.array([_bearing(rig[0], T_W_B, f, sigma, rng) for f in feats_W])
-        view = CameraView("cam0", _bearing(rig[0], T_W_B, rep_W, sigma, rng), [0, 0], sigma,
-                          feature_ids=np.arange(6), feature_b_C=fb)
-        (r,) = fus.step([ObstacleObservation(5, k, t, "confirmed", (view,))], k, t)
+    _, r = _slide_run(FusionSettings())
     # truth: the median range of the feature points from the body at x = 5 * 1.5 = 7.5
     o = np.array([7.5, 0.0, 0.0])
-    true_r = float(np.median(np.linalg.norm(feats_W - o, axis=1)))
+    true_r = float(np.median(np.linalg.norm(SLIDE_FEATS_W - o, axis=1)))
     assert r.source == "mono"
     assert abs(r.range_m - true_r) / true_r < 0.03
     assert abs(r.range_m - true_r) <= 3 * r.range_sigma_m

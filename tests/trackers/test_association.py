@@ -16,6 +16,17 @@ def unit(v):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+def _render(tmp_path_factory, preset: str, frames: int, resolution: tuple[int, int]):
+    """A shipped scenario preset rendered by the simulator into a temporary folder."""
+    from pipeline.config import scenarios_dir
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.writer import simulate
+
+    out = tmp_path_factory.mktemp(preset)
+    simulate(load_scenario(scenarios_dir() / f"{preset}.yaml"), out, frames=frames, resolution=resolution)
+    return out
+
+
 @pytest.fixture
 def stereo():
     rig = stereo_forward_rig(equidistant(), baseline_m=0.3)
@@ -63,20 +74,7 @@ def test_matching_keeps_epipolar_pairs_and_rejects_a_lookalike_off_the_plane(ste
 @pytest.fixture(scope="module")
 def stereo_scene(tmp_path_factory):
     """The stereo_flying preset rendered at 384x216 for 24 frames by the simulator."""
-    from pathlib import Path
-
-    from pipeline.sim.scene import load_scenario
-    from pipeline.sim.writer import simulate
-
-    root = Path(__file__).resolve().parents[2]
-    out = tmp_path_factory.mktemp("stereo_flying")
-    simulate(
-        load_scenario(root / "configs" / "scenarios" / "stereo_flying.yaml"),
-        out,
-        frames=24,
-        resolution=(384, 216),
-    )
-    return out
+    return _render(tmp_path_factory, "stereo_flying", 24, (384, 216))
 
 
 def test_stereo_obstacle_is_one_track_with_two_views(stereo_scene):
@@ -249,20 +247,7 @@ def test_stereo_klt_on_lens_crops_equals_full_frames():
 def hover_scene(tmp_path_factory):
     """The stereo_hover preset (sphere 1: radius 0.3 m, centre 1.55 m ahead, so its surface is
     ~1.25-1.5 m away: ~12 degrees of disparity on the 0.30 m baseline) rendered at 960x540."""
-    from pathlib import Path
-
-    from pipeline.sim.scene import load_scenario
-    from pipeline.sim.writer import simulate
-
-    root = Path(__file__).resolve().parents[2]
-    out = tmp_path_factory.mktemp("stereo_hover")
-    simulate(
-        load_scenario(root / "configs" / "scenarios" / "stereo_hover.yaml"),
-        out,
-        frames=16,
-        resolution=(960, 540),
-    )
-    return out
+    return _render(tmp_path_factory, "stereo_hover", 16, (960, 540))
 
 
 def test_close_obstacle_features_get_shared_ids_that_name_one_physical_point(hover_scene):
