@@ -76,6 +76,43 @@ def ray_hit_distance(o: np.ndarray, d: np.ndarray, s: Shape, margin_m: float) ->
     return None
 
 
+def ray_hits(o: np.ndarray, d: np.ndarray, s: Shape, margin_m: np.ndarray | float) -> np.ndarray:
+    """Vectorised ``ray_hit_distance``: distances (N,) along unit rays d (N,3) from o (3,) (W, metres)
+    to the inflated shape, ``inf`` where a ray misses. The capsule uses the closest approach of the
+    ray's line to the axis segment (exact, where ``ray_hit_distance`` samples the axis)."""
+    d = np.asarray(d, float).reshape(-1, 3)
+    n = len(d)
+    m = np.broadcast_to(np.asarray(margin_m, float), (n,))
+    out = np.full(n, np.inf)
+    if s.kind in ("sphere", "capsule"):
+        if s.kind == "sphere":
+            p = np.broadcast_to(s.c_W, (n, 3))
+        else:
+            # closest points of the line o + t d and the segment c + z e_z, z in [-h, h]:
+            # w = o - c; z = (w_z - (d.w) d_z) / (1 - d_z^2) (clipped), then t = (c + z e_z - o) . d
+            w = o - s.c_W
+            dz = d[:, 2]
+            den = np.maximum(1.0 - dz * dz, 1e-12)
+            z = np.clip((w[2] - (d @ w) * dz) / den, -s.half_h_m, s.half_h_m)
+            p = s.c_W[None, :] + z[:, None] * np.array([0.0, 0.0, 1.0])
+        t = np.einsum("ij,ij->i", p - o, d)
+        dist = np.linalg.norm(o + t[:, None] * d - p, axis=1)
+        ok = (t > 0) & (dist <= s.r_m + m)
+        out[ok] = t[ok]
+        return out
+    c, sn = np.cos(-s.yaw_rad), np.sin(-s.yaw_rad)
+    R = np.array([[c, -sn, 0], [sn, c, 0], [0, 0, 1]])
+    ol, dl = R @ (o - s.c_W), d @ R.T
+    h = s.half_size_m[None, :] + m[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (-h - ol) / dl, (h - ol) / dl
+    tmin = np.nanmax(np.minimum(t1, t2), axis=1)
+    tmax = np.nanmin(np.maximum(t1, t2), axis=1)
+    ok = tmax >= np.maximum(tmin, 0.0)
+    out[ok] = np.maximum(tmin[ok], 0.0)
+    return out
+
+
 def shapes_for_frame(specs: dict[int, dict], gt_obstacles: list[dict]) -> dict[int, Shape]:
     """Shapes (W) of the obstacles of one gt.jsonl line, sizes from scene.yaml's obstacle specs."""
     out = {}
@@ -98,6 +135,183 @@ def shapes_for_frame(specs: dict[int, dict], gt_obstacles: list[dict]) -> dict[i
         else:  # drone and anything else: bounding sphere
             out[o["id"]] = Shape("sphere", c, r_m=float(o.get("radius_m", 0.5)))
     return out
+
+
+class _Explainer:
+    """What every coverage gap and id switch of a benchmark run is (``run_benchmark(explain=True)``).
+
+    Per due frame an obstacle is not covered, the first cause that applies (features are put on an
+    obstacle by casting their current rays against the scene's shapes, margin 1 px):
+    ``no_features`` (none of any camera's live features is on it; split by ``rim``: its centre more
+    than 90 deg off every seeing camera's axis, ``tiny``: angular radius under 4 px), ``young`` (its
+    features are all younger than the grouper's ``min_age`` + ``flow_frames``), ``ungrouped`` (old
+    enough but in no seen track), ``coasting`` (a track that covered it last frame is unseen now),
+    ``in_track_elsewhere`` (its features are members of a seen track whose representative bearing
+    lies on another obstacle: ``merged_other``, or on none: ``rep_off``).
+
+    Per id switch: ``moved_to_other_obstacle`` (the old track now lies on another obstacle), else
+    the old track is ``coasting`` (unseen but alive), ``absorbed`` (merged into another camera's
+    track) or ``lost``; each with ``parallel`` when the new id had been on the obstacle while the old
+    one was still reported (a split: two tracks on one obstacle) or ``new_after_gap`` otherwise.
+    """
+
+    def __init__(self, fe) -> None:
+        self.fe = fe
+        self.gaps: dict[str, int] = {}
+        self.gap_by_obstacle: dict[int, dict[str, int]] = {}
+        self.switches: dict[str, int] = {}
+        self.events: list[dict] = []
+        self.first_on: dict[tuple[int, int], int] = {}  # (gid, obstacle) -> first frame on it
+        self.last_rep: dict[int, int] = {}  # gid -> last frame reported
+        self.prev_cover: dict[int, set[int]] = {}  # obstacle -> gids covering it last frame
+        self.known_gids: set[int] = set()
+
+    def _local_tracks(self):
+        fe = self.fe
+        for cam, gr in fe.groupers.items():
+            for tr in gr.tracks.values():
+                yield cam, tr, fe._global(tr.id)
+
+    def reported(self, f, alive_on) -> None:
+        """This frame's reported tracks (gid -> obstacles they lie on), before its switches."""
+        for gid in alive_on:
+            for oid in alive_on[gid]:
+                self.first_on.setdefault((gid, oid), f)
+
+    def frame(self, f, T_W_B, shapes, line, on, alive_on, due_ids, c_B, R_B_C, rad_px) -> None:
+        fe = self.fe
+        for gid in alive_on:
+            self.last_rep[gid] = f
+        # every live feature: the obstacle it sits on, its age, its track (gid, seen) if any
+        feat_on, feat_age, feat_gid, feat_seen = [], [], [], []
+        for cam, feats in fe.last_features.items():
+            if not len(feats) or cam not in fe.groupers:
+                continue
+            oW = T_W_B.apply(c_B[cam])
+            dW = feats.b_C @ (T_W_B.R @ R_B_C[cam]).T  # b_W = R_W_B R_B_C b_C
+            best = np.full(len(dW), np.inf)
+            which = np.full(len(dW), -1)
+            for oid, sh in shapes.items():
+                rng = float(np.linalg.norm(sh.c_W - oW))
+                t = ray_hits(oW, dW, sh, rad_px[cam] * rng)
+                closer = t < best
+                best[closer], which[closer] = t[closer], oid
+            gid = np.full(len(dW), -1)
+            seen = np.zeros(len(dW), bool)
+            pos = {int(i): k for k, i in enumerate(feats.ids.tolist())}
+            for tr in fe.groupers[cam].tracks.values():
+                for m in tr.members.tolist():
+                    k = pos.get(int(m))
+                    if k is not None:
+                        gid[k], seen[k] = fe._global(tr.id), tr.seen
+            feat_on.append(which)
+            feat_age.append(feats.age)
+            feat_gid.append(gid)
+            feat_seen.append(seen)
+        if feat_on:
+            fo, fa, fg, fs = (np.concatenate(x) for x in (feat_on, feat_age, feat_gid, feat_seen))
+        else:
+            fo = fa = fg = np.zeros(0, np.int64)
+            fs = np.zeros(0, bool)
+        gr0 = next(iter(fe.groupers.values()), None)
+        min_age = (gr0.min_age + gr0.flow_frames) if gr0 is not None else 0
+        alive_local = {g for _c, tr, g in self._local_tracks() if not tr.seen}
+        for o in line["obstacles"]:
+            oid = int(o["id"])
+            if oid not in due_ids or on.get(oid):
+                continue
+            mine = fo == oid
+            if not np.any(mine):
+                cause = "no_features"
+                # rim / tiny: where the obstacle is in the cameras that see it
+                sub = "other"
+                offs, sizes = [], []
+                for cam, vis in o.get("visible", {}).items():
+                    if not vis or cam not in c_B:
+                        continue
+                    p = np.asarray(o["p_W"], float) - T_W_B.apply(c_B[cam])
+                    b = (T_W_B.R @ R_B_C[cam]).T @ p
+                    offs.append(np.degrees(np.arccos(np.clip(b[2] / np.linalg.norm(b), -1, 1))))
+                    sh = shapes.get(oid)
+                    r_m = (
+                        sh.r_m
+                        if sh is not None and sh.kind != "box"
+                        else float(np.min(sh.half_size_m) if sh is not None else 0.5)
+                    )
+                    sizes.append(r_m / max(np.linalg.norm(p), 1e-6) / rad_px[cam])
+                if offs and min(offs) > 90:
+                    sub = "rim"
+                elif sizes and max(sizes) < 4:
+                    sub = "tiny"
+                cause += "/" + sub
+            elif not np.any(fs[mine] & (fg[mine] >= 0)):
+                if any(g in alive_local for g in self.prev_cover.get(oid, ())):
+                    cause = "coasting"
+                elif np.all(fa[mine] < min_age):
+                    cause = "young"
+                else:
+                    cause = "ungrouped"
+            else:
+                gs = set(fg[mine & fs & (fg >= 0)].tolist())
+                if any(alive_on.get(g) for g in gs):
+                    cause = "in_track_elsewhere/merged_other"
+                else:
+                    cause = "in_track_elsewhere/rep_off"
+            self.gaps[cause] = self.gaps.get(cause, 0) + 1
+            per = self.gap_by_obstacle.setdefault(oid, {})
+            per[cause] = per.get(cause, 0) + 1
+            ev = {"frame": f, "obstacle": oid, "gap": cause, "features_on": int(np.sum(mine))}
+            if cause.startswith("in_track"):
+                # the tracks holding its features: where they lie and what their members are on
+                ev["tracks"] = {
+                    int(g): {
+                        "on": sorted(alive_on.get(g, ())),
+                        "members_on": {
+                            int(k): int(v)
+                            for k, v in zip(*np.unique(fo[fs & (fg == g)], return_counts=True), strict=True)
+                        },
+                    }
+                    for g in sorted(gs)
+                }
+            self.events.append(ev)
+        self.prev_cover = {oid: set(g) for oid, g in on.items()}
+
+    def switch(self, f, oid, old, new, alive_on) -> None:
+        fe = self.fe
+        if old in alive_on:
+            cause = "moved_to_other_obstacle"
+        else:
+            local = {tr.id for _c, tr, _g in self._local_tracks()}
+            live = {g for _c, _t, g in self._local_tracks()}
+            if old in local and fe._global(old) != old:
+                cause = "absorbed"
+            elif old in live:
+                cause = "coasting"
+            else:
+                cause = "lost"
+            fo = self.first_on.get((new, oid))
+            par = fo is not None and fo <= self.last_rep.get(old, -1)
+            cause += "/parallel" if par else "/new_after_gap"
+        self.switches[cause] = self.switches.get(cause, 0) + 1
+        self.events.append(
+            {
+                "frame": f,
+                "obstacle": oid,
+                "switch": cause,
+                "from": old,
+                "to": new,
+                "old_last_reported": self.last_rep.get(old),
+                "new_first_on": self.first_on.get((new, oid)),
+            }
+        )
+
+    def summary(self) -> dict:
+        return {
+            "gap_causes": dict(sorted(self.gaps.items(), key=lambda kv: -kv[1])),
+            "gap_causes_by_obstacle": {k: self.gap_by_obstacle[k] for k in sorted(self.gap_by_obstacle)},
+            "switch_causes": dict(sorted(self.switches.items(), key=lambda kv: -kv[1])),
+            "events": self.events,
+        }
 
 
 def open_scene(scene_dir: Path, threads: int | None = None):
@@ -145,6 +359,7 @@ def run_benchmark(
     max_frames: int | None = None,
     margin_px: float = 2.0,
     use_poses: bool = False,
+    explain: bool = False,
     **frontend_options: Any,
 ) -> dict[str, Any]:
     """Run the FrontEnd over a simulated scene and measure it (see the module docstring).
@@ -156,12 +371,15 @@ def run_benchmark(
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
     (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
+    ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
+    CPU time per frame then includes the analysis, so rates are not comparable).
     """
     from trackers.frontend import STAGES, FrontEnd
 
     cv2.setNumThreads(int(threads))
     rig, caps, stamps, gt, specs = open_scene(Path(scene_dir), threads=int(threads))
     fe = FrontEnd(rig, detector=detector, **frontend_options)
+    ex = _Explainer(fe) if explain else None
     names = [c.name for c in rig.cameras]
     frames = sorted(stamps[names[0]])
     if max_frames:
@@ -233,6 +451,9 @@ def run_benchmark(
                 if best is not None:
                     on.setdefault(best, set()).add(o.track_id)
                     alive_on[o.track_id].add(best)
+        if ex is not None:
+            ex.reported(f, alive_on)
+        due_now = set()
         for o in line["obstacles"]:
             oid = int(o["id"])
             if not any(o.get("visible", {}).values()):
@@ -240,6 +461,7 @@ def run_benchmark(
             first_seen.setdefault(oid, t_s)
             if t_s - first_seen[oid] < 0.5:
                 continue
+            due_now.add(oid)
             due[oid] = due.get(oid, 0) + 1
             ids = on.get(oid, set())
             if ids:
@@ -253,7 +475,11 @@ def run_benchmark(
                     switches[oid] = switches.get(oid, 0) + 1
                     why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
                     switch_log.append({"frame": f, "obstacle": oid, "from": st, "to": min(ids), "why": why})
+                    if ex is not None:
+                        ex.switch(f, oid, st, min(ids), alive_on)
                 sticky[oid] = min(ids)
+        if ex is not None:
+            ex.frame(f, T_W_B, shapes, line, on, alive_on, due_now, c_B, R_B_C, rad_px)
     nf = len(frames)
     fps_dt = (
         frames and (stamps[names[0]][frames[-1]] - stamps[names[0]][frames[0]]) / max(nf - 1, 1)
@@ -293,11 +519,15 @@ def run_benchmark(
         # all switches over all covered obstacle-minutes (stable on short scenes)
         "switches_per_obstacle_minute": sum(switches.values())
         / max(sum(covered.values()) * fps_dt / 60.0, 1e-9),
+        # the counts behind the rates (one switch in a 3-4 s scene is 5-15 per obstacle-minute)
+        "id_switches": sum(switches.values()),
+        "covered_obstacle_minutes": sum(covered.values()) * fps_dt / 60.0,
         "obstacles": per,
         "switch_log": switch_log,
         "observations_per_frame": n_obs / nf,
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
+        **({"explain": ex.summary()} if ex is not None else {}),
     }
 
 
@@ -309,6 +539,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--frames", type=int, default=None)
     ap.add_argument("--poses", action="store_true", help="pass the true T_W_B (rotation compensation)")
+    ap.add_argument("--explain", action="store_true", help="the cause of every coverage gap and id switch")
     ap.add_argument(
         "--set",
         action="append",
@@ -326,7 +557,13 @@ def main(argv: list[str] | None = None) -> None:
         else:  # a top-level FrontEnd option, e.g. max_width=960
             opts[group] = yaml.safe_load(val)
     res = run_benchmark(
-        a.scene_dir, detector=a.detector, threads=a.threads, max_frames=a.frames, use_poses=a.poses, **opts
+        a.scene_dir,
+        detector=a.detector,
+        threads=a.threads,
+        max_frames=a.frames,
+        use_poses=a.poses,
+        explain=a.explain,
+        **opts,
     )
     print(json.dumps(res, indent=2))
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trackers.benchmark import Shape, ray_hit_distance, run_benchmark
+from trackers.benchmark import Shape, ray_hit_distance, ray_hits, run_benchmark
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "configs" / "scenarios"
@@ -49,6 +49,26 @@ def test_ray_hits_closed_forms():
     assert ray_hit_distance(o, np.array([0.0, 1.0, 0.0]), box, 0.0) is None
 
 
+def test_vectorised_ray_hits_closed_forms():
+    """ray_hits (the explain mode's per-feature test) on the same closed forms, several rays at once."""
+    o = np.zeros(3)
+    s = Shape("sphere", np.array([10.0, 0, 0]), r_m=1.0)
+    d = np.array([[1.0, 0, 0], [10.0, 1.5, 0.0], [-1.0, 0, 0]])
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t = ray_hits(o, d, s, 0.0)
+    assert t[0] == pytest.approx(10.0) and np.isinf(t[1]) and np.isinf(t[2])  # ahead, 1.483 m off, behind
+    assert np.isfinite(ray_hits(o, d, s, 0.5)[1])
+    # pole along z from z=-3 to 3 at x=5, r 0.1: up at 30 deg it hits at 5 / cos 30 (the line's
+    # closest approach to the axis, exactly); over the top (up at 45 deg passes z=5 > 3 + 0.1): miss
+    pole = Shape("capsule", np.array([5.0, 0, 0]), r_m=0.1, half_h_m=3.0)
+    up = np.array([[np.cos(np.radians(a)), 0, np.sin(np.radians(a))] for a in (30.0, 45.0)])
+    t = ray_hits(o, up, pole, 0.0)
+    assert t[0] == pytest.approx(5 / np.cos(np.radians(30))) and np.isinf(t[1])
+    box = Shape("box", np.array([10.0, 0, 0]), half_size_m=np.ones(3), yaw_rad=np.radians(45))
+    t = ray_hits(o, np.array([[1.0, 0, 0], [0, 1.0, 0]]), box, 0.0)
+    assert t[0] == pytest.approx(10 - np.sqrt(2)) and np.isinf(t[1])
+
+
 @pytest.fixture(scope="module")
 def ci_scene(tmp_path_factory) -> Path:
     # at 640x480: at the preset's 320x240 the sphere is ~10 px wide and its handful of corners
@@ -68,6 +88,19 @@ def test_ci_small_coverage_and_ids(ci_scene):
     assert res["coverage"] >= 0.8
     assert res["rim_features_per_frame"] > 0
     assert set(res["ms_per_frame"]) >= {"decode", "frontend", "detect", "track", "group", "associate"}
+
+
+def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
+    """--explain: each uncovered due frame and each id switch gets exactly one cause, and the
+    coverage figures are the plain run's (ci_small has gaps: the ~6 px drone, 4 frames measured)."""
+    plain = run_benchmark(ci_scene)
+    res = run_benchmark(ci_scene, explain=True)
+    assert res["coverage"] == plain["coverage"] and res["id_switches"] == plain["id_switches"]
+    ex = res["explain"]
+    gaps = sum(p["frames_due"] - round(p["coverage"] * p["frames_due"]) for p in res["obstacles"].values())
+    assert gaps > 0 and sum(ex["gap_causes"].values()) == gaps
+    assert sum(ex["switch_causes"].values()) == res["id_switches"]
+    assert len([e for e in ex["events"] if "gap" in e]) == gaps
 
 
 # The presets at full size. Measured 02:05 UTC on renders of 01:55 (previous front end on the same
