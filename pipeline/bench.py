@@ -724,10 +724,13 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "live": {"cameras": vids, "paced": True},
         "outputs": {"progress": False},
     })
+    load0 = os.getloadavg() if hasattr(os, "getloadavg") else None
     c0 = time.process_time()
     res = run_live(cfg, task["out"], max_frames=int(task["frames"]), readers=[reader],
-                   egomotion=_egomotion(dict(task, looped=True)))
+                   egomotion=_egomotion(dict(task, looped=True)),
+                   latency_log=Path(task["out"]) / "latency.csv")
     cpu = time.process_time() - c0
+    load1 = os.getloadavg() if hasattr(os, "getloadavg") else None
     sm = res.summary
     grabbed = sm.get("frames_grabbed") or {}
     lead = next(iter(grabbed.values()), None)
@@ -737,6 +740,8 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "stale_by_camera": sm.get("stale_frames_dropped"), "grabbed_by_camera": grabbed,
         "decode_median_s": dec["per_frame"]["median_s"], "decode": dec, "stages": sm.get("timings", {}),
         "waited": sm.get("latency_waited"), "processing": sm.get("latency_processing"),
+        "parts": sm.get("latency_parts"), "latency_csv": str(Path(task["out"]) / "latency.csv"),
+        "loadavg_1min": [None if x is None else x[0] for x in (load0, load1)],
         "replay_lag": next(iter((sm.get("replay_lag") or {}).values()), None),
         "rate_hz": task.get("rate_hz"), "wall_s": sm.get("wall_s"), "fps": sm.get("frames_per_s"),
         "cpu_s": cpu, "cpu_busy": cpu / sm["wall_s"] if sm.get("wall_s") else None,
@@ -1247,20 +1252,29 @@ class BenchRun:
                 met=None if budget is None or lat.get("p99_s") is None else lat["p99_s"] < budget))
             self.rows.append(Row("live latency (arrival -> tracks.jsonl line)", f"{name}: frames dropped",
                                  r.get("dropped"), "frames", "frames offered", r.get("offered")))
-            # where the latency goes: waiting to be taken (<= one interval when the replay keeps to its
-            # schedule) and processing (the pipeline's time per frame); the replay's own lag behind
-            # schedule; the share of the pinned core this process got (other load on the core shows here)
-            wt, pr, lag = r.get("waited") or {}, r.get("processing") or {}, r.get("replay_lag") or {}
-            sec = "live latency split (median; p99 in bench.json)"
-            self.rows.append(Row(sec, f"{name}: arrival -> taken by the loop", _ms(wt.get("median_s")), "ms",
-                                 "frame interval", _ms(interval), extra={"p99_ms": _ms(wt.get("p99_s"))}))
-            self.rows.append(Row(sec, f"{name}: taken -> line written", _ms(pr.get("median_s")), "ms",
-                                 "frame interval", _ms(interval), extra={"p99_ms": _ms(pr.get("p99_s"))}))
-            self.rows.append(Row(sec, f"{name}: replay published late by", _ms(lag.get("median_s")), "ms",
-                                 extra={"p99_ms": _ms(lag.get("p99_s"))}))
+            # where the latency goes, per frame (the parts add up to each frame's latency; per-frame CSV
+            # in the run folder): lag (the replay published the frame after it was due), queue (waiting
+            # in the grabber's one-frame slot while the previous frame is processed: < one interval plus
+            # that frame's remaining processing), process (front end + fusion), write (the line encoded,
+            # written, flushed); the reader's decode time beside (done before the frame is due);
+            # the share of the pinned core this process got (other load on the core shows here)
+            parts = r.get("parts") or {}
+            sec = "live latency split (median; p99 in bench.json and beside)"
+            for key, label in (("lag", "arrival (due) -> published by the grabber"),
+                               ("queue", "published -> taken by the loop"),
+                               ("process", "taken -> reports (front end + fusion)"),
+                               ("write", "tracks.jsonl line encoded, written, flushed"),
+                               ("decode", "decode of the frame (in the grabber, before it is due)")):
+                x = parts.get(key) or {}
+                p99 = _ms(x.get("p99_s"))
+                self.rows.append(Row(sec, f"{name}: {label}", _ms(x.get("median_s")), "ms", "frame interval",
+                                     _ms(interval), extra={"p99_ms": p99},
+                                     note="" if p99 is None else f"p99 {p99:.1f} ms"))
             busy = r.get("cpu_busy")
+            load = [x for x in (r.get("loadavg_1min") or []) if x is not None]
             self.rows.append(Row(sec, f"{name}: CPU share of the pinned core", None if busy is None
-                                 else 100.0 * busy, "%"))
+                                 else 100.0 * busy, "%",
+                                 note=f"machine load average {max(load):.1f} (2 cores)" if load else ""))
         self.sections["live"] = out
 
     def scaling(self) -> None:

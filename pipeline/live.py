@@ -5,8 +5,10 @@
   pipeline's speed.
 - A camera that stops delivering (read fails, or no frame for ``stall_timeout_s``) is reopened with
   exponential back-off (``reconnect_initial_s`` doubling up to ``reconnect_max_s``); the run goes on.
-- Latency per frame = from the frame's arrival (grabber clock) to its ``tracks.jsonl`` line being
-  written and flushed; median / p99 / max go to ``summary.json``.
+- Latency per frame = from the frame's arrival (grabber clock; a paced replay's due time) to its
+  ``tracks.jsonl`` line being written and flushed; median / p99 / max go to ``summary.json``, with its
+  parts (lag, queue, process, write; decode beside) in ``latency_parts`` and, on request, per frame
+  in a CSV (``run_live(latency_log=...)``).
 - Preview: the annotated frame to ``preview.mp4``, or served as MJPEG on ``http://127.0.0.1:PORT/``
   (:class:`MjpegServer`, loopback only).
 - Ego-motion: constant velocity, or a TUM trajectory file that grows while the run goes
@@ -78,13 +80,18 @@ class LiveFrame:
     Attributes:
         seq: index of the frame in the camera's stream (counts stale frames too).
         t_s: the video's own time (replayed files) or None (cameras: the run's clock gives it).
-        image: (H, W) or (H, W, 3) uint8; arrival_s: ``time.monotonic()`` when it was read.
+        image: (H, W) or (H, W, 3) uint8; arrival_s: ``time.monotonic()`` when it arrived: when it was
+            read (cameras), when it was due (paced replays: when the camera would have delivered it).
+        published_s: ``time.monotonic()`` when the grabber made it the newest frame (>= arrival_s).
+        decode_s: seconds the reader spent decoding (and converting) it, None when not measured.
     """
 
     seq: int
     t_s: float | None
     image: np.ndarray
     arrival_s: float
+    published_s: float | None = None
+    decode_s: float | None = None
 
 
 def frame_time(f: LiveFrame) -> float:
@@ -101,6 +108,7 @@ class CaptureReader:
 
     ends = False  # a camera never ends: a failure means reopen
     arrival_s = None  # the grabber stamps the arrival itself
+    decode_s: float | None = None  # seconds the last frame's retrieve (+ grey conversion) took
 
     def __init__(self, ref: int | str, timeout_s: float = 5.0, grey: bool = False):
         import cv2
@@ -121,13 +129,21 @@ class CaptureReader:
             self.cap = open_capture(ref)
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
-        ok, img = self.cap.read()
+        # read() = grab() (waits for the device's next frame) + retrieve() (decodes / converts it): split
+        # so that ``decode_s`` is the decode (retrieve + grey conversion), not the wait for the camera
+        # (with OpenCV's FFmpeg backend, i.e. URLs, grab() decodes and retrieve() only converts).
+        self.decode_s = None
+        if not self.cap.grab():
+            return None, None
+        t0 = time.perf_counter()
+        ok, img = self.cap.retrieve()
         if not ok or img is None:
             return None, None
         if self.grey and img.ndim == 3:
             import cv2
 
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        self.decode_s = time.perf_counter() - t0
         return img, None
 
     def close(self) -> None:
@@ -146,6 +162,10 @@ class SourceReader:
     ``arrival_s``: for a paced replay, when the last frame was due (clock of the PacedSource), i.e.
     when a camera would have delivered it; the grabber takes that as the frame's arrival, so a replay
     that falls behind its schedule shows as latency, not as a later arrival. None otherwise.
+
+    ``decode_s``: seconds the last frame's decode took (the inner source's next frame, without the
+    pacing wait). A replay decodes frame k while it waits for frame k's due time, like a camera
+    whose driver hands over finished frames; the decode's CPU time is still taken from the core.
     """
 
     ends = True
@@ -155,6 +175,7 @@ class SourceReader:
         self._paced = source if isinstance(source, PacedSource) else None
         self._it = iter(source.inner if self._paced is not None else source)
         self.arrival_s: float | None = None
+        self.decode_s: float | None = None
         self.start_s: float | None = None  # the schedule's start (clock of the PacedSource)
         self._t0: float | None = None
 
@@ -163,7 +184,9 @@ class SourceReader:
         self.start_s = float(start_s)
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
+        t0 = time.perf_counter()
         f = next(self._it, None)
+        self.decode_s = time.perf_counter() - t0 if f is not None else None
         p = self._paced
         if p is None:
             self.arrival_s = getattr(self.source, "last_due_s", None)
@@ -243,7 +266,13 @@ class Grabber:
         self._thread.start()
         return self
 
-    def _publish(self, image: np.ndarray, t_s: float | None, arrival_s: float | None = None) -> None:
+    def _publish(
+        self,
+        image: np.ndarray,
+        t_s: float | None,
+        arrival_s: float | None = None,
+        decode_s: float | None = None,
+    ) -> None:
         with self._cond:
             if self._latest is not None and self._latest.seq > self._taken_seq:
                 self.stale += 1  # never taken: dropped in favour of the newer frame
@@ -251,7 +280,9 @@ class Grabber:
             self._last_publish_s = now
             if arrival_s is not None:
                 self.lag.add(max(0.0, now - arrival_s))
-            self._latest = LiveFrame(self.grabbed, t_s, image, now if arrival_s is None else arrival_s)
+            self._latest = LiveFrame(
+                self.grabbed, t_s, image, now if arrival_s is None else arrival_s, now, decode_s
+            )
             self._recent.append(self._latest)
             self.grabbed += 1
             self._cond.notify_all()
@@ -295,13 +326,14 @@ class Grabber:
                 image, t_s = None, None
                 self.last_error = f"{self.name}: {e}"
             arrival = getattr(reader, "arrival_s", None)  # a paced replay's due time, else now
+            dec = getattr(reader, "decode_s", None)
             if image is not None and (
                 getattr(reader, "ends", False) or self.clock() - t_read <= self.stall_timeout_s
             ):
-                self._publish(image, t_s, arrival)
+                self._publish(image, t_s, arrival, dec)
                 continue
             if image is not None:  # arrived, but after a stall: keep it, then reopen
-                self._publish(image, t_s, arrival)
+                self._publish(image, t_s, arrival, dec)
             if getattr(reader, "ends", False) and image is None:
                 reader.close()
                 break
@@ -619,6 +651,7 @@ def run_live(
     max_frames: int | None = None,
     on_frame: Callable[[int, dict], None] | None = None,
     on_event: Callable[[str], None] | None = None,
+    latency_log: str | Path | None = None,
 ) -> LiveResult:
     """Run the pipeline on live cameras until ``live.duration_s``, ``max_frames``, the end of replayed
     files, or Ctrl-C; write tracks.jsonl (flushed per frame), summary.json and the resolved config.
@@ -627,6 +660,9 @@ def run_live(
         readers: one reader factory per rig camera (default from ``live.cameras``).
         on_frame: called after each written frame with (frame count, {"latency_s": ...}) (tests).
         on_event: called with human-readable notes (the preview URL); the CLI prints them.
+        latency_log: a CSV file to write one line per processed frame to: ``seq, t_s`` and the latency
+            with its parts in seconds (``latency_s = lag_s + queue_s + process_s + write_s``; ``decode_s``
+            beside), as in summary.json's ``latency_parts``.
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
@@ -697,8 +733,17 @@ def run_live(
             on_event(f"preview: http://127.0.0.1:{server.port}/ (MJPEG stream {server.url})")
         if video is not None:
             on_event(f"preview: {video.path}")
-    latency = RunningStats()  # arrival -> line written = waited (arrival -> taken) + processing
+    latency = RunningStats()  # arrival -> line written and flushed = waited (arrival -> taken) + processing
     waited, processing = RunningStats(), RunningStats()
+    # the same latency in four consecutive parts, per frame (they add up to it exactly):
+    # lag (arrival -> published by the grabber; a replay behind its schedule), queue (published -> taken
+    # by the loop: the frame waits in the grabber's one-frame slot while the previous frame is processed),
+    # process (taken -> reports: pairing, pose, front end, fusion), write (the tracks.jsonl line encoded,
+    # written and flushed); and, beside them, the reader's decode time of the frame
+    parts = {k: RunningStats() for k in ("lag", "queue", "process", "write", "decode")}
+    log = Path(latency_log).open("w", encoding="utf-8") if latency_log is not None else None
+    if log is not None:
+        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s\n")
     unpaired: dict[str, int] = {}  # processed lead frames another camera had no frame within tolerance for
     timings = StageTimings()
     frames = 0
@@ -760,14 +805,27 @@ def run_live(
             timings.add_all(getattr(frontend, "timings", None))
             reports = fusion.step(obs, lead.seq, t_s)
             timings.add_all(getattr(fusion, "timings", None))
-            t0 = time.perf_counter()
-            items = writer.write(lead.seq, t_s, reports)
-            timings.add("write", time.perf_counter() - t0)
+            t_proc = time.monotonic()
+            items = writer.write(lead.seq, t_s, reports)  # one write + flush per frame
             t_done = time.monotonic()
+            timings.add("write", t_done - t_proc)
             lat = t_done - lead.arrival_s
             latency.add(lat)
             waited.add(t_taken - lead.arrival_s)
             processing.add(t_done - t_taken)
+            pub = lead.arrival_s if lead.published_s is None else lead.published_s
+            lag_s, queue_s = pub - lead.arrival_s, t_taken - pub
+            parts["lag"].add(lag_s)
+            parts["queue"].add(queue_s)
+            parts["process"].add(t_proc - t_taken)
+            parts["write"].add(t_done - t_proc)
+            if lead.decode_s is not None:
+                parts["decode"].add(lead.decode_s)
+            if log is not None:
+                log.write(
+                    f"{lead.seq},{t_s!r},{lat:.6f},{lag_s:.6f},{queue_s:.6f},{t_proc - t_taken:.6f},"
+                    f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'}\n"
+                )
             frames += 1
             if annotator is not None and frames % cfg.outputs.every_n == 0:
                 img = annotator.draw(images, items, t_s, lead.seq)
@@ -784,6 +842,8 @@ def run_live(
         for g in grabbers:
             g.stop()
         writer.close()
+        if log is not None:
+            log.close()
         if server is not None:
             server.close()
         if video is not None:
@@ -800,10 +860,13 @@ def run_live(
             # latency split: from arrival until the loop took the frame, and from then to its line
             "latency_waited": waited.summary(),
             "latency_processing": processing.summary(),
+            # the same split finer (they add up per frame): lag + queue + process + write; decode beside
+            "latency_parts": {k: v.summary() for k, v in parts.items()},
             # replays only: how late each frame was published after it was due (the grabber's lag)
             "replay_lag": {g.name: g.lag.summary() for g in grabbers if g.lag.n},
             "stale_frames_dropped": {g.name: g.stale for g in grabbers},
             "frames_grabbed": {g.name: g.grabbed for g in grabbers},
+            "drop_rate": {g.name: g.stale / g.grabbed if g.grabbed else None for g in grabbers},
             "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
             "grabber_nice": {g.name: g.nice for g in grabbers},
             "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},

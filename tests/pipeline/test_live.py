@@ -409,3 +409,29 @@ def test_nearest_waits_at_most_its_bound_and_pairs_by_frame_time():
     clock.t += 10.0  # nothing published for > stall_timeout_s: a stopped camera is not waited for
     t0 = time.monotonic()
     assert g.nearest(0.5, tolerance_s=0.02) is None and time.monotonic() - t0 < 0.5
+
+
+def test_latency_parts_add_up_per_frame_and_name_where_the_time_went(tmp_path):
+    """A replay 0.3 s behind its schedule (lag) feeding a pipeline that takes 0.1 s a frame (process):
+    the per-frame CSV's parts add up to the latency, lag ~0.3 s, process >= 0.1 s, and the summary
+    carries the same parts and the drop rate."""
+    rig = mono_rig()
+    log = tmp_path / "latency.csv"
+    r = _live(tmp_path, [lambda: LateReader(4)], front=SlowFrontEnd(rig, delay_s=0.1), latency_log=log)
+    rows = log.read_text().splitlines()
+    assert rows[0] == "seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s"
+    assert len(rows) == 1 + r.frames and r.frames >= 1
+    for row in rows[1:]:
+        lat, lag, queue, proc, write = (float(x) for x in row.split(",")[2:7])
+        assert lag + queue + proc + write == pytest.approx(lat, abs=1e-5)
+        assert lag >= 0.3 - 1e-3 and proc >= 0.1 and queue >= 0 and write >= 0
+    s = r.summary
+    assert s["latency_parts"]["process"]["n"] == r.frames and s["latency_parts"]["lag"]["median_s"] >= 0.299
+    assert s["drop_rate"]["cam0"] == pytest.approx(r.stale / s["frames_grabbed"]["cam0"])
+
+
+def test_replay_reports_each_frames_decode_time(tmp_path):
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0")])
+    dec = r.summary["latency_parts"]["decode"]
+    assert dec["n"] == r.frames and 0 < dec["median_s"] < 0.5
