@@ -10,7 +10,7 @@ reference-camera (the rig's first) feature is reported under that feature's id (
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import itertools
 import time
 from collections import deque
@@ -294,7 +294,10 @@ class FrontEnd:
         self.last_tracks = seen
         t0 = time.perf_counter()
         absorbed: list[int] = []
-        if len(self.cams) > 1 and self._n % self.assoc_every == 0:
+        assoc_now = len(self.cams) > 1 and self._n % self.assoc_every == 0
+        if len(self.cams) > 1:
+            self._prefetch_stereo(seen, greys, assoc_now)
+        if assoc_now:
             absorbed = self._associate(seen, greys)
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
@@ -390,6 +393,29 @@ class FrontEnd:
             bb[todo[idx]] = bv
         sel = np.flatnonzero(np.isfinite(uvb[rows, 0]))
         return sel, uvb[rows[sel]], bb[rows[sel]]
+
+    def _prefetch_stereo(
+        self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray], assoc_now: bool
+    ) -> None:
+        """Run this frame's stereo KLT once per camera pair, for every feature that ``_associate``
+        (when ``assoc_now``: all members of the detector's tracks) and ``_derive_views`` /
+        ``_add_found_members`` (members of confirmed reference tracks with >= 3 members) will ask
+        ``_stereo`` for: LK rebuilds both images' pyramids on every call (the Python binding takes
+        no prebuilt pyramids), so one call per pair and frame instead of up to three."""
+        ref = self.rig.cameras[0].name
+        names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
+        for a, b in itertools.permutations(names, 2):
+            a_first = names.index(a) < names.index(b)
+            trs = []
+            if assoc_now and a_first:
+                trs += [t for t in seen[a] if t.label == self.label and len(t.members)]
+            if a == ref:
+                trs += [t for t in seen[a] if t.status == "confirmed" and len(t.members) >= 3]
+            if not trs:
+                continue
+            rows, _ = self._rows(self.trackers[a], np.concatenate([t.members for t in trs]))
+            if len(rows):
+                self._stereo(a, b, rows)
 
     def _associate(self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]) -> list[int]:
         """Link tracks of different cameras that share epipolar-consistent feature correspondences
@@ -564,32 +590,39 @@ class FrontEnd:
             own = np.repeat(np.arange(len(todo)), [len(t.members) for t in todo])
             rows, which = self._rows(ft, mem)
             own, mem = own[which], mem[which]
-            T_b_a = self._T_b_a[(ref, b)]
             idx, _, bb = self._stereo(ref, b, rows)
-            model_b = self.cams[b].model
-            for ti, tr in enumerate(todo):
-                sel = idx[own[idx] == ti]
-                if len(sel) < 3:
-                    continue
-                bsel = bb[np.searchsorted(idx, sel)]
+            # idx is increasing and own non-decreasing along rows: each track's found members are
+            # one run of idx; tracks with >= 3 found get a view
+            cnt = np.bincount(own[idx], minlength=len(todo))
+            ends = np.cumsum(cnt)
+            good = np.flatnonzero(cnt >= 3)
+            if not len(good):
+                continue
+            R_b_a = self._T_b_a[(ref, b)].R
+            ba_found = ft.b_C[rows[idx]]
+            reps = np.empty((len(good), 3))
+            for k, ti in enumerate(good.tolist()):
+                lo, hi = ends[ti] - cnt[ti], ends[ti]
                 # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a)))
-                offset = tr.b_C - ft.b_C[rows[sel]].mean(0)
-                rep = bsel.mean(0) + T_b_a.R @ offset
-                rep /= np.linalg.norm(rep)
-                uv, okp = model_b.bearing_to_pixel(rep[None])
-                if not okp[0]:
+                reps[k] = bb[lo:hi].mean(0) + R_b_a @ (todo[ti].b_C - ba_found[lo:hi].mean(0))
+            reps /= np.linalg.norm(reps, axis=1, keepdims=True)
+            uv, okp = self.cams[b].model.bearing_to_pixel(reps)
+            for k, ti in enumerate(good.tolist()):
+                if not okp[k]:
                     continue
+                tr = todo[ti]
+                lo, hi = ends[ti] - cnt[ti], ends[ti]
                 v = ObstacleTrack(
                     tr.id,
                     b,
-                    mem[sel],
-                    rep,
-                    uv=uv[0],
+                    mem[idx[lo:hi]],
+                    reps[k],
+                    uv=uv[k],
                     sigma_rad=tr.sigma_rad,
                     status=tr.status,
                     label=tr.label,
                     attributes=dict(tr.attributes),
-                    member_b_C=bsel,
+                    member_b_C=bb[lo:hi],
                 )
                 out.setdefault(b, []).append(v)
         return out
@@ -625,21 +658,34 @@ class FrontEnd:
         if not len(idx):
             return
         pid = self._pid.get(b, {})
+        # b's own members under their reference ids, all slots at once (run of slot si: lo..hi)
+        tb_mem = [tb.members for _, tb, _ in slots]
+        n_b = np.array([len(m) for m in tb_mem])
+        allm = np.concatenate(tb_mem)
+        if pid:
+            allm = np.fromiter(map(pid.get, allm.tolist(), allm.tolist()), np.int64, len(allm))
+        slot_b = np.repeat(np.arange(len(slots)), n_b)
+        # a reference id found by KLT is placed where KLT found it, also when one of b's members
+        # is linked to it (descriptor links on a near object can pair neighbouring corners along
+        # the epipolar line; KLT starts from the reference feature's own patch): b's member with a
+        # (slot, id) among the found ones is dropped
+        own_f = own[idx]  # non-decreasing: each slot's found members are one run
+        found = mem[idx]
+        key = np.int64(1) << 40
+        keep_all = ~np.isin(slot_b * key + allm, own_f * key + found)
+        cnt_f = np.bincount(own_f, minlength=len(slots))
+        end_f = np.cumsum(cnt_f)
+        end_b = np.cumsum(n_b)
         for si, (k, tb, _) in enumerate(slots):
-            pos = np.flatnonzero(own[idx] == si)
-            if not len(pos):
+            if not cnt_f[si]:
                 continue
-            mapped = np.fromiter((pid.get(i, i) for i in tb.members.tolist()), np.int64, len(tb.members))
-            # a reference id found by KLT is placed where KLT found it, also when one of b's members
-            # is linked to it (descriptor links on a near object can pair neighbouring corners along
-            # the epipolar line; KLT starts from the reference feature's own patch)
-            found = mem[idx[pos]]
-            keep = ~np.isin(mapped, found)
-            seen[b][k] = dataclasses.replace(
-                tb,
-                members=np.concatenate([mapped[keep], found]),
-                member_b_C=np.concatenate([tb.member_b_C[keep], bb[pos]]),
-            )
+            lo, hi = end_b[si] - n_b[si], end_b[si]
+            flo, fhi = end_f[si] - cnt_f[si], end_f[si]
+            keep = keep_all[lo:hi]
+            v = copy.copy(tb)
+            v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
+            v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
+            seen[b][k] = v
 
     def _members_of(self, gid: int, camera: str) -> bool:
         """Whether global track gid already has a live local track in ``camera``."""
