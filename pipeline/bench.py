@@ -655,7 +655,7 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
 
     cfg = pipeline_config(task)
     rig = run_mod.build_rig(cfg)
-    ego = _egomotion(task)
+    ego = run_mod.FramePoseCache(_egomotion(task))  # as run() gives the loop and fusion: one pose a frame
     front = _CountingFrontEnd(run_mod.build_frontend(cfg, rig))
     fusion = run_mod.build_fusion(cfg, rig, ego)
     n = int(task["frames"])

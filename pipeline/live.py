@@ -36,6 +36,7 @@ from estimators.errors import InputError, SourceError
 from estimators.se3 import Pose
 from pipeline.config import PipelineConfig, write_resolved
 from pipeline.run import (
+    FramePoseCache,
     RunningStats,
     StageTimings,
     build_egomotion,
@@ -679,6 +680,8 @@ def run_live(
             egomotion = GrowingTrajectory(cfg.ego_motion.trajectory)
         else:
             egomotion = build_egomotion(cfg)
+    if not isinstance(egomotion, FramePoseCache):  # one pose per frame for the loop and fusion
+        egomotion = FramePoseCache(egomotion)
     frontend = frontend if frontend is not None else build_frontend(cfg, rig)
     fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
     if readers is None:

@@ -409,3 +409,55 @@ def test_read_ahead_only_when_a_second_cpu_can_decode(tmp_path, monkeypatch):
             assert type(src.sources[0]) is kind and len(list(src)) == 3
         finally:
             src.close()
+
+
+class _CountingTrajectory:
+    """A TUM trajectory (two poses, 90 deg yaw apart over 1 s) counting its look-ups."""
+
+    def __init__(self):
+        from estimators.egomotion import TumTrajectory
+
+        s = np.sqrt(0.5)
+        t_s, p_W = np.array([0.0, 1.0]), np.array([[0.0, 0, 0], [2.0, 0, 0]])
+        self.inner = TumTrajectory(t_s, p_W, np.array([[0, 0, 0, 1.0], [0, 0, s, s]]))
+        self.poses = self.velocities = 0
+
+    def pose_at(self, t_s):
+        self.poses += 1
+        return self.inner.pose_at(t_s)
+
+    def velocity_at(self, t_s):
+        self.velocities += 1
+        return self.inner.velocity_at(t_s)
+
+    def covers(self, t_s):
+        return self.inner.covers(t_s)
+
+
+def test_frame_pose_cache_computes_each_frame_time_once_and_answers_as_the_trajectory():
+    inner = _CountingTrajectory()
+    ego = run_mod.FramePoseCache(inner)
+    for t in (0.5, 0.5, 0.25, 0.25, 0.5):
+        p = ego.pose_at(t)
+        # slerp halfway through a 90 deg yaw is 45 deg (t = 0.5), position linear: x = 2 t
+        yaw = np.arctan2(p.R[1, 0], p.R[0, 0])
+        assert yaw == pytest.approx(np.pi / 2 * t) and p.t == pytest.approx([2 * t, 0, 0])
+    assert inner.poses == 3  # 0.5, 0.25, 0.5: repeated times are not looked up again
+    v = ego.velocity_at(0.5)
+    v[:] = 99.0  # a caller changing its copy does not change the next answer
+    assert ego.velocity_at(0.5) == pytest.approx([2.0, 0, 0]) and inner.velocities == 1
+    assert ego.covers(1.0) and not ego.covers(1.5)
+    with pytest.raises(Exception, match="outside"):
+        ego.pose_at(1.5)  # the trajectory's own error, not a remembered pose
+    assert ego.pose_at(0.25).t == pytest.approx([0.5, 0, 0])
+
+
+def test_run_looks_up_one_pose_per_frame_for_the_loop_and_fusion(tmp_path):
+    """Fusion built by run() shares the loop's pose look-up: one TUM interpolation per frame."""
+    v = write_video(tmp_path / "cam0.mkv", 5, times=[k / 10 for k in range(5)])
+    sets = ["ego_motion.speed_mps=5", "outputs.progress=false"]
+    cfg = load_config(None, sets, cli={"inputs.videos": [str(v)]})
+    rig = mono_rig()
+    inner = _CountingTrajectory()
+    r = run(cfg, tmp_path / "out", rig=rig, egomotion=inner, frontend=FakeFrontEnd(rig))
+    assert r.frames == 5 and inner.poses == 5
