@@ -17,6 +17,10 @@ write their new state and over components wide enough to be cut):
    revives a track that has no members now (coasting, or whose features were all replaced this
    frame) when it lies within ``max_radius_rad`` of where that track was predicted to be and moves
    like it (closest pairs first); otherwise it starts a tentative track.
+3b. One obstacle tracked as two pieces (a near obstacle grows beyond ``max_radius`` and is cut):
+   when the older, confirmed piece loses its members (it left the image or was hidden), it takes
+   over the younger piece that lies where its members went and moves like it, so the obstacle
+   keeps the id downstream filters know (the younger id is reported lost).
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
    surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
    outside the lens do not count against it) and the flow field they span (an affine fit in the
@@ -220,6 +224,7 @@ class ObstacleGrouper:
         rep = np.array([t.b_C for t in tracks], float).reshape(T, 3)
         tflow = np.array([t.flow_rad_s for t in tracks], float).reshape(T, 3)
         hits = np.array([t.hits for t in tracks], np.int64)
+        conf = np.array([t.status == "confirmed" for t in tracks], bool).reshape(T)
         owner = self._owners(ids, tracks)
         self._frame += 1
         bg = self._background(ids)
@@ -308,7 +313,16 @@ class ObstacleGrouper:
             rep = np.concatenate([rep, pc])
             tflow = np.concatenate([tflow, pf])
         TK = T + K
-        tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
+        tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, TK)
+        # 3b. one obstacle tracked as two pieces (cut to max_radius as it grew in the image) whose
+        # older piece lost its members (out of the image, occluded): it takes over the younger one
+        conf_k = np.concatenate([conf, np.zeros(TK - T, bool)])
+        hits_k = np.concatenate([hits, np.zeros(TK - T, np.int64)])
+        taken = self._inherit(owner, b, tflow, has_flow, conf_k, hits_k, cos_link, tracks, R1, dt_s)
+        if np.any(taken >= 0):
+            hj = np.flatnonzero(taken >= 0)
+            rep[taken[hj]] = rep[hj]  # the heir's representative bearing carries on
+            tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
         # 4. representative bearing, sigma, reach
         own = np.flatnonzero(owner >= 0)
         o = owner[own]
@@ -325,14 +339,14 @@ class ObstacleGrouper:
         use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
         new_rep = np.where(use_moved[:, None], moved, mean_c)
         ang = np.arccos(np.clip(np.einsum("ij,ij->i", b[own], new_rep[o]), -1.0, 1.0))
-        spread2 = np.bincount(o, ang * ang, TK) / np.maximum(cnt, 1)
-        # sigma^2 = spread^2 / n + floor^2
-        sigma = np.sqrt(spread2 / np.maximum(cnt, 1) + (self.sigma_floor_px * rad_px) ** 2)
         order_o = np.argsort(o, kind="stable")
         srt = own[order_o]  # member rows grouped by track
         starts = np.concatenate([[0], np.cumsum(cnt)])
-        reach = np.zeros(TK)  # farthest member's angle from the representative bearing
         ne = np.flatnonzero(cnt > 0)
+        spread2 = np.bincount(o, ang * ang, TK) / np.maximum(cnt, 1)
+        # sigma^2 = spread^2 / n + floor^2
+        sigma = np.sqrt(spread2 / np.maximum(cnt, 1) + (self.sigma_floor_px * rad_px) ** 2)
+        reach = np.zeros(TK)  # farthest member's angle from the representative bearing
         if len(ne):
             reach[ne] = np.maximum.reduceat(ang[order_o], starts[ne])
         need = np.full(TK, self._keep_min())
@@ -367,6 +381,12 @@ class ObstacleGrouper:
         for ti in range(TK):
             if ti < T:
                 tr = tracks[ti]
+                if taken[ti] >= 0:  # taken over by an older track of the same obstacle
+                    tr.status, tr.seen = "lost", False
+                    tr.members, tr.member_b_C = empty_i, empty_b
+                    del self.tracks[tr.id]
+                    lost.append(tr)
+                    continue
                 if not alive[ti]:  # unseen: coast on the predicted bearing
                     tr.seen = False
                     tr.members, tr.member_b_C = empty_i, empty_b
@@ -464,6 +484,60 @@ class ObstacleGrouper:
             del self.tracks[tr.id]
             return True
         return False
+
+    def _inherit(
+        self,
+        owner: np.ndarray,
+        b: np.ndarray,
+        tflow: np.ndarray,
+        has_flow: np.ndarray,
+        conf: np.ndarray,
+        hits: np.ndarray,
+        cos_link: float,
+        tracks: list[ObstacleTrack],
+        R1: np.ndarray | None,
+        dt_s: float,
+    ) -> np.ndarray:
+        """A confirmed track that has lost its members this frame takes over a younger track seen
+        this frame that lies where its members went (one of its members within ``link_rad`` of
+        one of the old track's last members, moved on by the old track's flow and the camera's
+        rotation R1 (3,3)) and moves like it: one obstacle tracked as two pieces whose older piece
+        left the image or was hidden. The old id carries on (downstream filters know it).
+
+        Args: owner (N,) track index per live feature, -1 none (changed in place); b (N,3) unit
+        bearings in C; per track index (TK): tflow (TK,3) mean member flow (rad/s), has_flow
+        (from >= 3 members), conf (confirmed), hits; tracks: the T existing tracks (indices < T).
+        Returns taken (TK,) int: the index of the track that took over each one, -1 for none."""
+        TK = len(tflow)
+        T = len(tracks)
+        out = np.full(TK, -1, np.intp)
+        if T == 0:
+            return out
+        cnt = np.bincount(owner[owner >= 0], minlength=TK)
+        need = np.array([t.keep_min or self._keep_min() for t in tracks] + [self._keep_min()] * (TK - T))
+        alive = cnt >= need
+        dying = [i for i in np.flatnonzero(~alive[:T] & conf[:T]) if len(tracks[i].member_b_C)]
+        if not dying:
+            return out
+        used = np.zeros(TK, bool)
+        fn = np.linalg.norm(tflow, axis=1)
+        for i in dying:
+            mb = tracks[i].member_b_C
+            mb = mb @ R1.T if R1 is not None else mb
+            mb = _normalise(mb + tflow[i] * dt_s) if self.coast_predict else mb
+            cand = np.flatnonzero(alive & ~used & (hits < hits[i]) & has_flow)
+            cand = cand[self._agree(tflow[cand], fn[cand], tflow[i][None, :])]
+            best, best_c = -1, cos_link
+            for j in cand:
+                rj = np.flatnonzero(owner == j)
+                c = float(np.max(b[rj] @ mb.T))
+                if c > best_c:
+                    best, best_c = j, c
+            if best >= 0:
+                owner[owner == best] = i
+                out[best] = i
+                used[best] = used[i] = True
+        return out
 
     def _agree(self, f: np.ndarray, fn: np.ndarray, g: np.ndarray, loose: float = 1.0) -> np.ndarray:
         """Flows f (..., 3) (norms fn (...)) and g (..., 3) agree (rad/s):

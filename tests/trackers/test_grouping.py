@@ -271,3 +271,70 @@ def test_extended_texture_starts_few_tracks_and_the_obstacle_keeps_one(model, ri
     assert off_disc[0] >= 8, f"without the rule the world should be cut into many tracks: {off_disc[0]}"
     assert off_disc[6] <= 0.4 * off_disc[0], off_disc
     assert on_disc[6] >= 10, on_disc
+
+
+class PointFeatures:
+    """A stand-in for a FeatureTracker that the grouper reads: live feature ids, unit bearings,
+    ages and their history, set directly (the test chooses every feature's bearing)."""
+
+    def __init__(self, model) -> None:
+        self.model, self.name = model, "cam0"
+        self.ids = np.zeros(0, np.int64)
+        self.b_C = np.zeros((0, 3))
+        self.age = np.zeros(0, np.int64)
+        self._hist: dict[int, list[tuple[np.ndarray, float]]] = {}
+
+    def set(self, ids, b_C, t_s: float) -> None:
+        self.ids, self.b_C = np.asarray(ids, np.int64), np.asarray(b_C, float)
+        for i, b in zip(self.ids.tolist(), self.b_C, strict=True):
+            self._hist.setdefault(i, []).append((b, t_s))
+        self.age = np.array([len(self._hist[i]) for i in self.ids.tolist()], np.int64)
+
+    def bearing_ago(self, k: int):
+        h = [self._hist[i][-1 - min(k, len(self._hist[i]) - 1)] for i in self.ids.tolist()]
+        return (
+            np.array([b for b, _ in h]).reshape(-1, 3),
+            np.array([t for _, t in h]),
+            self.age > 1,
+        )
+
+    def previous_bearing(self):
+        h = [self._hist[i][-2] if len(self._hist[i]) > 1 else self._hist[i][-1] for i in self.ids.tolist()]
+        return np.array([b for b, _ in h]).reshape(-1, 3), self.age > 1
+
+
+def test_an_old_piece_that_leaves_hands_its_id_to_the_younger_piece_of_the_same_obstacle(model):
+    """One obstacle seen as two pieces: a grid of points on the sphere drifting 0.3 deg per
+    frame, whose second half appears 8 frames after the first, beyond max_radius of the first
+    piece's centre (so it starts its own, younger track) but adjacent to it. At frame 20 the first
+    half disappears (it left the image): the old track's id carries on over the second half, and
+    the younger id is reported lost."""
+    from trackers.grouping import ObstacleGrouper
+
+    gr = ObstacleGrouper(iter(range(1, 100)), link_px=12.0, max_radius_px=14.0, confirm_frames=3)
+    ft = PointFeatures(model)
+    rad_px = model.max_angle_rad / model.image_circle()[2]
+    step = 6.0 * rad_px  # 6 px between neighbouring points
+    # piece A: 4 x 4 points left of the axis, piece B: the next 4 x 4 to the right
+    grid = [(x, y) for x in range(8) for y in range(4)]
+    base = {k: unit([(x - 4) * step, (y - 1.5) * step, 1.0]) for k, (x, y) in enumerate(grid)}
+    in_a = {k for k, (x, _) in enumerate(grid) if x < 4}
+    axis, rate = [0, 1, 0], np.radians(0.3)
+    ids_a, ids_b = set(), set()
+    lost = []
+    for k in range(32):
+        R = rot_axis(axis, rate * k)
+        keep = [i for i in base if (i in in_a and k < 20) or (i not in in_a and k >= 8)]
+        ft.set(keep, np.array([R @ base[i] for i in keep]), k / 30.0)
+        seen, gone = gr.update(ft, k / 30.0)
+        lost += [t.id for t in gone]
+        for t in seen:
+            m = set(t.members.tolist())
+            if k == 16:  # both halves seen: which ids hold which half
+                (ids_a if m <= in_a else ids_b).add(t.id) if m else None
+            if k >= 22 and m:
+                assert m.isdisjoint(in_a)
+    assert len(ids_a) == 1 and len(ids_b) == 1, (ids_a, ids_b)
+    (ta,), (tb,) = ids_a, ids_b
+    assert tb in lost and ta not in lost
+    assert ta in gr.tracks and set(gr.tracks[ta].members.tolist()) == set(base) - in_a
