@@ -209,12 +209,34 @@ class FusionSettings:
         feature_point_quantile: which feature's point: the lower q-quantile by range of the inner
             ones. Default 0.5 (the lower median; 0.3 ranged the tracked stereo scenes better, 1.1 vs
             1.6 % within 3 m, but picked a near stray feature on a fresh tracking: NEES mean 1204).
-        feature_range_floor_frac: the floor above, as a fraction of the range. Default 0.015 (the
+        feature_range_floor_frac: the floor above, as a fraction of the range. Default 0.01 (the
             per-feature error stops shrinking with parallax at 1.1-1.4 % of the range: KLT corners
-            drift over the surface). The 5 tracked pipeline scenes (recorded observations, with
-            rep_ray_mono_with_features on), k / floor -> range NEES median, 1-sigma share:
-            2 / 1.2 % 0.64, 57 %; 3 / 1.2 % 0.47, 63 %; 2.5 / 1.5 % 0.43, 64 %; 2 / 2 % 0.36,
-            73 %; 3 / 2 % 0.28, 77 % (errors unchanged); 2.5 / 1.5 % with it off: 0.39, 68 %.
+            drift over the surface; with the largest-depth-cluster choice and the member-spread and
+            carried-state terms below, the 5 tracked pipeline scenes' range NEES median / 1-sigma
+            share for floors 1.5 / 1.2 / 1.0 %: 0.24 / 79 %, 0.27 / 77 %, 0.30 / 72 %).
+        feature_depth_gap_frac: with feature_point, the inner features' ranges are split into
+            depth clusters where consecutive sorted ranges differ by more than this fraction, and
+            only the largest cluster is ranged (``_largest_depth_cluster``; 0 = off). Default 0.3
+            (tracked pipeline scenes: stereo <= 3 m median 1.41 -> 1.30 %, range NEES mean 2.86 ->
+            2.72, the rest unchanged; 0.15: 1.26 % but mono coverage 92.2 -> 91.8 %).
+        carried_range_floor_frac: smallest range sigma, as a fraction of the range, of a report
+            whose range no feature fix or feature stereo fix measured this frame (a state carried
+            by the filter from earlier fixes and the representative bearing, a centroid that slides
+            over the object; a representative-ray stereo fix). Default 0.03 (the 5 tracked pipeline
+            scenes: such reports had a median error of 2.2 % of the range at a median sigma of
+            1.5 %; their z^2 made 60 % of the range NEES sum).
+        member_spread_weight: weight w of the member-spread term of the reported range sigma
+            (``_member_spread``; 0 = off). Default 1.5. Fitted with the next four on the 5 tracked
+            pipeline scenes (2026-11-22: range NEES mean 6.45 -> 3.5 with the floors above; t = 0.1
+            and w = 1 inflated the median sigma by a third).
+        member_spread_share: the share of a track's member points nearest the reported bearing that
+            are its neighbourhood for the member spread. Default 0.5.
+        member_spread_min_n: the neighbourhood holds at least this many member points (or all).
+            Default 6.
+        member_spread_quantile: the quantile q of the neighbourhood's range deviations that is the
+            spread. Default 0.67 (a minority of outlying members does not widen the sigma).
+        member_spread_tol_frac: the tolerance t (fraction of the range) of deviations that are the
+            object's own depth extent (already in the feature sigma). Default 0.15.
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -255,7 +277,14 @@ class FusionSettings:
     feature_min_depth_m: float = 0.1
     feature_point_sigma_k: float = 2.5
     feature_point_quantile: float = 0.5
-    feature_range_floor_frac: float = 0.015
+    feature_range_floor_frac: float = 0.01
+    carried_range_floor_frac: float = 0.03
+    feature_depth_gap_frac: float = 0.3
+    member_spread_weight: float = 1.5
+    member_spread_share: float = 0.5
+    member_spread_min_n: int = 6
+    member_spread_quantile: float = 0.67
+    member_spread_tol_frac: float = 0.15
     feature_mad_all_weight: float = 0.5
     feature_small_n_inflate: float = 1.0
     stereo_feature_min_count: int = 2
@@ -295,6 +324,10 @@ class FusionSettings:
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"FusionSettings.{name}: expected a value > 0, got {getattr(self, name)}")
+        for name in ("member_spread_share", "member_spread_quantile"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ConfigError(
+                    f"FusionSettings.{name}: expected a value in [0, 1], got {getattr(self, name)}")
         if not 0.0 <= self.feature_point_quantile <= 1.0:
             raise ConfigError(
                 "FusionSettings.feature_point_quantile: expected a quantile in [0, 1], "
@@ -487,6 +520,34 @@ class _FeatureRays:
         return np.maximum(cost, 0.0) / np.maximum(self.n[rows], 1.0)
 
 
+def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac: float) -> np.ndarray:
+    """Mask (K,) of the entries of each group's largest depth cluster among the entries m (K,)
+    (bool): a group's ranges r (K,) sorted ascending split where one exceeds the previous by more
+    than gap_frac of it (r_(i+1) > (1 + gap_frac) r_i); the cluster with the most entries is kept
+    (of equal ones the nearest). Members of another object or of the background behind a track's
+    obstacle form their own clusters and drop out before the median."""
+    idx = np.flatnonzero(m)
+    out = np.zeros(len(g), dtype=bool)
+    if not len(idx):
+        return out
+    gm, rm = g[idx], r[idx]
+    order = np.lexsort((rm, gm))
+    gs, rs = gm[order], rm[order]
+    brk = np.ones(len(gs), dtype=bool)
+    brk[1:] = (gs[1:] != gs[:-1]) | (rs[1:] > (1.0 + gap_frac) * rs[:-1])
+    cl = np.cumsum(brk) - 1  # cluster id, clusters in (group, range) order
+    size = np.bincount(cl)
+    cg = gs[brk]  # group of each cluster
+    # per group the first cluster of the largest size: sort clusters by (group, -size, id)
+    best = np.lexsort((np.arange(len(size)), -size, cg))
+    first = np.ones(len(best), dtype=bool)
+    first[1:] = cg[best[1:]] != cg[best[:-1]]
+    keep_cl = np.zeros(len(size), dtype=bool)
+    keep_cl[best[first]] = True
+    out[idx[order[keep_cl[cl]]]] = True
+    return out
+
+
 def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
     """Median of v (K,) within each group g (K,) in [0, n_groups) -> (n_groups,), 0 for empty groups
     (the mean of the two middle values for even counts, as np.median)."""
@@ -595,6 +656,8 @@ class ObstacleFusion:
         self._T_C_B_inv = {c.name: c.T_C_B.inverse() for c in rig}
         self._cam_index = {n: i for i, n in enumerate(rig.names)}
         self._features = _FeatureRays()
+        self._gidx: dict[int, int] = {}
+        self._members_ls = self._members_st = None
         self._speed_cache: dict[float, float] = {}
         self._FQ_cache: dict[tuple[float, bool], tuple[np.ndarray, np.ndarray]] = {}
         s = self.settings
@@ -635,6 +698,8 @@ class ObstacleFusion:
         fc = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s), t_s)
         reports: list[TrackReport] = []
         seen: set[int] = set()
+        self._gidx: dict[int, int] = {}  # track id -> its index in this frame's work (members' groups)
+        self._members_ls = self._members_st = None
         todo: list[tuple[_Track, ObstacleObservation]] = []
         t_end = 0.0  # time spent reporting tracks ended in this loop (fuse)
         for obs in observations:
@@ -651,6 +716,7 @@ class ObstacleFusion:
             tr.label, tr.attributes = obs.label, dict(obs.attributes)
             todo.append((tr, obs))
         work, feats = self._sightings(todo, frame, t_s, T_W_B)
+        self._gidx = {tr.id: i for i, (tr, _sg, _st) in enumerate(work)}
         self._bounds_batch(work)
         self._features_batch(work, t_s, feats)
         t1 = perf()
@@ -1088,17 +1154,18 @@ class ObstacleFusion:
             return
         g, rows, b_now, c_now = g[first], rows[first], b_now[first], c_now[first]
         n_min = s.feature_min_count
-        cnt = np.bincount(g, minlength=G)
         b0 = fs.b0[rows]
         cosp = np.clip(np.sum(b0 * b_now, axis=1), -1.0, 1.0)
-        good = (cnt[g] >= n_min) & (cosp <= math.cos(max(s.min_parallax_rad, 1e-6)))
-        if int(good.sum()) < n_min:
+        # (tracks with fewer than feature_min_count features get no feature range, but their
+        # features' points still tell the spread of depths around the track: _member_spread)
+        good = cosp <= math.cos(max(s.min_parallax_rad, 1e-6))
+        if not good.any():
             return
         g, rows, b_now, c_now = g[good], rows[good], b_now[good], c_now[good]
         adj, det = _adjugate_det3(fs.A[rows])
         ok = det > 1e-12
         g, rows, b_now, c_now = g[ok], rows[ok], b_now[ok], c_now[ok]
-        if len(g) < n_min:
+        if not len(g):
             return
         Ainv = adj[ok] / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
         p = np.einsum("kij,kj->ki", Ainv, fs.y[rows])  # A_f p_f = y_f
@@ -1113,8 +1180,6 @@ class ObstacleFusion:
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
         # one place only (hovering) all meet at the camera centre, a point of no range
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
-        cnt_keep = np.bincount(g[keep], minlength=G)
-        keep &= cnt_keep[g] >= n_min
         if not keep.any():
             return
         g, rows, b_now, p, r, depth, sig_r = (
@@ -1123,6 +1188,13 @@ class ObstacleFusion:
         # chi = residual^2 / (2 (sigma_f d)^2) ~ 1 for a static point; a moving obstacle's features
         # (crossing motion) fit no static point and their range would be wrong
         chi = fs.residual2(rows, p) / (2.0 * (s.feature_sigma_rad * depth) ** 2)
+        fit = chi <= s.feature_max_chi
+        self._members_ls = (g[fit], r[fit], b_now[fit])  # every track's static member points
+        keep = np.bincount(g, minlength=G)[g] >= n_min
+        if not keep.any():
+            return
+        g, rows, b_now, p, r, depth, sig_r, chi = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep])
         chi_med = _group_median(g, chi, G)
         if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
             fit = chi <= s.feature_max_chi  # a corner sliding along an edge: not this point)
@@ -1137,6 +1209,8 @@ class ObstacleFusion:
             inner |= (cnt_in < n_min)[g]  # too few inner ones: use all
         else:
             inner[:] = True
+        if s.feature_point and s.feature_depth_gap_frac > 0:
+            inner &= _largest_depth_cluster(g, r, inner, s.feature_depth_gap_frac)
         gi, ri, si = g[inner], r[inner], sig_r[inner]
         n_in = np.bincount(gi, minlength=G)
         point = None
@@ -1258,6 +1332,7 @@ class ObstacleFusion:
         p_mid = (0.5 * (q_a + q_b))[ok]
         fid = ids[ia][ok]
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
+        self._members_st = (gg, r, b)  # every track's shared features' two-ray points
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
@@ -1577,8 +1652,14 @@ class ObstacleFusion:
             p_B = r_W @ R_B_W.T
             b_B = p_B / np.maximum(rng, 1e-12)[:, None]
             var = np.maximum(np.einsum("ki,kij,kj->k", u, Ppp, u), 0.0)
-            struct = np.array([tr.struct_sigma_m for tr in trs])
-            sig = np.sqrt(var + struct * struct).tolist()
+            gidx = self._gidx
+            # a range no feature fix measured this frame: at least carried_range_floor_frac of it
+            struct = np.array([tr.struct_sigma_m if tr.id in gidx and (
+                tr.feature_range is not None or tr.feature_stereo is not None)
+                else max(tr.struct_sigma_m, s.carried_range_floor_frac * r)
+                for tr, r in zip(trs, rng.tolist(), strict=True)])
+            extra = self._member_spread(trs, rng, u)
+            sig = np.sqrt(var + struct * struct + extra * extra).tolist()
             rw = _dot_rows(r_W, w).tolist()
             ww = _dot_rows(w, w).tolist()
             moving = [j for j, tr in enumerate(trs) if tr.moving]
@@ -1614,6 +1695,67 @@ class ObstacleFusion:
                           source="bounds" if tr.bounds is not None else "")
                 out[k] = _new_report(kw)
         return out  # type: ignore[return-value]
+
+    def _member_spread(self, trs: list[_Track], rng: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The member-spread term of each report's range sigma (m), (K,) for the tracks trs with
+        their reported ranges rng (K,) m and unit directions u (K, 3) in W.
+
+        The reported point is one member feature's point (or a filtered state); the truth along its
+        bearing differs from it when the track's members near that bearing lie at other depths
+        (features of the background or of another object grouped into the track, a corner on an
+        occluding edge). With the member points of this frame (static tracks: the features'
+        least-squares points that fit a static point; moving ones: the shared features' two-ray
+        points), ranges r_i, the neighbourhood is the ceil(share n) members (at least min_n, at
+        most n) whose current rays are nearest the reported bearing, and
+            d = quantile_q |r_i - r|  (each capped at r),   extra = w max(1.4826 d - t r, 0)
+        (q above 0.5: a minority of outlying members does not count; t r: the object's own depth
+        extent, already in the feature sigma). 0 for tracks without member points this frame.
+        """
+        s = self.settings
+        K = len(trs)
+        out = np.zeros(K)
+        if s.member_spread_weight <= 0 or not self._gidx:
+            return out
+        G = len(self._gidx)
+        j_ls = np.full(G, -1, dtype=np.int64)
+        j_st = np.full(G, -1, dtype=np.int64)
+        for j, tr in enumerate(trs):
+            gi = self._gidx.get(tr.id)
+            if gi is None:
+                continue
+            if tr.moving and tr.feature_range is None and tr.feature_stereo is not None:
+                j_st[gi] = j
+            else:
+                j_ls[gi] = j
+        jj_l, r_l, b_l = [], [], []
+        for mem, jmap in ((self._members_ls, j_ls), (self._members_st, j_st)):
+            if mem is None or not len(mem[0]):
+                continue
+            jj = jmap[mem[0]]
+            m = jj >= 0
+            jj_l.append(jj[m])
+            r_l.append(mem[1][m])
+            b_l.append(mem[2][m])
+        if not jj_l:
+            return out
+        jj, r, b = np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l)
+        if not len(jj):
+            return out
+        cos = _dot_rows(b, u[jj])
+        order = np.lexsort((-cos, jj))  # by track, nearest the reported bearing first
+        cnt = np.bincount(jj, minlength=K)
+        start = np.cumsum(cnt) - cnt
+        jo = jj[order]
+        rank = np.arange(len(order)) - start[jo]
+        k = np.maximum(np.ceil(s.member_spread_share * cnt), s.member_spread_min_n)
+        sel = order[rank < k[jo]]
+        js = jj[sel]
+        dev = np.minimum(np.abs(r[sel] - rng[js]), rng[js])
+        cnt_s = np.bincount(js, minlength=K)
+        q = _group_lower_median_index(js, dev, cnt_s, s.member_spread_quantile)
+        d = np.zeros(K)
+        d[cnt_s > 0] = dev[q]
+        return s.member_spread_weight * np.maximum(1.4826 * d - s.member_spread_tol_frac * rng, 0.0)
 
     @staticmethod
     def _report_common(tr: _Track, status: str) -> dict:

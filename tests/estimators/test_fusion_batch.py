@@ -10,6 +10,7 @@ import pytest
 from estimators.fusion import (
     _adjugate_det3,
     _FeatureRays,
+    _largest_depth_cluster,
     _new_report,
     _noisy_bound_rays_batch,
     _ray_covariance,
@@ -145,8 +146,8 @@ def test_feature_point_reports_the_median_features_own_point():
     assert r.range_m == pytest.approx(rng_true[k], rel=0.01)
     b_true = T_W_B.R.T @ (feats_W[k] - T_W_B.t) / rng_true[k]
     assert math.degrees(math.acos(min(1.0, float(b_true @ r.bearing_body)))) < 0.2
-    # sigma >= the 1.2 % floor, and honest
-    assert r.range_sigma_m >= 0.012 * r.range_m * 0.999
+    # sigma >= the floor, and honest
+    assert r.range_sigma_m >= FusionSettings().feature_range_floor_frac * r.range_m * 0.999
     assert abs(r.range_m - rng_true[k]) <= 3 * r.range_sigma_m
     # feature_point off: the same median range, but along the representative ray
     r_old, _ = _features_run(FusionSettings(feature_inner_half=False, feature_point=False), feats_W, rep_W)
@@ -212,3 +213,40 @@ def test_moving_track_seen_by_one_camera_loses_its_range_after_moving_mono_max_s
         ranged.append((t, r.range_m is not None))
     assert all(ok for t, ok in ranged if 0.3 <= t <= 0.8 + 0.3 - 1e-6)
     assert not any(ok for t, ok in ranged if t > 0.8 + 0.3 + 1e-6)
+
+
+def test_largest_depth_cluster_keeps_each_groups_biggest_cluster():
+    # group 0: 10, 10.5, 11 | 20, 21 (11 -> 20 is a gap > 30 %): the three near ones; group 1:
+    # 5, 5.2 | 9, 9.5: two clusters of two, the nearer one; a masked-out entry is never kept
+    g = np.array([0, 0, 0, 0, 0, 1, 1, 1, 1, 0])
+    r = np.array([20.0, 10.0, 21.0, 10.5, 11.0, 9.0, 5.0, 9.5, 5.2, 10.2])
+    m = np.array([True] * 9 + [False])
+    out = _largest_depth_cluster(g, r, m, 0.3)
+    assert out.tolist() == [False, True, False, True, True, False, True, False, True, False]
+
+
+@pytest.mark.parametrize("n_box, n_wall, widened", [(6, 5, True), (8, 3, False)])
+def test_member_spread_widens_sigma_only_when_many_members_lie_at_another_depth(n_box, n_wall, widened):
+    # n_box corners of a box face at 12-13 m and n_wall features of a wall at ~30 m in one track.
+    # With the whole track as the neighbourhood (share 1) and q = 0.67, the spread is the deviation
+    # of sorted element floor(0.67 (n - 1)): a wall feature for 6 + 5 (element 6 of 11), a box one
+    # for 8 + 3 (a minority of outliers does not count).
+    from estimators.fusion import FusionSettings
+
+    box = np.array([[12.0, 4.0, 0.4], [12.3, 4.2, -0.3], [12.6, 3.7, 0.1], [12.9, 4.4, 0.3],
+                    [13.2, 3.9, -0.2], [12.4, 3.8, 0.5], [12.8, 4.1, -0.4], [12.2, 4.3, 0.0]])[:n_box]
+    wall = np.array([[30.0, 9.0, 0.5], [30.0, 10.0, -0.5], [30.0, 11.0, 0.2], [30.0, 9.5, -1.0],
+                     [30.0, 10.5, 1.0]])[:n_wall]
+    s = FusionSettings(feature_inner_half=False, member_spread_share=1.0)
+    r_off, T_W_B = _features_run(FusionSettings(feature_inner_half=False, member_spread_weight=0.0),
+                                 np.vstack([box, wall]), np.array([11.0, 4.05, 0.05]))
+    r, _ = _features_run(s, np.vstack([box, wall]), np.array([11.0, 4.05, 0.05]))
+    assert r.range_m == pytest.approx(r_off.range_m)  # the same point: the box's
+    assert r.range_m < 14.0
+    if widened:  # extra = w max(1.4826 d - t r, 0), d = min(|r_wall - r|, r) (wall ranges from truth)
+        d = min(float(np.min(np.linalg.norm(wall - T_W_B.t, axis=1))) - r.range_m, r.range_m)
+        lo = s.member_spread_weight * (1.4826 * d - s.member_spread_tol_frac * r.range_m)
+        assert r.range_sigma_m >= 0.9 * lo
+        assert r.range_sigma_m > 10 * r_off.range_sigma_m
+    else:
+        assert r.range_sigma_m == pytest.approx(r_off.range_sigma_m, rel=0.05)
