@@ -541,13 +541,16 @@ class LoopingSource:
         sampled (the sample for "after k frames" is taken when set k+1 is requested, i.e. after the
         run loop has finished frame k). warmup: frame sets before the steady-state clock starts.
         grey: yield grey frames (the run loop's ``inputs.grey`` for grey detectors).
+        prefetch: frame sets decoded ahead in a background thread (0: none), as ``pipeline.run``
+            reads videos ahead (``inputs.prefetch``) when more than one CPU is allowed.
     """
 
     def __init__(self, videos: Mapping[str, str | Path], n_frames: int, fps: float,
                  checkpoints: Sequence[int] = (), warmup: int = 0,
-                 memory_path: str | Path | None = None, grey: bool = False) -> None:
+                 memory_path: str | Path | None = None, grey: bool = False, prefetch: int = 0) -> None:
         self.videos = {k: str(v) for k, v in videos.items()}
         self.grey = bool(grey)
+        self.prefetch = int(prefetch)
         self.n_frames, self.fps, self.warmup = int(n_frames), float(fps), int(warmup)
         self.sources = [_SourceInfo(k, v, self.fps) for k, v in self.videos.items()]
         self.dropped = {k: 0 for k in self.videos}
@@ -560,9 +563,18 @@ class LoopingSource:
         self.sets = 0
 
     def __iter__(self):
-        from pipeline.sources import Frame, FrameSet
+        from pipeline.sources import Frame, FrameSet, PrefetchSource, Source
 
-        for k, f in enumerate(looped_frames(self.videos, self.n_frames, self.fps, grey=self.grey)):
+        outer = self
+
+        class Decoded(Source):  # the looped decode as a Source, so PrefetchSource can read it ahead
+            camera = "+".join(outer.videos)
+
+            def __iter__(self):
+                return looped_frames(outer.videos, outer.n_frames, outer.fps, grey=outer.grey)
+
+        frames = PrefetchSource(Decoded(), self.prefetch) if self.prefetch > 0 else Decoded()
+        for k, f in enumerate(frames):
             self.memory.after_frame(k)
             if k == self.warmup:
                 self.t_warm, self.cpu_warm = time.perf_counter(), time.process_time()
@@ -661,9 +673,11 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     n = int(task["frames"])
     warm = int(task.get("warmup", min(10, n // 10)))
     Path(task["out"]).mkdir(parents=True, exist_ok=True)
+    # read ahead exactly when `fisheye-des run` would (open_inputs: more than one CPU allowed)
+    ahead = cfg.inputs.prefetch if run_mod.cpus_allowed() > 1 else 0
     src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
                         task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json",
-                        grey=run_mod.wants_grey(cfg))
+                        grey=run_mod.wants_grey(cfg), prefetch=ahead)
     res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
                       progress=False)
     sm = res.summary
@@ -674,7 +688,7 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
         "observations_mean": float(np.mean(front.observations)) if front.observations else 0.0,
         "grouped_features_mean": float(np.mean(front.features)) if front.features else 0.0,
         "tracked_features_mean": float(np.mean(front.tracked)) if front.tracked else 0.0,
-        "tracks": res.tracks, "memory": src.memory.to_json(), "out": str(res.out_dir),
+        "tracks": res.tracks, "memory": src.memory.to_json(), "out": str(res.out_dir), "prefetch": ahead,
     }
 
 

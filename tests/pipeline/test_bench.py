@@ -326,6 +326,20 @@ def test_looping_source_feeds_the_run_loop_with_bgr_frame_sets(tmp_path):
     assert [s.camera for s in src.sources] == ["cam0", "cam1"] and src.error is None
 
 
+def test_looping_source_reading_ahead_yields_the_same_frame_sets(tmp_path):
+    """With more than one CPU `run` reads ahead in a thread (inputs.prefetch); the bench's source does
+    the same then, and yields the same frames in the same order."""
+    a = write_video(tmp_path / "cam0.mkv", [0, 50, 100])
+    b = write_video(tmp_path / "cam1.mkv", [200, 150, 100])
+    videos = {"cam0": a, "cam1": b}
+    plain = bench.LoopingSource(videos, 7, fps=10.0, checkpoints=[7])
+    ahead = bench.LoopingSource(videos, 7, fps=10.0, checkpoints=[7], prefetch=2)
+    want = [(s.frame, s.t_s, [int(im[0, 0, 0]) for im in s.images.values()]) for s in plain]
+    got = [(s.frame, s.t_s, [int(im[0, 0, 0]) for im in s.images.values()]) for s in ahead]
+    assert got == want and [v for _, _, v in got][3] == [0, 200]  # frame 3 = clip frame 0 again
+    assert sorted(ahead.memory.samples) == [7] and ahead.sets == 7
+
+
 def write_grey_video(path: Path, values: list[int], size: tuple[int, int] = (64, 48)) -> Path:
     """One-plane grey FFV1 video (isColor=False, as ``simulate --grey`` writes) whose frame i is a
     horizontal ramp ``values[i] + column``."""
