@@ -11,6 +11,8 @@ best partner.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
@@ -99,6 +101,21 @@ def match_features(
     return np.stack([i, j[i]], axis=1)
 
 
+class StereoKLT(NamedTuple):
+    """Result of ``stereo_klt_tracked``: the rows found and where.
+
+    Attributes:
+        idx: (K,) int rows of the input bearings found in camera b.
+        uv_b: (K, 2) float px, full-frame pixels in b; b_b: (K, 3) unit bearings in C_b.
+        checked: (K,) bool, whether the forward-backward check ran on that row this call.
+    """
+
+    idx: np.ndarray
+    uv_b: np.ndarray
+    b_b: np.ndarray
+    checked: np.ndarray
+
+
 def stereo_klt(
     grey_a: np.ndarray,
     grey_b: np.ndarray,
@@ -127,13 +144,73 @@ def stereo_klt(
     Returns:
         (idx (K,) rows of b_a found, uv_b (K, 2) pixels in b, b_b (K, 3) unit bearings in C_b).
     """
+    r = stereo_klt_tracked(
+        grey_a,
+        grey_b,
+        b_a,
+        uv_a,
+        model_b,
+        R_b_a,
+        t_b_a,
+        epipolar_rad,
+        win_px,
+        levels,
+        fb_max_px,
+        off_a,
+        off_b,
+    )
+    return r.idx, r.uv_b, r.b_b
+
+
+def stereo_klt_tracked(
+    grey_a: np.ndarray,
+    grey_b: np.ndarray,
+    b_a: np.ndarray,
+    uv_a: np.ndarray,
+    model_b,
+    R_b_a: np.ndarray,
+    t_b_a: np.ndarray,
+    epipolar_rad: float = np.radians(1.0),
+    win_px: int = 11,
+    levels: int = 4,
+    fb_max_px: float = 1.0,
+    off_a: np.ndarray | None = None,
+    off_b: np.ndarray | None = None,
+    guess_b: np.ndarray | None = None,
+    check: np.ndarray | None = None,
+    recheck_px: float = 1.0,
+) -> StereoKLT:
+    """``stereo_klt`` for features followed over frames: one forward KLT call for all rows, each
+    starting from its own guess, and the backward (forward-backward) check only where needed.
+
+    Args:
+        grey_a ... off_b: as ``stereo_klt``.
+        guess_b: (N, 2) full-frame px in b where each row is expected (e.g. last frame's match
+            moved by the feature's motion in a); NaN rows (or None: all) start from the
+            infinite-depth projection of b_a.
+        check: (N,) bool, rows that get the backward check whatever happens (None: all). A row
+            with a finite guess whose forward result lands more than ``recheck_px`` from it is
+            checked too; every other row is kept on the forward result and the epipolar test.
+    Returns:
+        ``StereoKLT`` (idx, uv_b, b_b, checked).
+    """
     import cv2
 
-    empty = (np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 3)))
-    if not len(b_a):
+    n = len(b_a)
+    empty = StereoKLT(np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0, bool))
+    if not n:
         return empty
     # a point far away is seen along R b_a from camera b: the start of the search
-    guess, ok = model_b.bearing_to_pixel(b_a @ np.asarray(R_b_a).T)
+    start = np.zeros((n, 2))
+    ok = np.ones(n, bool)
+    own = np.zeros(n, bool) if guess_b is None else np.isfinite(np.asarray(guess_b, float)).all(axis=1)
+    if own.any():
+        start[own] = np.asarray(guess_b, float)[own]
+    if not own.all():
+        inf = np.flatnonzero(~own)
+        g, ok_inf = model_b.bearing_to_pixel(b_a[inf] @ np.asarray(R_b_a).T)
+        start[inf] = g
+        ok[inf] = ok_inf
     idx = np.flatnonzero(ok)
     if not len(idx):
         return empty
@@ -145,22 +222,31 @@ def stereo_klt(
         grey_a,
         grey_b,
         p0,
-        (guess[idx] - ob).reshape(-1, 1, 2).astype(np.float32),
+        (start[idx] - ob).reshape(-1, 1, 2).astype(np.float32),
         winSize=(win_px, win_px),
         maxLevel=levels,
         criteria=crit,
         flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
     )
-    p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
-        grey_b, grey_a, p1, None, winSize=(win_px, win_px), maxLevel=levels, criteria=crit
-    )
-    good = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1)
-    good &= np.linalg.norm((p0r - p0).reshape(-1, 2), axis=1) <= fb_max_px
+    good = st.reshape(-1) == 1
     uv_b = p1.reshape(-1, 2).astype(float) + ob
+    # the backward check: rows asked for, and followed rows that did not land where expected
+    chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()
+    chk |= ~own[idx]
+    moved = own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
+    chk |= moved
+    ci = np.flatnonzero(chk & good)
+    if len(ci):
+        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
+            grey_b, grey_a, p1[ci], None, winSize=(win_px, win_px), maxLevel=levels, criteria=crit
+        )
+        good[ci] &= (st2.reshape(-1) == 1) & (
+            np.linalg.norm((p0r - p0[ci]).reshape(-1, 2), axis=1) <= fb_max_px
+        )
     bb, okb = model_b.pixel_to_bearing(uv_b)
     good &= okb
     good &= epipolar_residual(b_a[idx], bb, R_b_a, t_b_a) < np.sin(epipolar_rad)
-    return idx[good], uv_b[good], bb[good]
+    return StereoKLT(idx[good], uv_b[good], bb[good], chk[good])
 
 
 def klt_links(d2_px2: np.ndarray, link_px: float) -> tuple[np.ndarray, np.ndarray]:

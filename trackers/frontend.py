@@ -23,7 +23,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt
+from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt_tracked
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -114,7 +114,8 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        bad = sorted(set(a) - {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px"})
+        known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px"}
+        bad = sorted(set(a) - known - {"recheck_every", "recheck_px"})
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
         self.assoc_every = int(a.get("every", 5))
@@ -124,6 +125,15 @@ class FrontEnd:
         # a reference feature found by stereo KLT within this distance of exactly one of the other
         # camera's features (and nothing else within twice it) is the same physical point
         self.klt_link_px = float(a.get("klt_link_px", 1.5))
+        # stereo KLT of a feature matched last frame: forward-backward re-checked every this many
+        # frames, or when it lands more than recheck_px from where last frame's match predicts
+        self.recheck_every = int(a.get("recheck_every", 4))
+        self.recheck_px = float(a.get("recheck_px", 1.0))
+        if self.recheck_every < 1 or not self.recheck_px >= 0:
+            raise ConfigError(
+                "FrontEnd association: recheck_every expected an integer >= 1 and recheck_px a "
+                f"distance >= 0 px, got {self.recheck_every!r} and {self.recheck_px!r}"
+            )
         # frames wider than max_width are tracked downscaled (the camera model scaled alike, so
         # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
         mw = options.get("max_width", 1280)
@@ -179,6 +189,8 @@ class FrontEnd:
         }
         # this frame's stereo KLT results per camera pair (shared by _associate and _derive_views)
         self._stereo_cache: dict[tuple[str, str], tuple] = {}
+        # last frame's stereo KLT matches per camera pair (_remember_stereo), where this frame's start
+        self._stereo_mem: dict[tuple[str, str], tuple] = {}
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
         # feature id -> the id it is reported under (the reference camera's matched feature, or a
@@ -302,7 +314,7 @@ class FrontEnd:
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
-        self._stereo_cache.clear()
+        self._remember_stereo()
         tm["associate"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         self._n += 1
@@ -361,22 +373,39 @@ class FrontEnd:
 
     def _stereo(self, a: str, b: str, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Camera a's live features ``rows`` (K,) found in camera b's frame by stereo KLT
-        (trackers/association.py ``stereo_klt``, on the trackers' lens crops), each feature at most
-        once per frame: (idx (J,) into rows, uv_b (J, 2) full-frame px in b, b_b (J, 3) unit
-        bearings in C_b)."""
+        (trackers/association.py ``stereo_klt_tracked``, on the trackers' lens crops), each feature
+        at most once per frame: (idx (J,) into rows, uv_b (J, 2) full-frame px in b, b_b (J, 3)
+        unit bearings in C_b).
+
+        A feature found last frame starts from there, moved by its own motion in a, and skips the
+        forward-backward check unless its last check is ``recheck_every`` frames old or it did not
+        land within ``recheck_px`` of that start (new features are always checked)."""
         fa, fb = self.trackers[a], self.trackers[b]
         n = len(fa.ids)
         c = self._stereo_cache.get((a, b))
         if c is None or len(c[0]) != n:
-            c = (np.zeros(n, bool), np.full((n, 2), np.nan), np.full((n, 3), np.nan))
+            nan = np.nan
+            c = (np.zeros(n, bool), np.full((n, 2), nan), np.full((n, 3), nan), np.full(n, -1, np.int64))
             self._stereo_cache[(a, b)] = c
-        tried, uvb, bb = c
+        tried, uvb, bb, chk = c
         rows = np.asarray(rows, np.intp)
         todo = np.unique(rows[~tried[rows]])
         if len(todo):
             (ca, oa), (cb, ob) = fa.crop, fb.crop
             T = self._T_b_a[(a, b)]
-            idx, uv, bv = stereo_klt(
+            guess = np.full((len(todo), 2), np.nan)
+            last = np.full(len(todo), -1, np.int64)
+            m = self._stereo_mem.get((a, b))
+            if m is not None and m[0] == self._n - 1 and len(m[1]):
+                m_ids = m[1]
+                ids = fa.ids[todo]
+                k = np.minimum(np.searchsorted(m_ids, ids), len(m_ids) - 1)
+                hit = np.flatnonzero(m_ids[k] == ids)
+                kk = k[hit]
+                # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
+                guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
+                last[hit] = m[4][kk]
+            r = stereo_klt_tracked(
                 ca,
                 cb,
                 fa.b_C[todo],
@@ -387,12 +416,31 @@ class FrontEnd:
                 self.epipolar_rad,
                 off_a=oa,
                 off_b=ob,
+                guess_b=guess,
+                check=(last < 0) | (self._n - last >= self.recheck_every),
+                recheck_px=self.recheck_px,
             )
             tried[todo] = True
-            uvb[todo[idx]] = uv
-            bb[todo[idx]] = bv
+            found = todo[r.idx]
+            uvb[found] = r.uv_b
+            bb[found] = r.b_b
+            chk[found] = np.where(r.checked, self._n, last[r.idx])
         sel = np.flatnonzero(np.isfinite(uvb[rows, 0]))
         return sel, uvb[rows[sel]], bb[rows[sel]]
+
+    def _remember_stereo(self) -> None:
+        """Keep this frame's stereo KLT matches (per camera pair, sorted by a's feature id: the
+        frame, ids, uv_a, uv_b (full-frame px), frame of the last forward-backward check) as the
+        next frame's starting points, and clear the per-frame cache."""
+        mem = {}
+        for (a, b), (_, uvb, _, chk) in self._stereo_cache.items():
+            ft = self.trackers[a]
+            f = np.flatnonzero(np.isfinite(uvb[:, 0]))
+            o = np.argsort(ft.ids[f], kind="stable")
+            f = f[o]
+            mem[(a, b)] = (self._n, ft.ids[f], ft.uv[f].astype(float), uvb[f], chk[f])
+        self._stereo_mem = mem
+        self._stereo_cache.clear()
 
     def _prefetch_stereo(
         self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray], assoc_now: bool

@@ -304,3 +304,50 @@ def test_close_obstacle_features_get_shared_ids_that_name_one_physical_point(hov
     assert shared >= 0.5 * on_sphere, f"{shared} of {on_sphere} near-sphere features have a shared id"
     assert np.median(err_px) < 2.0
     assert np.mean(err_px > 5.0) < 0.05, f"{np.mean(err_px > 5.0):.0%} of shared ids > 5 px from their point"
+
+
+def test_followed_stereo_klt_starts_from_its_guess_and_checks_only_what_moved():
+    """stereo_klt_tracked on a pure rotation (a camera turned 3 degrees about y over a world at
+    infinity: every feature of a sits in b where the model projects R b_a, the expected pixel).
+    Started 0.3 px off that pixel with no check asked, a feature lands within 0.3 px of it with no
+    backward check; started 4 px off (more than recheck_px from where it lands), it is checked;
+    rows with no guess (NaN) start from the infinite-depth projection and are always checked."""
+    import itertools
+
+    import cv2
+
+    from estimators.rig import Camera, forward_T_C_B
+    from tests.trackers.conftest import SphereScene
+    from trackers.association import stereo_klt_tracked
+    from trackers.detectors import make_detector
+    from trackers.features import FeatureTracker
+
+    model = equidistant(640, 480)
+    scene = SphereScene(model)
+    R_b_a = rot_axis([0, 1, 0], np.radians(3.0)).T  # b_b = R_b_a b_a
+    img_a, img_b = scene.render(None), scene.render(R_b_a.T)
+    ft = FeatureTracker(Camera("a", model, forward_T_C_B()), make_detector("orb"), ids=itertools.count(1))
+    ft.track(img_a, 0, 0.0)
+    cv2.setNumThreads(1)
+    uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
+    expected, ok = model.bearing_to_pixel(b_a @ R_b_a.T)
+    uv_a, b_a, expected = uv_a[ok], b_a[ok], expected[ok]  # those seen by b
+    n = len(b_a)
+    assert n > 100
+    guess = expected + np.array([0.3, 0.0])
+    far = np.arange(n) % 3 == 1
+    guess[far] += np.array([0.0, 4.0])
+    none = np.arange(n) % 3 == 2
+    guess[none] = np.nan
+    r = stereo_klt_tracked(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=np.zeros(n, bool))
+    assert len(r.idx) > 0.8 * n
+    assert np.median(np.linalg.norm(r.uv_b - expected[r.idx], axis=1)) < 0.3
+    near = ~far[r.idx] & ~none[r.idx]
+    assert near.sum() > 20 and not r.checked[near].any()
+    assert r.checked[far[r.idx]].all() and r.checked[none[r.idx]].all()
+    # check asked for every row: all checked, the same rows found at the same pixels (to 0.05 px)
+    full = stereo_klt_tracked(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess)
+    assert full.checked.all()
+    common, i, j = np.intersect1d(r.idx, full.idx, return_indices=True)
+    assert len(common) > 0.95 * len(full.idx)
+    np.testing.assert_allclose(r.uv_b[i], full.uv_b[j], atol=0.05)

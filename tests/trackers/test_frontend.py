@@ -96,6 +96,8 @@ def test_grey_and_bgr_give_the_same_tracks(model, rig):
         {"features": {"nope": 1}},
         {"grouping": {"link_px": -1}},
         {"association": {"x": 1}},
+        {"association": {"recheck_every": 0}},
+        {"association": {"recheck_px": -1.0}},
         {"detector_options": {"max_features": 0}},
     ],
 )
