@@ -1273,7 +1273,7 @@ class BenchRun:
             # written, flushed); the reader's decode time beside (done before the frame is due);
             # the share of the pinned core this process got (other load on the core shows here)
             parts = r.get("parts") or {}
-            sec = "live latency split (median; p99 in bench.json and beside)"
+            sec = "live latency split (median; p99 beside)"
             for key, label in (("lag", "arrival (due) -> published by the grabber"),
                                ("queue", "published -> taken by the loop"),
                                ("process", "taken -> reports (front end + fusion)"),
@@ -1281,14 +1281,14 @@ class BenchRun:
                                ("decode", "decode of the frame (in the grabber, before it is due)")):
                 x = parts.get(key) or {}
                 p99 = _ms(x.get("p99_s"))
+                label += "" if p99 is None else f" (p99 {p99:.1f} ms)"
                 self.rows.append(Row(sec, f"{name}: {label}", _ms(x.get("median_s")), "ms", "frame interval",
-                                     _ms(interval), extra={"p99_ms": p99},
-                                     note="" if p99 is None else f"p99 {p99:.1f} ms"))
+                                     _ms(interval), extra={"p99_ms": p99}))
             busy = r.get("cpu_busy")
             load = [x for x in (r.get("loadavg_1min") or []) if x is not None]
-            self.rows.append(Row(sec, f"{name}: CPU share of the pinned core", None if busy is None
-                                 else 100.0 * busy, "%",
-                                 note=f"machine load average {max(load):.1f} (2 cores)" if load else ""))
+            where = f" (machine load average {max(load):.1f})" if load else ""
+            self.rows.append(Row(sec, f"{name}: CPU share of the pinned core{where}", None if busy is None
+                                 else 100.0 * busy, "%", extra={"loadavg_1min": load}))
         self.sections["live"] = out
 
     def scaling(self) -> None:
