@@ -239,6 +239,11 @@ class FusionSettings:
         lost_after_s: a track not observed for this long (s) is ended (reported once as lost).
             Default 0.5.
         reinit_after_gated: consecutive gated updates after which the filter restarts. Default 5.
+        feature_velocity_lag_s: interval (s) of the velocity measurements of stereo tracks from
+            their shared features' own displacements (``_feature_velocity``; 0 = off). Default 0.2.
+        feature_velocity_min_mps: a feature velocity above this (m/s) and 3 sigma marks the
+            obstacle as moving: its member features then no longer range it as static points
+            (feature_ranging_moving). Default 0.3.
         velocity_report_max_sigma_mps: velocity is reported only when its largest sigma (m/s) is at
             most this, and only for tracks a stereo fix has fed. Default 1.0.
     """
@@ -287,6 +292,8 @@ class FusionSettings:
     lost_after_s: float = 0.5
     reinit_after_gated: int = 5
     velocity_report_max_sigma_mps: float = 1.0
+    feature_velocity_lag_s: float = 0.2
+    feature_velocity_min_mps: float = 0.3
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -620,6 +627,10 @@ class _Track:
     feature_stereo_point: np.ndarray | None = None  # the median shared feature's stereo point (W)
     feature_stereo_fid: int | None = None  # the id of that feature (kept while it stays inner)
     t_ranged: float = -math.inf  # last time a range measurement (stereo, features) fed the state
+    vel_ref: tuple | None = None  # (t_s, shared feature ids (sorted), their two-ray points (K, 3) W)
+    feature_velocity: tuple | None = None  # (v_W (3,), R (3, 3)) measured this frame, or None
+    vel_moving: bool = False  # the last feature velocity differs from 0 (not a static obstacle)
+    vel_assumed: bool = False  # the state's velocity is the prior's (state replaced), not measured
 
 
 class ObstacleFusion:
@@ -713,7 +724,8 @@ class ObstacleFusion:
         batch: list[tuple[_Track, _Sighting]] = []
         rest: list[tuple[_Track, _Sighting]] = []
         for tr, sg, _status in work:
-            if tr.feature_range is not None and (self.settings.feature_ranging_moving or not tr.moving):
+            if tr.feature_range is not None and (
+                    not tr.moving or (self.settings.feature_ranging_moving and not tr.vel_moving)):
                 batch.append((tr, sg))  # member features fit static points: they range the track
             else:
                 rest.append((tr, sg))
@@ -851,6 +863,7 @@ class ObstacleFusion:
             tr.feature_stereo = None
             tr.feature_point = None
             tr.feature_stereo_point = None
+            tr.feature_velocity = None
             work.append((tr, sg, obs.status))
         return work, feats
 
@@ -927,6 +940,7 @@ class ObstacleFusion:
             if stereo is not None:
                 if not tr.moving:  # first stereo fix: velocity becomes observable, drop the static prior
                     self._to_moving(tr, sg.t_s)
+                    tr.vel_assumed = tr.feature_stereo is not None and s.feature_velocity_lag_s > 0
                 if s.stereo_update == "point" or tr.feature_stereo is not None:
                     # (a feature stereo fix lies on the first camera's representative ray; the
                     # second camera's representative bearing points at another part of the object)
@@ -936,6 +950,8 @@ class ObstacleFusion:
                         self._bearing_update(tr, v)
                 tr.sources.add("stereo")
                 tr.t_ranged = sg.t_s
+                if tr.feature_velocity is not None:  # its features' own displacements
+                    self._velocity_update(tr, *tr.feature_velocity)
             else:  # (only the first view's bearing when the two are different points: ghost)
                 for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
                     self._bearing_update(tr, v)
@@ -1325,6 +1341,8 @@ class ObstacleFusion:
         fid = ids[ia][ok]
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
         self._members_st = (gg, r, b)  # every track's shared features' two-ray points
+        if s.feature_velocity_lag_s > 0:
+            self._feature_velocity(work, gg, fid, p_mid, sr)
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
@@ -1371,6 +1389,51 @@ class ObstacleFusion:
             zk = float(z[k])
             work[k][0].feature_stereo = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
             work[k][0].struct_sigma_m = float(struct[k])
+
+    def _feature_velocity(self, work, gg: np.ndarray, fid: np.ndarray, p_mid: np.ndarray,
+                          sr: np.ndarray) -> None:
+        """Velocity of each stereo track from its own shared features' two-ray points (gg (K,)
+        work index, fid (K,) feature ids, p_mid (K, 3) points in W, sr (K,) their range sigmas, m).
+
+        Every ``feature_velocity_lag_s`` the points of the ids seen then and now (>= 3) give
+            v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref),   v = per-axis median of the v_i,
+            R = diag(max((1.4826 MAD_axis)^2, 2 median sr_i^2 / dt^2) * pi / (2 n))
+        (pi / 2: the median's variance over the mean's); the current points become the next
+        reference, so successive measurements share no point (independent, fused once each). A
+        track's one chosen point would jump between corners; the features' own displacements
+        do not. ``vel_moving``: |v| exceeds feature_velocity_min_mps and 3 sigma (the obstacle
+        moves: its features' static least-squares points would be wrong)."""
+        s = self.settings
+        t_s = work[0][1].t_s
+        order = np.argsort(gg, kind="stable")
+        gs = gg[order]
+        cuts = np.flatnonzero(np.diff(gs)) + 1
+        for idx in np.split(order, cuts):
+            tr = work[int(gg[idx[0]])][0]
+            f = fid[idx]
+            o = np.argsort(f)
+            f, P, S = f[o], p_mid[idx][o], sr[idx][o]
+            ref = tr.vel_ref
+            if ref is None or t_s - ref[0] > 3.0 * s.feature_velocity_lag_s:
+                tr.vel_ref = (t_s, f, P, S)
+                continue
+            dt = t_s - ref[0]
+            if dt < s.feature_velocity_lag_s - 1e-9:
+                continue
+            _, ka, kb = np.intersect1d(ref[1], f, assume_unique=True, return_indices=True)
+            tr.vel_ref = (t_s, f, P, S)
+            n = len(ka)
+            if n < 3:
+                continue
+            V = (P[kb] - ref[2][ka]) / dt
+            v = np.median(V, axis=0)
+            mad2 = (1.4826 * np.median(np.abs(V - v), axis=0)) ** 2
+            noise2 = float(np.median(ref[3][ka] ** 2 + S[kb] ** 2)) / (dt * dt)
+            R = np.diag(np.maximum(mad2, noise2) * (math.pi / (2.0 * n)))
+            tr.feature_velocity = (v, R)
+            sv = math.sqrt(float(np.trace(R)) / 3.0)
+            speed = float(np.linalg.norm(v))
+            tr.vel_moving = speed > max(s.feature_velocity_min_mps, 3.0 * sv)
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
@@ -1433,6 +1496,8 @@ class ObstacleFusion:
         if mov:
             vp = self._velocity_prior_sigma(fc.t_s) ** 2
             P[mov, 3, 3] = P[mov, 4, 4] = P[mov, 5, 5] = vp
+            for k in mov:
+                batch[k][0].vel_assumed = True
         r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
         v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
@@ -1488,6 +1553,9 @@ class ObstacleFusion:
         tr.kf = self._new_kf(p, R, self._velocity_prior_sigma(sg.t_s))
         tr.t_kf = sg.t_s
         tr.moving = True
+        # from its features' stereo points: the velocity waits for their displacements
+        # (_feature_velocity); successive fixes of one chosen corner jump between corners
+        tr.vel_assumed = tr.feature_stereo is not None and self.settings.feature_velocity_lag_s > 0
         tr.sources.add("stereo")
         tr.t_ranged = sg.t_s
         tr.gated_run = 0
@@ -1589,6 +1657,26 @@ class ObstacleFusion:
         y = p_W - tr.kf.x[:3]  # z - H x
         return self._gated_update(tr, y, H, R, self._gate3)
 
+    def _velocity_update(self, tr: _Track, v_W: np.ndarray, R: np.ndarray) -> bool:
+        """Fuse a measured velocity v_W (3,) m/s in W with covariance R (3, 3): z = v,
+        H = [0 I] (gated like a stereo point, 3 dof). A track whose velocity was assumed (its state
+        was replaced by a static feature point) takes the measurement as its velocity (x_v = v,
+        P_vv = R, no position-velocity correlation): the jump from that point to the stereo
+        fixes has been read as velocity by then."""
+        kf = tr.kf
+        if tr.vel_assumed:
+            kf.x = kf.x.copy()
+            kf.x[3:] = v_W
+            kf.P = kf.P.copy()
+            kf.P[:3, 3:] = 0.0
+            kf.P[3:, :3] = 0.0
+            kf.P[3:, 3:] = R
+            tr.vel_assumed = False
+            return True
+        H = np.zeros((3, 6))
+        H[:, 3:] = np.eye(3)
+        return self._gated_update(tr, v_W - tr.kf.x[3:], H, R, self._gate3)
+
     def _apply_bounds(self, tr: _Track, sg: _Sighting) -> None:
         """Range pseudo-measurement at the violated bound (soft projection into the interval)."""
         b = tr.bounds
@@ -1645,11 +1733,14 @@ class ObstacleFusion:
             b_B = p_B / np.maximum(rng, 1e-12)[:, None]
             var = np.maximum(np.einsum("ki,kij,kj->k", u, Ppp, u), 0.0)
             gidx = self._gidx
-            # a range no feature fix measured this frame: at least carried_range_floor_frac of it
-            struct = np.array([tr.struct_sigma_m if tr.id in gidx and (
-                tr.feature_range is not None or tr.feature_stereo is not None)
-                else max(tr.struct_sigma_m, s.carried_range_floor_frac * r)
-                for tr, r in zip(trs, rng.tolist(), strict=True)])
+            # a track that lists member features but whose range no feature fix measured this
+            # frame (a carried state, the representative ray: a sliding centroid): at least
+            # carried_range_floor_frac of it (tracks without member features: the filter's own)
+            struct = np.array([max(tr.struct_sigma_m, s.carried_range_floor_frac * r)
+                               if tr.id in gidx and tr.feature_range is None and tr.feature_stereo is None
+                               and any(len(v.feature_ids) for v in tr.last_views)
+                               else tr.struct_sigma_m
+                               for tr, r in zip(trs, rng.tolist(), strict=True)])
             extra = self._member_spread(trs, rng, u)
             sig = np.sqrt(var + struct * struct + extra * extra).tolist()
             rw = _dot_rows(r_W, w).tolist()
@@ -1660,7 +1751,8 @@ class ObstacleFusion:
                 Pvv = np.array([trs[j].kf.P[3:, 3:] for j in moving])
                 v_max = np.linalg.eigvalsh(Pvv).max(axis=1)
                 v_sig = np.sqrt(np.maximum(v_max, 0.0)).tolist()
-                vel_ok = {j: v_sig[m] <= s.velocity_report_max_sigma_mps for m, j in enumerate(moving)}
+                vel_ok = {j: v_sig[m] <= s.velocity_report_max_sigma_mps and not trs[j].vel_assumed
+                          for m, j in enumerate(moving)}
             rng_l = rng.tolist()
             for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
