@@ -750,31 +750,43 @@ class FrontEnd:
         frame: int,
         t_s: float,
     ) -> list[ObstacleObservation]:
+        gid_of = self._gid.get
         groups: dict[int, list[ObstacleTrack]] = {}
         for name in self.cams:
-            for tr in seen.get(name, []):
-                groups.setdefault(self._global(tr.id), []).append(tr)
+            for tr in seen.get(name, ()):
+                g = gid_of(tr.id, tr.id)
+                if g in groups:
+                    groups[g].append(tr)
+                else:
+                    groups[g] = [tr]
+        no_b, no_ids = np.zeros((0, 3)), np.zeros(0, np.int64)
+        own_tracks = {n: g.tracks for n, g in self.groupers.items()}
         out: list[ObstacleObservation] = []
-        for gid, trs in sorted(groups.items()):
+        for gid in sorted(groups):
+            trs = groups[gid]
             views, done = [], set()
+            confirmed = False
+            attrs: dict[str, Any] = {}
             for tr in trs:
-                if tr.camera in done:
+                confirmed = confirmed or tr.status == "confirmed"
+                attrs.update(tr.attributes)
+                cam = tr.camera
+                if cam in done:
                     continue
-                done.add(tr.camera)
-                fb = tr.member_b_C if len(tr.member_b_C) == len(tr.members) else np.zeros((0, 3))
-                fi = tr.members if len(fb) == len(tr.members) else np.zeros(0, np.int64)
-                pid = self._pid.get(tr.camera)
-                if (
-                    pid
-                    and len(fi)
-                    and tr.camera in self.groupers
-                    and self.groupers[tr.camera].tracks.get(tr.id) is tr
-                ):
-                    fi = np.fromiter((pid.get(i, i) for i in fi.tolist()), np.int64, len(fi))
-                f = self.scale[tr.camera]
+                done.add(cam)
+                n_m = len(tr.members)
+                if len(tr.member_b_C) == n_m:
+                    fb, fi = tr.member_b_C, tr.members
+                else:
+                    fb, fi = no_b, no_ids
+                pid = self._pid.get(cam)
+                if pid and len(fi) and cam in own_tracks and own_tracks[cam].get(tr.id) is tr:
+                    ids = fi.tolist()
+                    fi = np.fromiter(map(pid.get, ids, ids), np.int64, len(ids))
+                f = self.scale[cam]
                 views.append(
                     CameraView(
-                        camera=tr.camera,
+                        camera=cam,
                         b_C=tr.b_C,
                         uv=tr.uv if f == 1.0 else (np.asarray(tr.uv) + 0.5) / f - 0.5,
                         sigma_rad=tr.sigma_rad,
@@ -782,21 +794,23 @@ class FrontEnd:
                         feature_b_C=fb,
                     )
                 )
-            status = "confirmed" if any(t.status == "confirmed" for t in trs) else "tentative"
-            attrs: dict[str, Any] = {}
-            for t in trs:
-                attrs.update(t.attributes)
             out.append(
                 ObstacleObservation(
-                    gid, frame, t_s, status, tuple(views), label=trs[0].label, attributes=attrs
+                    gid,
+                    frame,
+                    t_s,
+                    "confirmed" if confirmed else "tentative",
+                    tuple(views),
+                    label=trs[0].label,
+                    attributes=attrs,
                 )
             )
-            self._reported.add(gid)
+        self._reported.update(groups)
         live = set(groups)
         for name in self.cams:  # global ids with a coasting local track are not lost yet
             for d in (self.groupers.get(name), self.boxers.get(name)):
                 if d is not None:
-                    live.update(self._global(t) for t in d.tracks)
+                    live.update(map(gid_of, d.tracks, d.tracks))
         gone = {self._global(tr.id): tr for tr in lost}
         for tr in lost:
             self._gid.pop(tr.id, None)
