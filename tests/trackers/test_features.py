@@ -156,7 +156,8 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
 
 
 @pytest.mark.parametrize(
-    "kw", [{"max_features": 0}, {"history": 1}, {"redetect_every": 0}, {"fb_max_px": 0.0}]
+    "kw",
+    [{"max_features": 0}, {"history": 1}, {"redetect_every": 0}, {"fb_max_px": 0.0}, {"fb_levels": -1}],
 )
 def test_bad_tracker_options(model, kw):
     with pytest.raises(ConfigError):
