@@ -196,3 +196,66 @@ def test_velocity_is_per_second_so_dropped_frames_keep_tracks(model):
             assert abs(v[1]) < 5.0
     kept = len(before & set(feats.ids.tolist())) / len(before)
     assert kept > 0.8, f"kept {kept:.2f} of the features over the dropped frames"
+
+
+def test_detection_on_the_lens_box_lands_on_whole_frame_orb_corners():
+    """ORB runs on the lens circle's bounding box (origin > 0 here), not the frame: the new features
+    must be where cv2.ORB finds corners on the whole frame (frame pixels, not box pixels), inside
+    the lens mask, and they carry the descriptors cv2.ORB computes for those keypoints."""
+    import cv2
+
+    model = equidistant(640, 360)
+    ft = make_tracker(model, max_features=200)
+    assert ft._det_box[0] > 0 and ft._det_box[2] < 640  # a box, not the frame
+    grey = SphereScene(model).render()
+    feats, _ = ft.track(grey, 0, 0.0)
+    assert len(feats) > 50
+    orb = cv2.ORB_create(
+        nfeatures=20000, scaleFactor=1.3, nlevels=3, edgeThreshold=15, patchSize=15, fastThreshold=10
+    )
+    kps, des = orb.detectAndCompute(grey, None)
+    ref = cv2.KeyPoint_convert(kps).reshape(-1, 2)
+    d2 = ((feats.uv[:, None, :] - ref[None, :, :]) ** 2).sum(-1)
+    d = np.sqrt(d2.min(axis=1))
+    # level-0 corners coincide exactly; coarser levels (the box's pyramid grid is not the frame's at
+    # scale 1.3) within a few pixels; a box-offset mix-up would be ~100 px off
+    assert np.median(d) < 0.5, np.percentile(d, [10, 50, 90])
+    assert np.percentile(d, 95) < 4.0
+    m = lens_mask(model, 4.0)
+    assert np.all(m[np.rint(feats.uv[:, 1]).astype(int), np.rint(feats.uv[:, 0]).astype(int)] > 0)
+    # descriptors of the exact (level-0) matches: most bits equal to cv2's on the whole frame
+    exact = np.flatnonzero(d < 0.01)
+    j = np.argmin(d2[exact], axis=1)
+    bits = np.unpackbits(np.bitwise_xor(ft.desc[exact], des[j]), axis=1).sum(1)
+    assert np.median(bits) <= 8, np.percentile(bits, [50, 90])
+
+
+def test_only_keepable_keypoints_are_described():
+    """With 150 live features and a budget of 160, one detection adds 10 (the budget) and asks ORB
+    for descriptors of those 10 only (nothing was lost, so no re-acquisition candidates), not of
+    its whole bucketed list (up to 400)."""
+    from trackers.detectors.orb import OrbDetector
+
+    model = equidistant(320, 240)
+    det = OrbDetector(max_features=400)
+    described: list[int] = []
+    orig = det._orb.compute
+
+    class Spy:
+        def __getattr__(self, name):
+            return getattr(orig.__self__, name)
+
+        def compute(self, image, kps):
+            described.append(len(kps))
+            return orig(image, kps)
+
+    det._orb = Spy()
+    cam = Camera("cam0", model, forward_T_C_B())
+    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_every=1)
+    grey = SphereScene(model).render()
+    ft.track(grey, 0, 0.0)
+    n0 = ft.n_live
+    assert n0 == 160 and described == [160]
+    ft._drop(np.arange(150, 160), remember=False)  # 150 left: 10 free
+    ft.track(grey, 1, 1 / 30)
+    assert described[-1] == 10 and ft.n_live == 160

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -83,8 +85,28 @@ class OrbDetector(Detector):
             fastThreshold=int(fast_threshold),
         )
 
-    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
-        """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8."""
+    def detect(
+        self,
+        image: np.ndarray,
+        mask: np.ndarray | None = None,
+        *,
+        origin: tuple[int, int] = (0, 0),
+        frame_hw: tuple[int, int] | None = None,
+        select: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    ) -> Detections:
+        """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8.
+
+        Args:
+            image: (H, W) grey or (H, W, 3) BGR uint8 frame, or a crop of one (FeatureTracker
+                passes the lens circle's bounding box: ORB's cost is per pixel).
+            mask: (H, W) uint8 of ``image``'s size, keypoints only where > 0, or None.
+            origin, frame_hw: when ``image`` is a crop, its (x, y) origin in the frame (px) and the
+                frame's (H, W): the bucketing grid then covers the frame, not the crop (a grid over
+                the crop puts fewer keypoints in each lens cell). Keypoints stay in ``image``'s pixels.
+            select: optional ``select(uv (K, 2) frame px, scores (K,)) -> indices`` called with the
+                bucketed keypoints (round-robin order); only the selected ones get descriptors and
+                are returned (descriptors cost ~1.5 us per keypoint plus the blurred pyramid).
+        """
         grey = to_grey(image)
         if mask is not None and np.shape(mask)[:2] != grey.shape[:2]:
             raise InputError(
@@ -117,8 +139,13 @@ class OrbDetector(Detector):
             kps = [kps[i] for i in inside]
             uv, sc = uv[inside], sc[inside]
         per_cell = max(1, int(np.ceil(self.max_features / (self.grid[0] * self.grid[1]) * 2)))
-        keep = bucket(uv, sc, grey.shape[:2], self.grid, per_cell)
+        off = np.array(origin, np.float32)
+        keep = bucket(uv + off, sc, grey.shape[:2] if frame_hw is None else frame_hw, self.grid, per_cell)
         keep = keep[: self.max_features]
+        if select is not None:
+            keep = keep[np.asarray(select(uv[keep] + off, sc[keep]), np.intp)]
+            if not len(keep):
+                return Detections.empty()
         kps = [kps[i] for i in keep]
         if not self.descriptors:
             return Detections(keypoints=uv[keep], scores=sc[keep])
