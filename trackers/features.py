@@ -297,6 +297,16 @@ class FeatureTracker:
         float32 px in the full frame: full-frame pixel = crop pixel + origin)."""
         return self._prev_pyr, self._off
 
+    @property
+    def frame_box(self) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1) px, the part of a frame the tracker reads: KLT's lens crop ``roi`` and
+        ORB's detection box around it (the whole frame for other detectors). Pixels outside it are
+        never read (the front end leaves them black when it shrinks a wide frame)."""
+        if not isinstance(self.detector, OrbDetector):
+            return (0, 0, self.shape_hw[1], self.shape_hw[0])
+        r, d = self.roi, self._det_box
+        return (min(r[0], d[0]), min(r[1], d[1]), max(r[2], d[2]), max(r[3], d[3]))
+
     def features(self) -> Features:
         """The live features now."""
         b_B = self.b_C @ self.R_C_B  # b_B = R_B_C b_C = R_C_B^T b_C (rows)

@@ -15,6 +15,7 @@ import itertools
 import time
 from collections import deque
 from collections.abc import Mapping
+from fractions import Fraction
 from typing import Any
 
 import cv2
@@ -74,6 +75,34 @@ def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
             f"{width}x{height}; resize the video or scale the calibration (CameraModel.scaled)"
         )
     return image
+
+
+def _shrink_box(
+    size_wh: tuple[int, int], model, box: tuple[int, int, int, int]
+) -> tuple[int, int, int, int, int, int, int, int] | None:
+    """Where to shrink only part of a (W, H) = ``size_wh`` frame to ``model``'s (w, h) size.
+
+    ``box`` (x0, y0, x1, y1) px of the small frame is widened to the resize's period: with
+    w / W = p / q in lowest terms, a box edge on a multiple of p small pixels is on a multiple of q
+    frame pixels, so cv2.resize INTER_AREA of that part of the frame gives the same pixels as the
+    whole frame's resize (the same source interval per output pixel).
+
+    Returns:
+        (sx0, sy0, sx1, sy1) frame px and (x0, y0, x1, y1) small-frame px of the part, or None when
+        the period is long (p > 16) or the part is most of the frame (nothing to save).
+    """
+    (sw, sh), (dw, dh) = size_wh, (int(model.width), int(model.height))
+    fx, fy = Fraction(dw, sw), Fraction(dh, sh)
+    px, py = fx.numerator, fy.numerator
+    if px > 16 or py > 16:
+        return None
+    x0, y0 = box[0] // px * px, box[1] // py * py
+    x1, y1 = min(dw, -(-box[2] // px) * px), min(dh, -(-box[3] // py) * py)
+    if (x1 - x0) * (y1 - y0) > 0.8 * dw * dh:
+        return None
+    # small px x -> frame px x q / p (exact: x is a multiple of p, and dw q / p = sw)
+    qx, qy = fx.denominator, fy.denominator
+    return (x0 * qx // px, y0 * qy // py, x1 * qx // px, y1 * qy // py, x0, y0, x1, y1)
 
 
 class FrontEnd:
@@ -174,6 +203,13 @@ class FrontEnd:
                     self.boxers[c.name] = BoxTracker(self._track_ids, **options.get("boxes", {}))
                 except TypeError as e:
                     raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
+        # frames wider than max_width, keypoint cameras: only the part the tracker reads (its lens
+        # box, FeatureTracker.frame_box) is shrunk, the rest of the small frame left black
+        self._shrink = {
+            n: _shrink_box(self.calib_size[n], self.cams[n].model, ft.frame_box)
+            for n, ft in self.trackers.items()
+            if self.scale[n] != 1.0 and n not in self.boxers
+        }
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         # per camera and camera pair, computed once: radians per pixel at the lens's mean scale,
         # R_C_B, and T_Cb_Ca = T_Cb_B T_B_Ca (p_Cb = R p_Ca + t)
@@ -241,7 +277,16 @@ class FrontEnd:
                 t0 = time.perf_counter()
                 if name not in self.boxers:  # keypoints only: shrink the grey frame (a third the work)
                     img = to_grey(img)
-                img = cv2.resize(img, (m.width, m.height), interpolation=cv2.INTER_AREA)
+                box = self._shrink.get(name)
+                if box is not None:  # the lens box only (1920x1080: 4.2 -> ~2.5 ms)
+                    sx0, sy0, sx1, sy1, x0, y0, x1, y1 = box
+                    small = np.zeros((m.height, m.width), np.uint8)
+                    small[y0:y1, x0:x1] = cv2.resize(
+                        img[sy0:sy1, sx0:sx1], (x1 - x0, y1 - y0), interpolation=cv2.INTER_AREA
+                    )
+                    img = small
+                else:
+                    img = cv2.resize(img, (m.width, m.height), interpolation=cv2.INTER_AREA)
                 tm["resize"] += time.perf_counter() - t0
             checked[name] = img
         rot = self._rotations(T_W_B)
