@@ -21,6 +21,11 @@ from estimators.errors import InputError, check_rows
 TrackStatus = Literal["tentative", "confirmed", "lost"]
 TRACK_STATUSES: tuple[str, ...] = ("tentative", "confirmed", "lost")
 
+# numpy's dtype singletons for native float64 / int64: ``a.dtype is _F64`` is a pointer compare (a
+# non-native byte order is another dtype object and takes the converting path, which is also right)
+_F64 = np.dtype(np.float64)
+_I64 = np.dtype(np.int64)
+
 
 @dataclass(frozen=True)
 class CameraView:
@@ -46,7 +51,7 @@ class CameraView:
         # The front end builds ~100 of these a frame: checks in plain floats, arrays converted only
         # when they are not already float64/int64 of the right shape.
         b = self.b_C
-        if type(b) is not np.ndarray or b.dtype != np.float64 or b.shape != (3,):
+        if type(b) is not np.ndarray or b.dtype is not _F64 or b.shape != (3,):
             b = np.asarray(b, dtype=float).reshape(-1)
         if b.shape != (3,):
             raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
@@ -58,12 +63,18 @@ class CameraView:
         if not (math.isfinite(sig) and sig > 0):
             raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {self.sigma_rad!r}")
         ids = self.feature_ids
-        if type(ids) is not np.ndarray or ids.dtype != np.int64 or ids.ndim != 1:
+        if type(ids) is not np.ndarray or ids.dtype is not _I64 or ids.ndim != 1:
             ids = np.asarray(ids, dtype=np.int64).reshape(-1)
         fb = self.feature_b_C
-        if type(fb) is np.ndarray and fb.dtype == np.float64 and fb.ndim == 2 and fb.shape[1] == 3:
-            if fb.size and not np.isfinite(fb).all():
-                raise InputError("CameraView.feature_b_C: contains NaN or infinite values")
+        if type(fb) is np.ndarray and fb.dtype is _F64 and fb.ndim == 2 and fb.shape[1] == 3:
+            # one BLAS call: the sum of squares is finite exactly when every value is (squares are >= 0,
+            # so inf cannot cancel; NaN propagates), unless huge finite values overflow it: then the
+            # element-wise check decides (numpy warns of the overflow: |x| > 1e154, never a bearing).
+            # 1.3 us against 4 us for isfinite().all() on ~12 features.
+            if fb.size:
+                r = fb.ravel()
+                if not math.isfinite(r.dot(r)) and not np.isfinite(fb).all():
+                    raise InputError("CameraView.feature_b_C: contains NaN or infinite values")
         else:
             fb = check_rows("CameraView.feature_b_C", fb, 3)
         if len(ids) != len(fb):
@@ -71,7 +82,7 @@ class CameraView:
                 f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"
             )
         uv = self.uv
-        if type(uv) is not np.ndarray or uv.dtype != np.float64 or uv.shape != (2,):
+        if type(uv) is not np.ndarray or uv.dtype is not _F64 or uv.shape != (2,):
             uv = np.asarray(uv, dtype=float).reshape(2)
         object.__setattr__(self, "b_C", b)
         object.__setattr__(self, "uv", uv)
@@ -105,7 +116,11 @@ class ObstacleObservation:
             raise InputError(
                 f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {self.status!r}"
             )
-        if not np.isfinite(self.t_s):
+        try:
+            finite = math.isfinite(self.t_s)  # a float (or numpy float); 0.05 us against np.isfinite's 1.5
+        except TypeError:
+            finite = False
+        if not finite:
             raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {self.t_s!r}")
         names = [v.camera for v in self.views]
         if len(set(names)) != len(names):

@@ -35,6 +35,36 @@ def test_camera_view_validation(kwargs, match):
         CameraView(**base)
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("as_float64", [True, False])
+def test_camera_view_rejects_a_non_finite_feature_bearing(bad, as_float64):
+    """Any NaN or inf among the member-feature bearings is an InputError, on the float64 fast path and
+    on the converting path (a list)."""
+    fb = np.tile([0.0, 0.0, 1.0], (12, 1))
+    fb[7, 1] = bad
+    with pytest.raises(InputError, match="feature_b_C"):
+        CameraView("cam0", [0, 0, 1], [1, 1], 0.01, np.arange(12), fb if as_float64 else fb.tolist())
+
+
+def test_camera_view_accepts_huge_finite_feature_values_and_other_byte_orders():
+    """Values whose squares overflow float64 (1e200) are finite: no error. A big-endian array takes the
+    converting path and comes out as native float64 / int64."""
+    fb = np.array([[1e200, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    with np.errstate(over="ignore"):  # the sum of squares overflows (numpy would warn), then decides
+        CameraView("cam0", [0, 0, 1], [1, 1], 0.01, np.arange(2), fb)
+    big_endian = np.array([0, 0, 1], ">f8"), np.arange(2, dtype=">i8"), fb.astype(">f8")
+    v = CameraView("cam0", big_endian[0], [1, 1], 0.01, big_endian[1], big_endian[2])
+    assert v.b_C.dtype == np.float64 and v.feature_ids.dtype == np.int64 and v.feature_b_C[0, 0] == 1e200
+
+
+def test_observation_rejects_a_non_finite_or_non_numeric_time():
+    v = CameraView("cam0", [0, 0, 1], [0, 0], 0.01)
+    for t_s in (np.nan, np.float64(np.inf), "0.1", None):
+        with pytest.raises(InputError, match="finite time"):
+            ObstacleObservation(1, 0, t_s, "confirmed", (v,))
+    assert ObstacleObservation(1, 0, np.float32(0.5), "confirmed", (v,)).t_s == 0.5
+
+
 def test_observation_rejects_bad_status_and_duplicate_cameras():
     v = CameraView("cam0", [0, 0, 1], [0, 0], 0.01)
     with pytest.raises(InputError, match="status"):
