@@ -150,9 +150,9 @@ class TumTrajectory(EgoMotion):
                 f"{self.source}: time {t_s:.6f} s is outside the trajectory's span "
                 f"[{self.t_s[0]:.6f}, {self.t_s[-1]:.6f}] s"
             )
-        i = int(np.clip(np.searchsorted(self.t_s, t_s, side="right") - 1, 0, len(self.t_s) - 2))
-        u = (t_s - self.t_s[i]) / (self.t_s[i + 1] - self.t_s[i])
-        return i, float(np.clip(u, 0.0, 1.0))
+        i = min(max(int(np.searchsorted(self.t_s, t_s, side="right")) - 1, 0), len(self.t_s) - 2)
+        t0, t1 = float(self.t_s[i]), float(self.t_s[i + 1])
+        return i, min(max((t_s - t0) / (t1 - t0), 0.0), 1.0)
 
     def pose_at(self, t_s: float) -> Pose:
         i, u = self._segment(float(t_s))
