@@ -369,7 +369,8 @@ def run_benchmark(
     on ``threads`` threads too is the work done (decode and front end booked apart).
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
-    stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute
+    stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
+    distinct track ids seen on each obstacle
     (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
@@ -395,6 +396,7 @@ def run_benchmark(
     sticky: dict[int, int] = {}
     switches: dict[int, int] = {}
     switch_log: list[dict] = []
+    ids_on: dict[int, set[int]] = {}  # obstacle -> every track id seen on it (due frames)
     rim_feats, rim_old = 0, 0
     n_obs = 0
     for f in frames:
@@ -464,6 +466,7 @@ def run_benchmark(
             due_now.add(oid)
             due[oid] = due.get(oid, 0) + 1
             ids = on.get(oid, set())
+            ids_on.setdefault(oid, set()).update(ids)
             if ids:
                 covered[oid] = covered.get(oid, 0) + 1
             # the obstacle's track id is sticky while that track lives and is not on another
@@ -492,6 +495,7 @@ def run_benchmark(
             "coverage": covered.get(oid, 0) / due[oid],
             "id_switches": switches.get(oid, 0),
             "switches_per_min": switches.get(oid, 0) / minutes if minutes > 0 else 0.0,
+            "track_ids": len(ids_on.get(oid, ())),  # distinct ids on it (pieces, parallel tracks)
         }
     tot_due = sum(due.values())
     h, w = rig.cameras[0].model.height, rig.cameras[0].model.width

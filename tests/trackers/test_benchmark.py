@@ -101,6 +101,12 @@ def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
     assert gaps > 0 and sum(ex["gap_causes"].values()) == gaps
     assert sum(ex["switch_causes"].values()) == res["id_switches"]
     assert len([e for e in ex["events"] if "gap" in e]) == gaps
+    # distinct ids on an obstacle: at least one per switch more than the first; none if never covered
+    for p in res["obstacles"].values():
+        if p["coverage"] > 0:
+            assert p["track_ids"] >= 1 + p["id_switches"]
+        else:
+            assert p["track_ids"] == 0
 
 
 # The presets at full size. Measured 02:05 UTC on renders of 01:55 (previous front end on the same
