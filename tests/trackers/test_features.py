@@ -259,3 +259,28 @@ def test_only_keepable_keypoints_are_described():
     ft._drop(np.arange(150, 160), remember=False)  # 150 left: 10 free
     ft.track(grey, 1, 1 / 30)
     assert described[-1] == 10 and ft.n_live == 160
+
+
+def test_a_full_tracker_detects_half_as_often(model):
+    """A static scene: with room for new features the tracker detects every redetect_every (4)
+    frames; once full (max_features live) a detection could only re-acquire lost features, so it
+    runs every 8 frames (counted: frames 0, 8, 16 of 20 for a full tracker; 0, 4, ..., 16 with
+    room)."""
+    grey = SphereScene(model).render()
+
+    def detect_frames(max_features: int) -> list[int]:
+        ft = make_tracker(model, max_features=max_features, redetect_every=4)
+        frames: list[int] = []
+        orig = ft._detect
+
+        def counting(image, t_s):
+            frames.append(round(t_s * 30))
+            return orig(image, t_s)
+
+        ft._detect = counting
+        for k in range(20):
+            ft.track(grey, k, k / 30)
+        return frames
+
+    assert detect_frames(40) == [0, 8, 16]  # full after the first detection
+    assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
