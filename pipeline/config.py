@@ -184,6 +184,7 @@ class TrackerConfig(_Section):
         description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int), "
         "grid ([cols, rows]), "
         "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
+        "fb_levels (int, pyramid levels of the backward pass; 0: full resolution only), "
         "min_distance_px (px), history (frames).",
     )
     grouping: dict[str, Any] = Field(
