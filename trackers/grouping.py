@@ -276,7 +276,7 @@ class ObstacleGrouper:
             fresh_short = np.zeros(0, np.intp)
         # 3. new groups from the rest: revive a memberless track where it was predicted, else new
         free = np.flatnonzero((owner < 0) & fvalid & ~bg)
-        pieces, small = self._pieces(free, b, flow, ft.age, cos_link)
+        pieces, small = self._pieces(free, b, flow, fvalid, ft.age, cos_link)
         K = len(pieces)
         fresh = np.zeros(T + K, bool)  # its members are all new this frame (no motion to follow)
         keep1 = np.zeros(T + K, bool)  # a small isolated obstacle: one member keeps it seen
@@ -599,13 +599,21 @@ class ObstacleGrouper:
         return flow, valid
 
     def _pieces(
-        self, free: np.ndarray, b: np.ndarray, flow: np.ndarray, age: np.ndarray, cos_link: float
+        self,
+        free: np.ndarray,
+        b: np.ndarray,
+        flow: np.ndarray,
+        fvalid: np.ndarray,
+        age: np.ndarray,
+        cos_link: float,
     ) -> tuple[list[np.ndarray], np.ndarray]:
         """Connected components of the free features (rows (m,) into the live features; graph:
         within link_rad and flows agreeing), cut to max_radius_rad pieces: the pieces (rows) that
         may start or revive a track, and per piece whether it is a small isolated one: fewer than
         min_features features, at least min_features_isolated, all isolated_min_age frames old,
-        and no other live feature within link_rad of any of them."""
+        and no other live feature within link_rad of any of them unless it has a flow (fvalid
+        (N,)) that disagrees with theirs (a small obstacle moving against the background; a
+        component set apart by its motion only needs two features at least)."""
         m = len(free)
         if m == 0:
             return [], np.zeros(0, bool)
@@ -634,9 +642,18 @@ class ObstacleGrouper:
         cand = (sz < self.min_features) & (sz >= self.min_features_isolated)
         if np.any(cand):
             ok_f = age[free] >= self.isolated_min_age
-            # isolated: a member's live neighbours (itself included) are all members
-            n_near = (bf[cand] @ b.T > cos_link).sum(axis=1)
-            ok_f[cand] &= n_near <= sz[cand]
+            # isolated: a member's live neighbours (itself included) are all members, or move
+            # unlike it (a small obstacle crossing the background: its motion sets it apart)
+            near = bf[cand] @ b.T > cos_link  # (C, N)
+            fc = ff[cand]
+            g2 = np.einsum("ij,ij->i", flow, flow)
+            dd = f2[cand][:, None] + g2[None, :] - 2.0 * (fc @ flow.T)
+            th = self.flow_abs + self.flow_rel * np.maximum(fn[cand][:, None], np.sqrt(g2)[None, :])
+            unlike = fvalid[None, :] & (dd > 4.0 * th * th)  # twice the grouping tolerance
+            n_near = (near & ~unlike).sum(axis=1)
+            n_any = near.sum(axis=1)
+            # set apart by motion only (live neighbours that move unlike it): two features at least
+            ok_f[cand] &= (n_near <= sz[cand]) & ((n_any <= sz[cand]) | (sz[cand] >= 2))
             bad = np.bincount(labels[cand & ~ok_f], minlength=m) > 0
             for r in np.unique(labels[cand]):
                 if not bad[r]:
@@ -713,6 +730,8 @@ class ObstacleGrouper:
         surrounded = ((occ & vis).sum(1) >= 4) & ((vis & ~occ).sum(1) <= 8 - self.extended_sectors)
         if not np.any(surrounded):
             return out
+        keep = surrounded[ti]  # (the fit is needed for the surrounded tracks only)
+        ti, i, x, y = ti[keep], i[keep], x[keep], y[keep]
         # affine flow field of the neighbours: f(x, y) = c0 + c1 x + c2 y per tangent component,
         # least squares (normal equations, a small ridge on the slopes); at the track: c0
         s = self.link_rad

@@ -338,3 +338,31 @@ def test_an_old_piece_that_leaves_hands_its_id_to_the_younger_piece_of_the_same_
     (ta,), (tb,) = ids_a, ids_b
     assert tb in lost and ta not in lost
     assert ta in gr.tracks and set(gr.tracks[ta].members.tolist()) == set(base) - in_a
+
+
+def test_a_small_obstacle_moving_across_the_background_gets_a_track(model):
+    """Static camera over a textured background (a grid of still points) and a small drone: two
+    points 5 px apart crossing it at 0.4 deg per frame, always within link distance of background
+    points. Too few for a group and not isolated in the image, the drone is set apart by its
+    motion: once its points are isolated_min_age frames old, a track holds exactly them."""
+    from trackers.grouping import ObstacleGrouper
+
+    gr = ObstacleGrouper(iter(range(1, 1000)))
+    ft = PointFeatures(model)
+    rad_px = model.max_angle_rad / model.image_circle()[2]
+    step = 8.0 * rad_px
+    bg = [unit([(x - 7) * step, (y - 7) * step, 1.0]) for x in range(15) for y in range(15)]
+    drone0 = [unit([-40 * rad_px, 3 * rad_px, 1.0]), unit([-35 * rad_px, 3 * rad_px, 1.0])]
+    axis, rate = [0, 1, 0], np.radians(0.4)
+    ids = list(range(1, len(bg) + 3))
+    drone_ids = set(ids[-2:])
+    held = []
+    for k in range(30):
+        R = rot_axis(axis, rate * k)
+        ft.set(ids, np.array(bg + [R @ d for d in drone0]), k / 30.0)
+        seen, _ = gr.update(ft, k / 30.0)
+        held.append(any(set(t.members.tolist()) == drone_ids for t in seen))
+        for t in seen:  # no track mixes the drone and the background
+            m = set(t.members.tolist())
+            assert not (m & drone_ids and m - drone_ids), (k, m)
+    assert all(held[gr.isolated_min_age + 2 :]), held
