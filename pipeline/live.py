@@ -667,6 +667,7 @@ def run_live(
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
+        InputError: ``latency_log`` cannot be written (raised before any camera is opened).
         KeyboardInterrupt: re-raised after the outputs are written.
     """
     out = Path(out_dir)
@@ -694,6 +695,14 @@ def run_live(
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
+    # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
+    log = None
+    if latency_log is not None:
+        try:
+            log = Path(latency_log).open("w", encoding="utf-8")
+        except OSError as e:
+            raise InputError(f"latency_log: cannot write {str(latency_log)!r} ({e.strerror or e})") from None
+        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s\n")
     grabbers: list[Grabber] = []
     opened: list[Any] = []
     try:
@@ -702,6 +711,8 @@ def run_live(
     except BaseException:
         for r in opened:
             r.close()
+        if log is not None:
+            log.close()
         raise
     # Replayed files of one rig share one schedule start, set once all are open: a camera that took
     # longer to open does not run behind the others (pairing is by the videos' own t_s).
@@ -725,6 +736,8 @@ def run_live(
             g.stop()
         for r in opened[len(grabbers) :]:
             r.close()
+        if log is not None:
+            log.close()
         raise
 
     writer = TracksWriter(out / TRACKS_NAME)
@@ -744,9 +757,6 @@ def run_live(
     # process (taken -> reports: pairing, pose, front end, fusion), write (the tracks.jsonl line encoded,
     # written and flushed); and, beside them, the reader's decode time of the frame
     parts = {k: RunningStats() for k in ("lag", "queue", "process", "write", "decode")}
-    log = Path(latency_log).open("w", encoding="utf-8") if latency_log is not None else None
-    if log is not None:
-        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s\n")
     unpaired: dict[str, int] = {}  # processed lead frames another camera had no frame within tolerance for
     timings = StageTimings()
     frames = 0

@@ -12,7 +12,7 @@ import pytest
 from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
 
 from estimators.egomotion import ConstantVelocity
-from estimators.errors import SourceError
+from estimators.errors import InputError, SourceError
 from pipeline.config import load_config
 from pipeline.live import Grabber, GrowingTrajectory, MjpegServer, make_reader_factory, run_live
 from pipeline.run import FramePoseCache
@@ -437,3 +437,33 @@ def test_replay_reports_each_frames_decode_time(tmp_path):
     r = _live(tmp_path, [make_reader_factory(str(v), "cam0")])
     dec = r.summary["latency_parts"]["decode"]
     assert dec["n"] == r.frames and 0 < dec["median_s"] < 0.5
+
+
+def test_an_unwritable_latency_log_fails_before_any_camera_is_opened(tmp_path):
+    """latency_log in a folder that does not exist: an InputError naming it, raised before a camera
+    is opened (before, the grabbers were already reading when the open failed, and nothing stopped
+    them or closed the cameras)."""
+    opened, closed, stop = [], [], threading.Event()
+
+    class EndlessReader:
+        ends = True
+
+        def __init__(self):
+            opened.append(self)
+
+        def read(self):
+            if stop.is_set():
+                return None, None
+            time.sleep(0.01)
+            return np.zeros((H, W), np.uint8), None
+
+        def close(self):
+            closed.append(self)
+
+    bad = tmp_path / "no" / "such" / "dir" / "latency.csv"
+    try:
+        with pytest.raises(InputError, match="latency_log"):
+            _live(tmp_path, [EndlessReader], latency_log=bad)
+        assert len(closed) == len(opened)  # no camera left open (none opened at all)
+    finally:
+        stop.set()  # let a grabber that was left running end
