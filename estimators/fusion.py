@@ -80,6 +80,14 @@ Measurements
       ``y^T S^-1 y`` exceeds the chi-square quantile of ``gate_probability``; rejections are
       counted (``gated``), and after ``reinit_after_gated`` consecutive rejections the filter is
       dropped and re-initialised from fresh triangulations.
+    * Member-set replacement (``member_reset_frac``): when more than that share of a track's
+      member features (with >= feature_min_count of them, and >= that many last frame) were not
+      its members in the previous frame, the front end has handed the id to another set of
+      points (a confirmed track taking over a younger one of the same obstacle, trackers/grouping).
+      Its state, covariance, sightings (mono baselines, bounds) and velocity reference belong to
+      the old points, so the filter is dropped and started again from this frame's measurements
+      (feature points, stereo fix, or a fresh mono pair) instead of reporting the old state with
+      its old, small covariance.
 
 Bounds under bearing noise: the exact geometric interval of two *noisy* rays can miss the truth.
 Ray a is projected into the epipolar plane of (baseline, ray b) (a superset: for points in that
@@ -239,6 +247,9 @@ class FusionSettings:
         lost_after_s: a track not observed for this long (s) is ended (reported once as lost).
             Default 0.5.
         reinit_after_gated: consecutive gated updates after which the filter restarts. Default 5.
+        member_reset_frac: a track whose member features (>= feature_min_count now and in the
+            previous frame) are more than this share new since the previous frame restarts its
+            filter and sightings (the id now stands for other points; >= 1 = never). Default 0.5.
         feature_velocity_lag_s: interval (s) of the velocity measurements of stereo tracks from
             their shared features' own displacements (``_feature_velocity``; 0 = off). Default 0.1
             (the moving drones of the tracked stereo scenes keep a stereo track for 0.2-0.7 s; two
@@ -295,6 +306,7 @@ class FusionSettings:
     bounds_min_range_m: float = 0.1
     lost_after_s: float = 0.5
     reinit_after_gated: int = 5
+    member_reset_frac: float = 0.5
     velocity_report_max_sigma_mps: float = 1.0
     feature_velocity_lag_s: float = 0.1
     feature_velocity_min_mps: float = 0.3
@@ -635,6 +647,9 @@ class _Track:
     feature_velocity: tuple | None = None  # (v_W (3,), R (3, 3)) measured this frame, or None
     vel_moving: bool = False  # the last feature velocity differs from 0 (not a static obstacle)
     vel_assumed: bool = False  # the state's velocity is the prior's (state replaced), not measured
+    n_members: int = 0  # member feature rays (all views) in the last frame it was seen
+    t_members: float = -math.inf  # time of that frame
+    member_ids: np.ndarray | None = None  # their feature ids (a view of that frame's id array)
 
 
 class ObstacleFusion:
@@ -664,6 +679,8 @@ class ObstacleFusion:
         self._members_ls = self._members_st = None
         self._speed_cache: dict[float, float] = {}
         self._FQ_cache: dict[tuple[float, bool], tuple[np.ndarray, np.ndarray]] = {}
+        self._prev_members: tuple[np.ndarray, np.ndarray] | None = None  # (ids sorted, track ids)
+        self._prev_t: float | None = None
         s = self.settings
         self._gate2 = chi2_ppf(s.gate_probability, 2)
         self._gate3 = chi2_ppf(s.gate_probability, 3)
@@ -720,6 +737,7 @@ class ObstacleFusion:
             tr.label, tr.attributes = obs.label, dict(obs.attributes)
             todo.append((tr, obs))
         work, feats = self._sightings(todo, frame, t_s, T_W_B)
+        self._member_resets(work, feats, t_s)
         self._gidx = {tr.id: i for i, (tr, _sg, _st) in enumerate(work)}
         self._bounds_batch(work)
         self._features_batch(work, t_s, feats)
@@ -872,6 +890,65 @@ class ObstacleFusion:
         return work, feats
 
     # ------------------------------------------------------------------------------- per track
+    def _member_resets(self, work: list[tuple[_Track, _Sighting, str]], feats, t_s: float) -> None:
+        """Restart the tracks whose member set was replaced since the previous frame (see
+        ``member_reset_frac``): new share = (member rays whose feature id was not this track's member
+        in the previous frame) / (member rays now), over all views; one sorted look-up for all
+        tracks. A restarted track keeps its id, label, gate counters and sources, and loses its
+        filter, sightings, velocity reference and moving hypothesis."""
+        s = self.settings
+        prev, t_prev = self._prev_members, self._prev_t
+        self._prev_t = t_s
+        if feats is None:
+            self._prev_members = None
+            return
+        ids, g = feats[0], feats[3]
+        G = len(work)
+        tids = np.fromiter((tr.id for tr, _sg, _st in work), dtype=np.int64, count=G)
+        owner = tids[g]
+        n = np.bincount(g, minlength=G)
+        order = np.argsort(ids, kind="stable")
+        self._prev_members = (ids[order], owner[order])
+        if s.member_reset_frac >= 1.0 or prev is None or not len(prev[0]):
+            off = np.cumsum(n) - n
+            for k, (tr, _sg, _st) in enumerate(work):
+                tr.n_members, tr.t_members = int(n[k]), t_s
+                tr.member_ids = ids[off[k]:off[k] + int(n[k])]
+            return
+        pid, ptr = prev
+        j = np.minimum(np.searchsorted(pid, ids), len(pid) - 1)
+        new = ~((pid[j] == ids) & (ptr[j] == owner))  # not this track's member last frame
+        n_new = np.bincount(g, weights=new, minlength=G)
+        m = 2
+        off = np.cumsum(n) - n  # (feats are grouped track by track, in work's order)
+        for k, (tr, _sg, _st) in enumerate(work):
+            nk = int(n[k])
+            if nk >= m and tr.n_members >= m and (tr.kf is not None or tr.history):
+                if tr.t_members == t_prev:
+                    nn = float(n_new[k])
+                else:  # not seen in the previous frame: against its last member set
+                    cur = ids[off[k]:off[k] + nk]
+                    nn = float(nk - np.count_nonzero(np.isin(cur, tr.member_ids)))
+                if nn > s.member_reset_frac * nk:
+                    self._restart(tr, "member features replaced: filter restarted")
+            tr.n_members, tr.t_members = nk, t_s
+            tr.member_ids = ids[off[k]:off[k] + nk]
+
+    @staticmethod
+    def _restart(tr: _Track, reason: str) -> None:
+        """Drop a track's filter and everything tied to its old points (sightings, velocity
+        reference, moving hypothesis); it starts again from the next measurements."""
+        tr.kf = None
+        tr.moving = False
+        tr.vel_assumed = False
+        tr.vel_ref = None
+        tr.feature_stereo_fid = None
+        tr.history.clear()
+        tr.bounds = None
+        tr.gated_run = 0
+        tr.t_ranged = -math.inf
+        tr.reason = reason
+
     def _speed(self, t_s: float) -> float:
         v = self._speed_cache.get(t_s)
         if v is None:

@@ -446,3 +446,56 @@ def test_nees_interval_bar_shalom_example():
     # Bar-Shalom et al. (2001) sec. 5.4.2: 50 runs, 2 dof -> [1.5, 2.6] (74.2 / 50, 129.6 / 50)
     lo, hi = nees_interval(2, 50, 0.95)
     assert lo == pytest.approx(1.5, abs=0.02) and hi == pytest.approx(2.6, abs=0.02)
+
+
+# ----------------------------------------------------------------------- member-set replacement
+def _takeover_run(settings: FusionSettings, frames_a: int = 30, frames_b: int = 12):
+    """A hovering 0.30 m stereo pair: track 9's two member corners (ids 0, 1, both cameras) lie at
+    range 3 m from the body origin; from frame ``frames_a`` on the id's members are two other
+    corners (ids 10, 11) of a point at 4.5 m in nearly the same direction (the front end handing
+    the id to another set of points). Returns [(frame, report, true range)]."""
+    rng = np.random.default_rng(5)
+    rig = stereo_forward_rig(MODEL, 0.30)
+    ego = ConstantVelocity(0.0)
+    fus = ObstacleFusion(rig, ego, settings)
+    sigma = 5e-4
+
+    def corners(r):  # two corners at exactly range r from the body origin (0, 0, 0)
+        d = np.array([[1.0, 0.30, 0.05], [1.0, 0.34, -0.05]])
+        return r * d / np.linalg.norm(d, axis=1)[:, None]
+
+    out = []
+    for k in range(frames_a + frames_b):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        r_true, ids = (3.0, np.array([0, 1])) if k < frames_a else (4.5, np.array([10, 11]))
+        pts = corners(r_true)
+        views = tuple(
+            CameraView(c.name, _bearing(c, T_W_B, pts.mean(axis=0), sigma, rng), [0, 0], sigma,
+                       feature_ids=ids,
+                       feature_b_C=np.array([_bearing(c, T_W_B, p, sigma, rng) for p in pts]))
+            for c in rig)
+        (r,) = fus.step([ObstacleObservation(9, k, t, "confirmed", views)], k, t)
+        out.append((k, r, r_true))
+    return out
+
+
+def test_track_whose_members_are_replaced_reports_the_new_range_honestly():
+    # closed form: every corner of a frame lies at exactly r_true from the body origin, so the
+    # reported range (a corner's stereo point) must be r_true within its sigma at every report
+    run = _takeover_run(FusionSettings())
+    k_switch = 30
+    before = [r for k, r, _ in run if 20 <= k < k_switch]
+    assert all(r.range_m is not None and abs(r.range_m - 3.0) <= 3 * r.range_sigma_m for r in before)
+    after = [(r, rt) for k, r, rt in run if k >= k_switch]
+    ranged = [(r, rt) for r, rt in after if r.range_m is not None]
+    assert len(ranged) >= len(after) - 1  # re-initialised from the new corners' stereo at once
+    for r, rt in ranged:  # the new range at once, within 3 sigma, and a sigma that says something
+        assert abs(r.range_m - rt) <= 3 * r.range_sigma_m, (r.range_m, r.range_sigma_m)
+        assert r.range_sigma_m < 0.1 * rt
+    r_last, rt_last = ranged[-1]
+    assert abs(r_last.range_m - rt_last) / rt_last < 0.02
+    # without the restart the filter keeps the old 3 m state (the new corners' stereo points are
+    # gated against it): the range does not move to 4.5 m (the test can fail)
+    old = [r for k, r, _ in _takeover_run(FusionSettings(member_reset_frac=1.0)) if k >= k_switch]
+    assert old[-1].range_m is not None and abs(old[-1].range_m - 4.5) / 4.5 > 0.10
