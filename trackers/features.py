@@ -531,9 +531,31 @@ class FeatureTracker:
             criteria=self._criteria,
             flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
         )
+        p0r = p0r.reshape(-1, 2)
+        st2 = st2.reshape(-1)
+        fb = np.linalg.norm(p0r + off - self.uv, axis=1)
+        if self.fb_levels < self.levels:
+            # second chance: a backward pass on the full-resolution level alone converges only
+            # within about half a window of its start, so a good track whose motion prediction was
+            # off by more (fast rotation, acceleration) fails it; those features (typically a few %)
+            # are checked again with one coarser level, as the backward pass did before fb_levels
+            again = np.flatnonzero((st.reshape(-1) == 1) & ((st2 != 1) | ~(fb <= self.fb_max_px)))
+            if len(again):
+                q, st3, _ = cv2.calcOpticalFlowPyrLK(
+                    cur,
+                    prev,
+                    p1[again],
+                    back_guess[again],
+                    winSize=self.win,
+                    maxLevel=min(self.fb_levels + 1, self.levels),
+                    criteria=self._criteria,
+                    flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+                )
+                p0r[again] = q.reshape(-1, 2)
+                st2[again] = st3.reshape(-1)
+                fb[again] = np.linalg.norm(p0r[again] + off - self.uv[again], axis=1)
         p1 = p1.reshape(-1, 2) + off
-        fb = np.linalg.norm(p0r.reshape(-1, 2) + off - self.uv, axis=1)
-        lk_ok = (st.reshape(-1) == 1) & (st2.reshape(-1) == 1)
+        lk_ok = (st.reshape(-1) == 1) & (st2 == 1)
         ok = lk_ok & np.isfinite(fb) & (fb <= self.fb_max_px)
         n_fb = int(ok.sum())
         # appearance: LK's residual (mean absolute grey difference over the window) must be ordinary
