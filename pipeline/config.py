@@ -184,7 +184,8 @@ class TrackerConfig(_Section):
         description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int), "
         "grid ([cols, rows]), "
         "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
-        "fb_levels (int, pyramid levels of the backward pass; 0: full resolution only), "
+        "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
+        "fb_retry (bool, a level-0 failure is checked again one level up), "
         "min_distance_px (px), history (frames).",
     )
     grouping: dict[str, Any] = Field(
@@ -205,7 +206,8 @@ class TrackerConfig(_Section):
     association: dict[str, Any] = Field(
         default_factory=dict,
         description="dict: cross-camera association: every (frames, default 5), epipolar_deg (deg, 1.0), "
-        "max_hamming (int, 64), min_votes (int, 3).",
+        "max_hamming (int, 64), min_votes (int, 3), klt_link_px (px, 1.5), recheck_every (frames, 4: "
+        "a followed stereo match's forward-backward re-check), recheck_px (px, 1.0).",
     )
     max_width: int | None = Field(
         None,

@@ -143,8 +143,9 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px"}
-        bad = sorted(set(a) - known - {"recheck_every", "recheck_px"})
+        known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px", "recheck_every",
+                 "recheck_px"}
+        bad = sorted(set(a) - known)
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
         self.assoc_every = int(a.get("every", 5))

@@ -10,7 +10,7 @@ import yaml
 from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
 
 from estimators.egomotion import ConstantVelocity
-from estimators.errors import ConfigError, SourceError
+from estimators.errors import ConfigError, InputError, SourceError
 from pipeline import run as run_mod
 from pipeline.config import load_config
 from pipeline.run import RunningStats, run
@@ -447,7 +447,7 @@ def test_frame_pose_cache_computes_each_frame_time_once_and_answers_as_the_traje
     v[:] = 99.0  # a caller changing its copy does not change the next answer
     assert ego.velocity_at(0.5) == pytest.approx([2.0, 0, 0]) and inner.velocities == 1
     assert ego.covers(1.0) and not ego.covers(1.5)
-    with pytest.raises(Exception, match="outside"):
+    with pytest.raises(InputError, match="outside"):
         ego.pose_at(1.5)  # the trajectory's own error, not a remembered pose
     assert ego.pose_at(0.25).t == pytest.approx([0.5, 0, 0])
 
