@@ -102,23 +102,26 @@ class FeatureTracker:
         grid: (cols, rows) coverage grid; a cell inside the lens with fewer than ``min_per_cell``
             features triggers re-detection.
         min_per_cell: see ``grid``.
-        redetect_every: re-detect at least every this many frames (1 = every frame).
+        redetect_every: re-detect every this many frames (1 = every frame); a full tracker
+            (``max_features`` live) every twice this many.
         win_px, levels: KLT window (px) and pyramid levels.
         fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
             backward misses its start by more than this (px).
         fb_levels: pyramid levels of the backward pass (0: the full-resolution image only). It
-            starts from the forward result minus the motion prediction, which is within a pixel or
-            two of the start for a good track, so the coarse levels only add cost: 0 instead of
-            ``levels - 1`` cut the KLT time by ~30 % (replayed KLT calls of a 640x480 clip: 5.5 ->
-            3.8 ms per frame) with the same verdicts on 99.9 % of the features (turning scene: 0.1 %
-            fewer, 1 % more accepted).
+            starts from the forward result minus the motion prediction. Default 1: 0 cuts the KLT
+            time by ~30 % (replayed KLT calls of a 640x480 clip: 5.5 -> 3.8 ms per frame) but a
+            level-0 pass converges only within about half a window of its start, so when the
+            prediction is several px off (a sudden yaw) good features fail the check: a sudden 8 px
+            turn keeps 0.56 of the features with 0, 0.82 with 1; trackers.benchmark turning 0.871
+            (worst obstacle 0.191) with 0, 1.000 with 1; noisy_1080p worst obstacle 0.29 vs 0.71.
         fb_retry: features failing a backward pass of fb_levels < levels are checked again with
             one more level (a pass on the full-resolution level alone converges only within about
             half a window of a wrong motion prediction: a sudden 8 px turn keeps 0.56 of the
-            features, 0.81 with the retry, 0.82 with fb_levels=1). Off by default: on the issue-4
-            presets its coverage effect is mixed (turning 0.871 -> 1.000, noisy_1080p 0.839 -> 0.886,
-            moving_crossing 0.812 -> 0.687, wide_angle 0.899 -> 0.845: obstacles with features on
-            them grouped with the background) and it tips the stereo two-view test.
+            features, 0.81 with the retry, 0.82 with fb_levels=1). Off by default; with
+            fb_levels=0 on the issue-4 presets its coverage effect is mixed (turning 0.871 ->
+            1.000, noisy_1080p 0.839 -> 0.886, moving_crossing 0.812 -> 0.687, wide_angle 0.899
+            -> 0.845: obstacles with features on them grouped with the background) and it tips
+            the stereo two-view test.
         min_distance_px: new features keep this far from live ones.
         reacquire_frames: lost features are remembered this many frames for re-acquisition.
         reacquire_radius_px: a new keypoint re-acquires a lost feature within this distance of its
@@ -151,7 +154,7 @@ class FeatureTracker:
         win_px: int = 11,
         levels: int = 2,
         fb_max_px: float = 1.0,
-        fb_levels: int = 0,
+        fb_levels: int = 1,
         fb_retry: bool = False,
         min_distance_px: float = 10.0,
         reacquire_frames: int = 8,

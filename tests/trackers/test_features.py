@@ -286,19 +286,20 @@ def test_a_full_tracker_detects_half_as_often(model):
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
 
 
-def test_sudden_turn_survives_the_backward_check_with_fb_retry(model):
+@pytest.mark.parametrize("opts", [{}, {"fb_levels": 0, "fb_retry": True}], ids=["default", "fb0_retry"])
+def test_sudden_turn_survives_the_backward_check(model, opts):
     """A camera still for 6 frames that suddenly turns 8 px (at the centre; equidistant: f * angle,
     by hand) in one frame: the motion prediction (0 px) is 8 px off. The forward KLT's pyramid
     absorbs that, but a backward pass on the full-resolution level alone (fb_levels=0) converges only
-    within about half its 11 px window of its start, so without a second, coarser backward pass (fb_retry)
-    the good features fail the forward-backward check (measured: 0.56 kept without it, 0.81 with it, 0.82
-    with fb_levels=1; the rest are outer features lost either way). Kept at the rotated positions
-    (bearing error < 1.5 px)."""
+    within about half its 11 px window of its start, so without a coarser backward pass (the default
+    fb_levels=1, or fb_retry after a level-0 pass) the good features fail the forward-backward
+    check (measured: 0.56 kept with fb_levels=0 alone, 0.81 with fb_retry, 0.82 with fb_levels=1;
+    the rest are outer features lost either way). Kept at the rotated positions (bearing error
+    < 1.5 px)."""
     scene = SphereScene(model)
     f_px = model.image_circle()[2] / model.max_angle_rad  # px per radian
     R1 = rot_axis([0, 1, 0], 8.0 / f_px)
-    ft = make_tracker(model, max_features=300, redetect_every=100, fb_retry=True)
-    assert ft.fb_levels == 0
+    ft = make_tracker(model, max_features=300, redetect_every=100, **opts)
     for k in range(6):
         feats, _ = ft.track(scene.render(), k, k / 30)
     before = {int(i): b for i, b in zip(feats.ids, feats.b_C, strict=True)}
