@@ -14,6 +14,16 @@ import numpy as np
 from estimators.errors import InputError
 
 
+def _rot_entries(x, y, z, w) -> list:
+    """The 9 entries, row by row, of the rotation matrix of unit quaternion [x, y, z, w]
+    (Python floats or arrays of one shape)."""
+    return [
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    ]
+
+
 def quat_to_rot(q_xyzw: np.ndarray) -> np.ndarray:
     """Unit quaternion(s) ``(..., 4)`` as ``[x, y, z, w]`` -> rotation matrices ``(..., 3, 3)``.
 
@@ -24,21 +34,8 @@ def quat_to_rot(q_xyzw: np.ndarray) -> np.ndarray:
     if not (np.isfinite(n).all() and (n >= 1e-12).all()):
         raise InputError("quaternion: expected a finite, non-zero [qx, qy, qz, qw]")
     if q.shape == (4,):  # one quaternion (a pose look-up per frame): Python floats, no stacking
-        x, y, z, w = (q / n).tolist()
-        return np.array([
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ])
-    x, y, z, w = np.moveaxis(q / n, -1, 0)
-    R = np.stack(
-        [
-            1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-            2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-            2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-        ],
-        axis=-1,
-    )
+        return np.array(_rot_entries(*(q / n).tolist())).reshape(3, 3)
+    R = np.stack(_rot_entries(*np.moveaxis(q / n, -1, 0)), axis=-1)
     return R.reshape(q.shape[:-1] + (3, 3))
 
 

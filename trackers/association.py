@@ -102,7 +102,7 @@ def match_features(
 
 
 class StereoKLT(NamedTuple):
-    """Result of ``stereo_klt_tracked``: the rows found and where.
+    """Result of ``stereo_klt``: the rows found and where.
 
     Attributes:
         idx: (K,) int rows of the input bearings found in camera b.
@@ -130,9 +130,13 @@ def stereo_klt(
     fb_max_px: float = 1.0,
     off_a: np.ndarray | None = None,
     off_b: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Find camera a's features in camera b's image by KLT, starting from their infinite-depth
-    projection, checked forward-backward and by the epipolar constraint.
+    guess_b: np.ndarray | None = None,
+    check: np.ndarray | None = None,
+    recheck_px: float = 1.0,
+) -> StereoKLT:
+    """Find camera a's features in camera b's image by KLT, checked by the epipolar constraint and
+    (where needed) forward-backward. One forward KLT call for all rows, each starting from its own
+    guess (a match followed over frames) or from its infinite-depth projection.
 
     Args:
         grey_a, grey_b: (H, W) uint8 frames of cameras a and b (same time).
@@ -141,50 +145,6 @@ def stereo_klt(
         off_a, off_b: (2,) px, when grey_a / grey_b are crops of the full frames: the crops'
             origins in the full frames (full-frame pixel = crop pixel + origin); uv_a and the
             returned uv_b are full-frame pixels either way.
-    Returns:
-        (idx (K,) rows of b_a found, uv_b (K, 2) pixels in b, b_b (K, 3) unit bearings in C_b).
-    """
-    r = stereo_klt_tracked(
-        grey_a,
-        grey_b,
-        b_a,
-        uv_a,
-        model_b,
-        R_b_a,
-        t_b_a,
-        epipolar_rad,
-        win_px,
-        levels,
-        fb_max_px,
-        off_a,
-        off_b,
-    )
-    return r.idx, r.uv_b, r.b_b
-
-
-def stereo_klt_tracked(
-    grey_a: np.ndarray,
-    grey_b: np.ndarray,
-    b_a: np.ndarray,
-    uv_a: np.ndarray,
-    model_b,
-    R_b_a: np.ndarray,
-    t_b_a: np.ndarray,
-    epipolar_rad: float = np.radians(1.0),
-    win_px: int = 11,
-    levels: int = 4,
-    fb_max_px: float = 1.0,
-    off_a: np.ndarray | None = None,
-    off_b: np.ndarray | None = None,
-    guess_b: np.ndarray | None = None,
-    check: np.ndarray | None = None,
-    recheck_px: float = 1.0,
-) -> StereoKLT:
-    """``stereo_klt`` for features followed over frames: one forward KLT call for all rows, each
-    starting from its own guess, and the backward (forward-backward) check only where needed.
-
-    Args:
-        grey_a ... off_b: as ``stereo_klt``.
         guess_b: (N, 2) full-frame px in b where each row is expected (e.g. last frame's match
             moved by the feature's motion in a); NaN rows (or None: all) start from the
             infinite-depth projection of b_a.

@@ -24,7 +24,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt_tracked
+from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -419,7 +419,7 @@ class FrontEnd:
 
     def _stereo(self, a: str, b: str, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Camera a's live features ``rows`` (K,) found in camera b's frame by stereo KLT
-        (trackers/association.py ``stereo_klt_tracked``, on the trackers' lens crops), each feature
+        (trackers/association.py ``stereo_klt``, on the trackers' lens crops), each feature
         at most once per frame: (idx (J,) into rows, uv_b (J, 2) full-frame px in b, b_b (J, 3)
         unit bearings in C_b).
 
@@ -451,7 +451,7 @@ class FrontEnd:
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
                 guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
                 last[hit] = m[4][kk]
-            r = stereo_klt_tracked(
+            r = stereo_klt(
                 ca,
                 cb,
                 fa.b_C[todo],

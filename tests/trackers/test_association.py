@@ -207,18 +207,14 @@ def test_stereo_feature_ids_name_one_physical_point_in_both_views(stereo_scene):
     assert np.median(np.linalg.norm(pts[0][0][ok] - pts[1][0][ok], axis=1) / pts[0][2][ok]) < tol
 
 
-def test_stereo_klt_on_lens_crops_equals_full_frames():
-    """stereo_klt on the lens crops (as the front end runs it, FeatureTracker.roi with origins on
-    multiples of 16 px) finds the same features at the same pixels as on the full frames: a camera
-    turned 3 degrees about y sees a world at infinity (pure rotation), so every match must also sit
-    where the model projects R b_a (checked to 0.3 px)."""
+def _rotated_sphere_pair():
+    """Cameras a and b on one point, b turned 3 degrees about y, over a textured world at infinity
+    (pure rotation): every feature of a sits in b where the model projects R_b_a b_a. Returns the
+    model, R_b_a, both frames and a FeatureTracker that has run on a's frame."""
     import itertools
-
-    import cv2
 
     from estimators.rig import Camera, forward_T_C_B
     from tests.trackers.conftest import SphereScene
-    from trackers.association import stereo_klt
     from trackers.detectors import make_detector
     from trackers.features import FeatureTracker
 
@@ -228,6 +224,19 @@ def test_stereo_klt_on_lens_crops_equals_full_frames():
     img_a, img_b = scene.render(None), scene.render(R_b_a.T)
     ft = FeatureTracker(Camera("a", model, forward_T_C_B()), make_detector("orb"), ids=itertools.count(1))
     ft.track(img_a, 0, 0.0)
+    return model, R_b_a, img_a, img_b, ft
+
+
+def test_stereo_klt_on_lens_crops_equals_full_frames():
+    """stereo_klt on the lens crops (as the front end runs it, FeatureTracker.roi with origins on
+    multiples of 16 px) finds the same features at the same pixels as on the full frames: a camera
+    turned 3 degrees about y sees a world at infinity (pure rotation), so every match must also sit
+    where the model projects R b_a (checked to 0.3 px)."""
+    import cv2
+
+    from trackers.association import stereo_klt
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
     assert ft.roi[0] % 16 == 0 and ft.roi[1] % 16 == 0 and ft.roi != (0, 0, 640, 480)
     x0, y0, x1, y1 = ft.roi
     crop = lambda im: np.ascontiguousarray(im[y0:y1, x0:x1])  # noqa: E731
@@ -307,27 +316,16 @@ def test_close_obstacle_features_get_shared_ids_that_name_one_physical_point(hov
 
 
 def test_followed_stereo_klt_starts_from_its_guess_and_checks_only_what_moved():
-    """stereo_klt_tracked on a pure rotation (a camera turned 3 degrees about y over a world at
+    """stereo_klt on a pure rotation (a camera turned 3 degrees about y over a world at
     infinity: every feature of a sits in b where the model projects R b_a, the expected pixel).
     Started 0.3 px off that pixel with no check asked, a feature lands within 0.3 px of it with no
     backward check; started 4 px off (more than recheck_px from where it lands), it is checked;
     rows with no guess (NaN) start from the infinite-depth projection and are always checked."""
-    import itertools
-
     import cv2
 
-    from estimators.rig import Camera, forward_T_C_B
-    from tests.trackers.conftest import SphereScene
-    from trackers.association import stereo_klt_tracked
-    from trackers.detectors import make_detector
-    from trackers.features import FeatureTracker
+    from trackers.association import stereo_klt
 
-    model = equidistant(640, 480)
-    scene = SphereScene(model)
-    R_b_a = rot_axis([0, 1, 0], np.radians(3.0)).T  # b_b = R_b_a b_a
-    img_a, img_b = scene.render(None), scene.render(R_b_a.T)
-    ft = FeatureTracker(Camera("a", model, forward_T_C_B()), make_detector("orb"), ids=itertools.count(1))
-    ft.track(img_a, 0, 0.0)
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
     cv2.setNumThreads(1)
     uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
     expected, ok = model.bearing_to_pixel(b_a @ R_b_a.T)
@@ -339,14 +337,14 @@ def test_followed_stereo_klt_starts_from_its_guess_and_checks_only_what_moved():
     guess[far] += np.array([0.0, 4.0])
     none = np.arange(n) % 3 == 2
     guess[none] = np.nan
-    r = stereo_klt_tracked(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=np.zeros(n, bool))
+    r = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=np.zeros(n, bool))
     assert len(r.idx) > 0.8 * n
     assert np.median(np.linalg.norm(r.uv_b - expected[r.idx], axis=1)) < 0.3
     near = ~far[r.idx] & ~none[r.idx]
     assert near.sum() > 20 and not r.checked[near].any()
     assert r.checked[far[r.idx]].all() and r.checked[none[r.idx]].all()
     # check asked for every row: all checked, the same rows found at the same pixels (to 0.05 px)
-    full = stereo_klt_tracked(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess)
+    full = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess)
     assert full.checked.all()
     common, i, j = np.intersect1d(r.idx, full.idx, return_indices=True)
     assert len(common) > 0.95 * len(full.idx)
