@@ -39,13 +39,6 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
 _POP8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
 
 
-def hamming(d0: np.ndarray, d1: np.ndarray) -> np.ndarray:
-    """(N0, 32) x (N1, 32) uint8 binary descriptors -> (N0, N1) Hamming distances."""
-    if not len(d0) or not len(d1):
-        return np.zeros((len(d0), len(d1)), np.int64)
-    return _POP8[np.bitwise_xor(d0[:, None, :], d1[None, :, :])].sum(axis=2)
-
-
 def match_features(
     b0: np.ndarray,
     d0: np.ndarray,

@@ -261,12 +261,6 @@ class FeatureTracker:
     def n_live(self) -> int:
         return len(self.ids)
 
-    def reset(self) -> None:
-        """Forget every feature (e.g. after a black frame or a cut in the video)."""
-        self._drop(np.arange(len(self.ids)), remember=False)
-        self._forget_lost(np.ones(len(self.lost_ids), bool))
-        self._prev_pyr = None
-
     def track(
         self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None
     ) -> tuple[Features, dict[str, float]]:
