@@ -51,7 +51,9 @@ from estimators.thesis import eq_3_8_mono_Y
 from pipeline.config import scenarios_dir
 
 __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", "run_bearings",
-           "summarize", "format_table", "format_scenes", "run_accuracy", "pool_coverage", "TARGETS"]
+           "summarize", "format_table", "format_scenes", "format_compare", "format_scene_rows",
+           "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "PIPELINE_SCENES",
+           "PIPELINE_SCENES_HELDOUT"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -96,7 +98,10 @@ class AccuracyOptions:
     --quick flag and scene length, the scenario YAML text, the front-end config sections; see
     ``frontend_key_parts``): a recording whose key differs is not replayed but recorded again (the
     run says which part changed), and a scene render whose scenario text or length differs is
-    rendered again."""
+    rendered again. scene_set: which scenes (see ``SCENE_SETS``): "tuned" (the default: the scenes
+    the fusion and grouping settings were fitted on, plus the random scenes in bearings mode),
+    "heldout" (the ``heldout_*`` presets, used to fit nothing) or "both" (each scored on its own,
+    then side by side); ``scenes`` overrides it."""
 
     mode: str = "bearings"
     quick: bool = False
@@ -107,6 +112,7 @@ class AccuracyOptions:
     scenes: tuple[str, ...] | None = None
     settings: FusionSettings = field(default_factory=FusionSettings)
     reuse_frontend: bool = False
+    scene_set: str = "tuned"
 
 
 @dataclass
@@ -474,8 +480,33 @@ def _missing_verdict(m: dict, key: str) -> str:
     return f"FAIL ({why.format(n=n)})" if why else "FAIL"
 
 
-def format_table(m: dict, title: str = "") -> str:
-    """A human-readable table: metric, ours, thesis method, target, pass/fail."""
+def _target_verdict(m: dict, key: str, pct: bool) -> tuple[str, str]:
+    """(target text, verdict) of metric ``key`` in ``m`` against ``TARGETS`` ("", "" without one)."""
+    tgt = TARGETS.get(key)
+    if tgt is None:
+        return "", ""
+    op, val = tgt
+    ts = f"{op}{100 * val:.1f} %" if pct else f"{op}{val:g}"
+    v = m.get(key)
+    if v is None:
+        return ts, _missing_verdict(m, key)
+    if op == "<=":
+        return ts, "PASS" if v <= val else "FAIL"
+    if op == ">=":
+        return ts, "PASS" if v >= val else "FAIL"
+    return ts, "ok" if abs(v - val) <= 0.1 else "off"
+
+
+def _nees_verdict(m: dict, key: str, ikey: str) -> str:
+    """PASS / FAIL of a NEES mean ``m[key]`` against its 95 % interval ``m[ikey]`` (n/a without)."""
+    iv, v = m.get(ikey), m.get(key)
+    if iv is None or v is None:
+        return "n/a"
+    return "PASS" if iv[0] <= v <= iv[1] else "FAIL"
+
+
+def _table_rows(m: dict) -> list[tuple[str, str, str | None, bool]]:
+    """(label, metric key, thesis key, shown in %) of the table's target rows for metrics ``m``."""
     rows = [
         ("mono 3-20 m, >=10 deg off, >=1 s: median rel err", "mono_median_rel", "thesis_mono_median_rel",
          True),
@@ -496,29 +527,21 @@ def format_table(m: dict, title: str = "") -> str:
     if "stereo_eligible_n" in m:
         rows.append(("stereo <=8 m obstacle-frames with a ranged report", "stereo_obstacle_coverage",
                      None, True))
+    return rows
+
+
+def format_table(m: dict, title: str = "") -> str:
+    """A human-readable table: metric, ours, thesis method, target, pass/fail."""
     lines = [title] if title else []
     lines.append(f"{'metric':52s} {'ours':>10s} {'thesis':>10s} {'target':>10s}  verdict")
-    for label, key, tkey, pct in rows:
+    for label, key, tkey, pct in _table_rows(m):
         v = m.get(key)
-        tgt = TARGETS.get(key)
-        if tgt is None:
-            ts, verdict = "", ""
-        else:
-            op, val = tgt
-            ts = f"{op}{100 * val:.1f} %" if pct else f"{op}{val:g}"
-            if v is None:
-                verdict = _missing_verdict(m, key)
-            elif op == "<=":
-                verdict = "PASS" if v <= val else "FAIL"
-            elif op == ">=":
-                verdict = "PASS" if v >= val else "FAIL"
-            else:
-                verdict = "ok" if abs(v - val) <= 0.1 else "off"
+        ts, verdict = _target_verdict(m, key, pct)
         tv = _fmt(m.get(tkey), pct) if tkey else ""
         lines.append(f"{label:52s} {_fmt(v, pct):>10s} {tv:>10s} {ts:>10s}  {verdict}")
     iv = m.get("nees_interval95")
     nees = m.get("nees_mean")
-    verdict = "n/a" if iv is None or nees is None else ("PASS" if iv[0] <= nees <= iv[1] else "FAIL")
+    verdict = _nees_verdict(m, "nees_mean", "nees_interval95")
     ivs = f"[{iv[0]:.2f}, {iv[1]:.2f}]" if iv else "n/a"
     lines.append(f"{'position NEES mean (3 dof), 95% interval ' + ivs:52s} {_fmt(nees):>10s} "
                  f"{'':>10s} {'in int.':>10s}  {verdict}")
@@ -570,43 +593,92 @@ def format_scenes(per_scene: dict) -> str:
 
 
 # ---------------------------------------------------------------------------------------- run
-def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progress=None) -> dict:
-    """Run the harness; returns {"metrics", "per_scene", "table", "options", "elapsed_s"} and writes
-    ``accuracy.json`` and ``accuracy.txt`` into ``out_dir`` when given."""
-    t0 = time.perf_counter()
-    rng = np.random.default_rng(opts.seed)
-    if opts.mode == "bearings":
+def _set_names(opts: AccuracyOptions) -> tuple[str, ...]:
+    """The scene sets ``opts.scene_set`` asks for, in print order; ConfigError for an unknown one."""
+    if opts.scene_set == "both":
+        return ("tuned", "heldout")
+    if opts.scene_set not in SCENE_SETS:
+        from estimators.errors import ConfigError
+
+        raise ConfigError(f"accuracy --set: expected one of {', '.join([*SCENE_SETS, 'both'])}, "
+                          f"got {opts.scene_set!r}")
+    return (opts.scene_set,)
+
+
+def _run_bearings_set(opts: AccuracyOptions, set_name: str, rng, progress) -> tuple[list[Sample], dict]:
+    """Bearings mode on one scene set: "tuned" = the presets of ``preset_scenarios`` plus the random
+    scenes (as before scene sets existed), "heldout" = the held-out presets."""
+    if set_name == "tuned":
         scenes = preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
-        if opts.scenes:
-            scenes = [s for s in scenes if s.name in opts.scenes]
-        samples: list[Sample] = []
-        per_scene = {}
-        for scn in scenes:
-            if opts.quick:
-                scn = scn.model_copy(update={"duration_s": min(scn.duration_s, 2.0)})
-            ss = run_bearings(scn, opts, rng)
-            per_scene[scn.name] = summarize(ss)
-            samples.extend(ss)
-            if progress:
-                progress(f"{scn.name}: {len(ss)} reports")
-    elif opts.mode == "pipeline":
-        samples, per_scene = _run_pipeline(opts, out_dir, progress)
     else:
+        from pipeline.sim.scene import load_scenario
+
+        names = SCENE_SETS[set_name][1 if opts.quick else 0]
+        if opts.quick:  # the tiny pipeline scene is too short for bearings mode: the first three
+            names = PIPELINE_SCENES_HELDOUT[:3]
+        scenes = [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
+    if opts.scenes:
+        scenes = [s for s in scenes if s.name in opts.scenes]
+    samples: list[Sample] = []
+    per_scene = {}
+    for scn in scenes:
+        if opts.quick:
+            scn = scn.model_copy(update={"duration_s": min(scn.duration_s, 2.0)})
+        ss = run_bearings(scn, opts, rng)
+        per_scene[scn.name] = summarize(ss)
+        samples.extend(ss)
+        if progress:
+            progress(f"{scn.name}: {len(ss)} reports")
+    return samples, per_scene
+
+
+def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progress=None) -> dict:
+    """Run the harness; returns {"metrics", "per_scene", "table", "options", "elapsed_s", "sets"} and
+    writes ``accuracy.json`` and ``accuracy.txt`` into ``out_dir`` when given.
+
+    ``sets`` maps each scene set run ("tuned", "heldout"; both with ``scene_set="both"``) to its
+    {"metrics", "per_scene"}; "metrics" / "per_scene" are those of the first set run. The table is
+    one set's table (as before scene sets existed for the default "tuned"), or with "both" the two
+    tables, then the metrics side by side and one row per scene with every metric it has."""
+    t0 = time.perf_counter()
+    if opts.mode not in ("bearings", "pipeline"):
         from estimators.errors import ConfigError
 
         raise ConfigError(f"accuracy: unknown mode {opts.mode!r}; expected 'bearings' or 'pipeline'")
-    metrics = summarize(samples)
-    if opts.mode == "pipeline":  # obstacle-frames the mono / stereo metric could score, share with a range
-        metrics.update(pool_coverage(per_scene))
-    title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
-             f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
-    table = format_table(metrics, title)
-    if opts.mode == "pipeline":
-        table += "\n" + format_scenes(per_scene)
+    set_names = _set_names(opts)
+    rng = np.random.default_rng(opts.seed)
+    sets: dict[str, dict] = {}
+    tables = []
+    for set_name in set_names:
+        if opts.mode == "bearings":
+            samples, per_scene = _run_bearings_set(opts, set_name, rng, progress)
+        else:
+            names = None if set_name == "tuned" else SCENE_SETS[set_name][1 if opts.quick else 0]
+            samples, per_scene = _run_pipeline(opts, out_dir, progress, names=names)
+        metrics = summarize(samples)
+        if opts.mode == "pipeline":  # obstacle-frames the mono / stereo metric could score, ranged share
+            metrics.update(pool_coverage(per_scene))
+        title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
+                 f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
+        if set_name != "tuned" or len(set_names) > 1:
+            title += f"; {SET_TITLES[set_name]}"
+        table = format_table(metrics, title)
+        if opts.mode == "pipeline":
+            table += "\n" + format_scenes(per_scene)
+        tables.append(table)
+        sets[set_name] = {"metrics": metrics, "per_scene": per_scene}
+    if len(sets) > 1:
+        tables.append(format_compare({SET_TITLES[k].split(":")[0]: v["metrics"] for k, v in sets.items()}))
+        # one row per scene, the i-th scene of each set together (the sets list their families in order)
+        per = [list(v["per_scene"].items()) for v in sets.values()]
+        rows = [per[j][i] for i in range(max(map(len, per))) for j in range(len(per)) if i < len(per[j])]
+        tables.append(format_scene_rows(dict(rows)))
+    first = sets[set_names[0]]
     res = {
-        "metrics": metrics,
-        "per_scene": per_scene,
-        "table": table,
+        "metrics": first["metrics"],
+        "per_scene": first["per_scene"],
+        "sets": sets,
+        "table": "\n\n".join(tables),
         "options": {k: v for k, v in asdict(opts).items() if k != "settings"}
         | {"settings": asdict(opts.settings)},
         "elapsed_s": time.perf_counter() - t0,
@@ -614,9 +686,74 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "accuracy.json").write_text(json.dumps(res, indent=2, default=float))
-        (out / "accuracy.txt").write_text(table + "\n")
+        stem = "accuracy" if set_names == ("tuned",) else f"accuracy_{opts.scene_set}"
+        (out / f"{stem}.json").write_text(json.dumps(res, indent=2, default=float))
+        (out / f"{stem}.txt").write_text(res["table"] + "\n")
+        res["written"] = str(out / f"{stem}.json")
     return res
+
+
+def format_compare(metrics_by_set: dict[str, dict]) -> str:
+    """The target metrics of several scene sets side by side: metric, each set's value and verdict,
+    target (``metrics_by_set``: set label -> ``summarize`` / ``pool_coverage`` metrics)."""
+    labels = list(metrics_by_set)
+    ms = list(metrics_by_set.values())
+    lines = [f"{'metric (side by side)':52s} " + " ".join(f"{lb[:16]:>16s}" for lb in labels)
+             + f" {'target':>10s}"]
+    seen = set()
+    rows = [r for m in ms for r in _table_rows(m) if not (r[1] in seen or seen.add(r[1]))]
+    for label, key, _tkey, pct in rows:
+        cells = []
+        ts = ""
+        for m in ms:
+            t, verdict = _target_verdict(m, key, pct)
+            ts = ts or t
+            v = m.get(key)
+            cell = verdict[:4] if v is None else f"{_fmt(v, pct)} {verdict[:4]}"
+            cells.append(f"{cell.strip() or 'n/a':>16s}")
+        lines.append(f"{label:52s} " + " ".join(cells) + f" {ts:>10s}")
+    for label, key, ikey in (("position NEES mean (3 dof)", "nees_mean", "nees_interval95"),
+                             ("range NEES mean (1 dof, per report)", "range_nees_mean",
+                              "range_nees_interval95"),
+                             ("range NEES median (chi2(1) median 0.45)", "range_nees_median", None)):
+        cells = []
+        for m in ms:
+            verdict = _nees_verdict(m, key, ikey) if ikey else ""
+            cells.append(f"{_fmt(m.get(key)) + ' ' + (verdict if verdict != 'n/a' else ''):>16s}")
+        lines.append(f"{label:52s} " + " ".join(cells) + f" {'in int.' if ikey else '':>10s}")
+    for label, key in (("samples", "n_samples"), ("mono samples", "mono_n"), ("stereo <=3 m samples",
+                       "stereo_3m_n"), ("stereo <=8 m samples", "stereo_8m_n"),
+                       ("bounded moving reports", "bounds_n"), ("stereo moving reports >= 1 s",
+                       "stereo_vel_n")):
+        lines.append(f"{label:52s} " + " ".join(f"{str(m.get(key)):>16s}" for m in ms))
+    return "\n".join(lines)
+
+
+def format_scene_rows(per_scene: dict) -> str:
+    """One row per scene with every metric it has ("-" where it has no samples): mono median / p90,
+    stereo <= 3 m / <= 8 m median, bounds coverage, stereo speed / heading error, range NEES mean,
+    1-sigma share, mono obstacle-frame coverage (all in % but NEES and heading in deg)."""
+    def pc(m, k, nk=None):
+        if nk is not None and not m.get(nk):
+            return "-"
+        v = m.get(k)
+        return "n/a" if v is None else f"{100 * v:.2f}"
+
+    cols = ("mono med/p90 %", "st<=3m %", "st<=8m %", "bounds %", "speed % / hdg deg", "rNEES",
+            "1-sigma %", "mono cov %")
+    lines = [f"{'per scene':24s} " + " ".join(f"{c:>17s}" for c in cols)]
+    for name, m in per_scene.items():
+        mono = "-" if not m.get("mono_n") else f"{pc(m, 'mono_median_rel')}/{pc(m, 'mono_p90_rel')}"
+        hd = m.get("stereo_heading_median_deg")
+        vel = "-" if not m.get("stereo_vel_n") else (
+            f"{pc(m, 'stereo_speed_median_rel')}/{'n/a' if hd is None else f'{hd:.1f}'}")
+        rn = m.get("range_nees_mean")
+        cells = (mono, pc(m, "stereo_3m_median_rel", "stereo_3m_n"),
+                 pc(m, "stereo_8m_median_rel", "stereo_8m_n"),
+                 pc(m, "bounds_coverage", "bounds_cand_n"), vel, "-" if rn is None else f"{rn:.2f}",
+                 pc(m, "one_sigma_share"), pc(m, "mono_obstacle_coverage", "mono_eligible_n"))
+        lines.append(f"  {name:22s} " + " ".join(f"{c:>17s}" for c in cells))
+    return "\n".join(lines)
 
 
 def pool_coverage(per_scene: dict) -> dict:
@@ -634,9 +771,23 @@ def pool_coverage(per_scene: dict) -> dict:
 
 PIPELINE_SCENES_QUICK = ("ci_small",)
 PIPELINE_SCENES = ("mono_straight", "stereo_flying", "moving_crossing", "stereo_hover", "thesis_speed_15mps")
+# Held-out scenes (configs/scenarios/heldout_*.yaml): the same families as PIPELINE_SCENES, in the same
+# order (mono straight, stereo flying, moving, stereo hover, fast flight), with other seeds, layouts,
+# sizes, textures, speeds and light; no fusion or grouping setting was fitted on them
+PIPELINE_SCENES_HELDOUT = ("heldout_mono_straight", "heldout_stereo_flying", "heldout_moving",
+                           "heldout_stereo_hover", "heldout_fast_18mps")
+PIPELINE_SCENES_HELDOUT_QUICK = ("heldout_ci_small",)
+# scene set -> (pipeline scenes, pipeline --quick scenes)
+SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "tuned": (PIPELINE_SCENES, PIPELINE_SCENES_QUICK),
+    "heldout": (PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_HELDOUT_QUICK),
+}
+SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
+              "heldout": "held-out: scenes no setting was fitted on"}
 
 
-def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample], dict]:
+def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
+                  names: tuple[str, ...] | None = None) -> tuple[list[Sample], dict]:
     """Render (or reuse) each scene, run ``pipeline.run`` (front end + this fusion), score with
     ``pipeline.evaluate.score_reports`` (truth along each report's bearing), and build Samples.
 
@@ -645,7 +796,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
     available here (tracks.jsonl carries no covariance): the 1-sigma share uses range_sigma_m.
     The truth is the evaluator's: the surface hit along the report's bearing, not the centre.
     Each run also keeps the front end's observations (``runs/<name>/observations.pkl``); with
-    ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end."""
+    ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end.
+    names: the scenes (preset names); default PIPELINE_SCENES (PIPELINE_SCENES_QUICK with --quick);
+    ``opts.scenes`` overrides both."""
     import tempfile
 
     from estimators.fusion import ObstacleFusion
@@ -656,7 +809,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress) -> tuple[list[Sample
     from pipeline.sim.writer import simulate
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
-    names = PIPELINE_SCENES_QUICK if opts.quick else PIPELINE_SCENES
+    if names is None:
+        names = PIPELINE_SCENES_QUICK if opts.quick else PIPELINE_SCENES
     if opts.scenes:
         names = tuple(opts.scenes)
     samples: list[Sample] = []

@@ -2,6 +2,8 @@
 
 Prints one table (ours, the thesis's two-frame law-of-sines method, the target, a verdict) and, with
 ``--out DIR``, writes ``DIR/accuracy.json`` (every metric, per scene) and ``DIR/accuracy.txt``.
+``--set heldout`` scores the held-out scenes instead (``accuracy_heldout.*``), ``--set both`` both
+sets side by side (``accuracy_both.*``).
 """
 
 from __future__ import annotations
@@ -47,6 +49,16 @@ def register(app: typer.Typer) -> None:
         scene: Annotated[
             list[str] | None, typer.Option("--scene", help="Only this scene (repeat); default: all.")
         ] = None,
+        scene_set: Annotated[
+            str,
+            typer.Option(
+                "--set",
+                help="Scene set: tuned (default: the scenes the fusion and grouping settings were "
+                "fitted on), heldout (configs/scenarios/heldout_*.yaml, used to fit nothing) or both "
+                "(each table, then side by side and per scene). With --out, heldout / both write "
+                "accuracy_<set>.json / .txt.",
+            ),
+        ] = "tuned",
         reuse_frontend: Annotated[
             bool,
             typer.Option(
@@ -69,7 +81,8 @@ def register(app: typer.Typer) -> None:
             mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
             thesis_interval_s=thesis_interval, scenes=tuple(scene) if scene else None,
             settings=FusionSettings(max_speed_mps=max_speed), reuse_frontend=reuse_frontend,
+            scene_set=scene_set,
         )
         res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
         typer.echo(res["table"])
-        typer.echo(f"elapsed {res['elapsed_s']:.1f} s" + (f"; wrote {out}/accuracy.json" if out else ""))
+        typer.echo(f"elapsed {res['elapsed_s']:.1f} s" + (f"; wrote {res['written']}" if out else ""))
