@@ -43,6 +43,7 @@ from pipeline.run import (
     build_frontend,
     build_fusion,
     build_rig,
+    frozen_gc,
     wants_grey,
 )
 from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
@@ -773,81 +774,82 @@ def run_live(
     t_start = time.perf_counter()
     last_t_s = -np.inf
     try:
-        while True:
-            if lv.duration_s is not None and time.monotonic() - start_mono >= lv.duration_s:
-                break
-            if max_frames is not None and frames >= max_frames:
-                break
-            lead = grabbers[0].take(timeout_s=0.25)
-            t_taken = time.monotonic()
-            if lead is None:
-                if grabbers[0].finished:
+        with frozen_gc():  # no 50-80 ms full collection of the set-up's objects mid-run
+            while True:
+                if lv.duration_s is not None and time.monotonic() - start_mono >= lv.duration_s:
                     break
-                continue
-            images = {names[0]: lead.image}
-            missing = []
-            for g, n in zip(grabbers[1:], names[1:], strict=True):
-                # the other cameras' frame of the same instant (nearest in frame time, within the
-                # tolerance; waited for about two of its frame intervals); without one the lead frame
-                # goes on alone and the miss is counted (below, once the frame is processed)
-                f = g.nearest(frame_time(lead), lv.sync_tolerance_s)
-                if f is not None:
-                    images[n] = f.image
-                else:
-                    missing.append(n)
-            if lead.t_s is not None:
-                t_s = lead.t_s
-            elif lv.clock == "unix":
-                t_s = start_unix + (lead.arrival_s - start_mono)
-            else:
-                t_s = lead.arrival_s - start_mono
-            if t_s <= last_t_s:
-                continue
-            if not egomotion.covers(t_s):
-                wait_until = time.monotonic() + lv.trajectory_wait_s
-                while not egomotion.covers(t_s) and time.monotonic() < wait_until:
-                    time.sleep(0.01)
-                if not egomotion.covers(t_s):
-                    no_pose += 1
+                if max_frames is not None and frames >= max_frames:
+                    break
+                lead = grabbers[0].take(timeout_s=0.25)
+                t_taken = time.monotonic()
+                if lead is None:
+                    if grabbers[0].finished:
+                        break
                     continue
-            last_t_s = t_s
-            for n in missing:  # counted for processed frames only: frames_without_partner <= frames
-                unpaired[n] = unpaired.get(n, 0) + 1
-            # The body pose lets the front end take the drone's own rotation out of feature motion.
-            obs = frontend.process(images, lead.seq, t_s, T_W_B=egomotion.pose_at(t_s))
-            timings.add_all(getattr(frontend, "timings", None))
-            reports = fusion.step(obs, lead.seq, t_s)
-            timings.add_all(getattr(fusion, "timings", None))
-            t_proc = time.monotonic()
-            items = writer.write(lead.seq, t_s, reports)  # one write + flush per frame
-            t_done = time.monotonic()
-            timings.add("write", t_done - t_proc)
-            lat = t_done - lead.arrival_s
-            latency.add(lat)
-            waited.add(t_taken - lead.arrival_s)
-            processing.add(t_done - t_taken)
-            pub = lead.arrival_s if lead.published_s is None else lead.published_s
-            lag_s, queue_s = pub - lead.arrival_s, t_taken - pub
-            parts["lag"].add(lag_s)
-            parts["queue"].add(queue_s)
-            parts["process"].add(t_proc - t_taken)
-            parts["write"].add(t_done - t_proc)
-            if lead.decode_s is not None:
-                parts["decode"].add(lead.decode_s)
-            if log is not None:
-                log.write(
-                    f"{lead.seq},{t_s!r},{lat:.6f},{lag_s:.6f},{queue_s:.6f},{t_proc - t_taken:.6f},"
-                    f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'}\n"
-                )
-            frames += 1
-            if annotator is not None and frames % cfg.outputs.every_n == 0:
-                img = annotator.draw(images, items, t_s, lead.seq)
-                if server is not None:
-                    server.publish(img)
-                if video is not None:
-                    video.write(img)
-            if on_frame is not None:
-                on_frame(frames, {"latency_s": lat})
+                images = {names[0]: lead.image}
+                missing = []
+                for g, n in zip(grabbers[1:], names[1:], strict=True):
+                    # the other cameras' frame of the same instant (nearest in frame time, within the
+                    # tolerance; waited for about two of its frame intervals); without one the lead frame
+                    # goes on alone and the miss is counted (below, once the frame is processed)
+                    f = g.nearest(frame_time(lead), lv.sync_tolerance_s)
+                    if f is not None:
+                        images[n] = f.image
+                    else:
+                        missing.append(n)
+                if lead.t_s is not None:
+                    t_s = lead.t_s
+                elif lv.clock == "unix":
+                    t_s = start_unix + (lead.arrival_s - start_mono)
+                else:
+                    t_s = lead.arrival_s - start_mono
+                if t_s <= last_t_s:
+                    continue
+                if not egomotion.covers(t_s):
+                    wait_until = time.monotonic() + lv.trajectory_wait_s
+                    while not egomotion.covers(t_s) and time.monotonic() < wait_until:
+                        time.sleep(0.01)
+                    if not egomotion.covers(t_s):
+                        no_pose += 1
+                        continue
+                last_t_s = t_s
+                for n in missing:  # counted for processed frames only: frames_without_partner <= frames
+                    unpaired[n] = unpaired.get(n, 0) + 1
+                # The body pose lets the front end take the drone's own rotation out of feature motion.
+                obs = frontend.process(images, lead.seq, t_s, T_W_B=egomotion.pose_at(t_s))
+                timings.add_all(getattr(frontend, "timings", None))
+                reports = fusion.step(obs, lead.seq, t_s)
+                timings.add_all(getattr(fusion, "timings", None))
+                t_proc = time.monotonic()
+                items = writer.write(lead.seq, t_s, reports)  # one write + flush per frame
+                t_done = time.monotonic()
+                timings.add("write", t_done - t_proc)
+                lat = t_done - lead.arrival_s
+                latency.add(lat)
+                waited.add(t_taken - lead.arrival_s)
+                processing.add(t_done - t_taken)
+                pub = lead.arrival_s if lead.published_s is None else lead.published_s
+                lag_s, queue_s = pub - lead.arrival_s, t_taken - pub
+                parts["lag"].add(lag_s)
+                parts["queue"].add(queue_s)
+                parts["process"].add(t_proc - t_taken)
+                parts["write"].add(t_done - t_proc)
+                if lead.decode_s is not None:
+                    parts["decode"].add(lead.decode_s)
+                if log is not None:
+                    log.write(
+                        f"{lead.seq},{t_s!r},{lat:.6f},{lag_s:.6f},{queue_s:.6f},{t_proc - t_taken:.6f},"
+                        f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'}\n"
+                    )
+                frames += 1
+                if annotator is not None and frames % cfg.outputs.every_n == 0:
+                    img = annotator.draw(images, items, t_s, lead.seq)
+                    if server is not None:
+                        server.publish(img)
+                    if video is not None:
+                        video.write(img)
+                if on_frame is not None:
+                    on_frame(frames, {"latency_s": lat})
     except KeyboardInterrupt:
         interrupted = True
     finally:

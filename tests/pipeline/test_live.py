@@ -467,3 +467,20 @@ def test_an_unwritable_latency_log_fails_before_any_camera_is_opened(tmp_path):
         assert len(closed) == len(opened)  # no camera left open (none opened at all)
     finally:
         stop.set()  # let a grabber that was left running end
+
+
+def test_live_loop_runs_with_the_set_up_objects_frozen_for_the_collector(tmp_path):
+    import gc
+
+    counts = []
+
+    class Probe(FakeFrontEnd):
+        def process(self, images, frame, t_s, T_W_B=None):
+            counts.append(gc.get_freeze_count())
+            return super().process(images, frame, t_s)
+
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 50 for k in range(6)])
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=Probe(mono_rig()))
+    assert r.frames >= 1 and len(counts) == r.frames
+    assert min(counts) > 10_000  # modules, rig, front end: frozen before the first frame
+    assert gc.get_freeze_count() == 0

@@ -461,3 +461,43 @@ def test_run_looks_up_one_pose_per_frame_for_the_loop_and_fusion(tmp_path):
     inner = _CountingTrajectory()
     r = run(cfg, tmp_path / "out", rig=rig, egomotion=inner, frontend=FakeFrontEnd(rig))
     assert r.frames == 5 and inner.poses == 5
+
+
+class _FreezeProbe(FakeFrontEnd):
+    """Records, per frame, how many objects the cyclic collector had frozen and whether one of them
+    (the probe itself, made before the run) was among them."""
+
+    def __init__(self, rig):
+        super().__init__(rig)
+        self.frozen_counts: list[int] = []
+
+    def process(self, images, frame, t_s, T_W_B=None):
+        import gc
+
+        self.frozen_counts.append(gc.get_freeze_count())
+        return super().process(images, frame, t_s)
+
+
+def test_run_loop_keeps_the_collector_off_the_set_up_objects_and_restores_it(tmp_path):
+    import gc
+
+    assert gc.get_freeze_count() == 0  # nothing else froze objects in this test process
+    v = write_video(tmp_path / "cam0.mkv", 4)
+    rig = mono_rig()
+    front = _FreezeProbe(rig)
+    r = _run(tmp_path, [v], rig=rig, front=front)
+    assert r.frames == 4 and len(front.frozen_counts) == 4
+    # the probe, the rig and every module existed before the loop: all of them frozen, i.e. many
+    # thousands of objects (a bare interpreter alone holds > 10,000 tracked objects)
+    assert min(front.frozen_counts) > 10_000
+    assert gc.get_freeze_count() == 0  # unfrozen after the run, even for the next run in this process
+    assert gc.isenabled()
+
+
+def test_frozen_gc_unfreezes_when_the_loop_raises():
+    import gc
+
+    with pytest.raises(KeyboardInterrupt), run_mod.frozen_gc():
+        assert gc.get_freeze_count() > 0
+        raise KeyboardInterrupt
+    assert gc.get_freeze_count() == 0
