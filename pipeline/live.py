@@ -365,13 +365,6 @@ class Grabber:
             self._taken_seq = self._latest.seq
             return self._latest
 
-    def peek(self) -> LiveFrame | None:
-        """The newest frame (taken or not), without marking it."""
-        with self._cond:
-            if self._latest is not None and self._latest.seq > self._taken_seq:
-                self._taken_seq = self._latest.seq
-            return self._latest
-
     def _pair_wait_s(self) -> float:
         """How long (s, on ``clock``) :meth:`nearest` waits for a frame at or after the lead's time:
         two of this camera's frame intervals (from its recent frame times) plus scheduling slack, at

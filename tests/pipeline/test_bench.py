@@ -376,3 +376,33 @@ def test_cached_render_keys_grey_clips_apart(tmp_path):
     d0 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render)
     d1 = bench.cached_render(scn, tmp_path, resolution=(64, 48), frames=2, render=fake_render, grey=True)
     assert d0 != d1 and "grey" in d1.name and len(calls) == 2
+
+
+def test_live_and_scaling_rows_keep_measured_values_out_of_their_names(tmp_path):
+    """Row names are fixed text (comparable across runs); every measured value sits in a column."""
+    plan = bench.make_plan(quick=True)
+    b = bench.BenchRun(plan, tmp_path / "o", tmp_path / "c")
+    clip = bench.Clip(tmp_path, {"cam0": tmp_path / "cam0.mkv"}, {"observer": {}}, (160, 120), 100.0, 10)
+    b.clip = lambda res, rig, n=None: clip
+    part = {"median_s": 0.0123, "p99_s": 0.0456}  # 12.3 ms / 45.6 ms: distinctive, and nowhere in a name
+    live = {"latency": part, "decode_median_s": 0.0017, "dropped": 7, "offered": 31, "cpu_busy": 0.987,
+            "loadavg_1min": [3.21, 4.56], "parts": {k: part for k in ("lag", "queue", "process", "write",
+                                                                        "decode")}}
+    pipe = {"fps": 55.5, "observations_mean": 7.77, "tracked_features_mean": 333.3,
+            "grouped_features_mean": 222.2}
+    b.run = lambda task, threads, timeout_s=0: dict(live if task["kind"] == "live" else pipe)
+    b.live()
+    b.scaling()
+    names = " | ".join(r.name for r in b.rows)
+    for v in ("12.3", "45.6", "98.7", "4.56", "7.77", "7.8", "333", "222", "55.5"):
+        assert v not in names
+    rows = {r.name: r for r in b.rows}
+    load = next(r for n, r in rows.items() if n.endswith(
+        "machine load average (1 min, larger of start and end)"))
+    assert load.value == pytest.approx(4.56)
+    split = [r for r in b.rows if r.section.startswith("live latency split")]
+    assert len(split) == 7 and all(r.extra.get("p99_ms") == pytest.approx(45.6) for r in split[:5])
+    assert any(r.value == pytest.approx(7.77) for r in b.rows)  # obstacles per frame: a value, not a name
+    table = bench.format_table(b.rows)
+    line = next(ln for ln in table.split("\n") if "taken -> reports" in ln)
+    assert "12.3 ms" in line and "45.6 ms" in line  # median and p99 in their columns
