@@ -11,7 +11,10 @@ Two modes:
 
 Scenes: the presets of ``configs/scenarios`` that fit each metric plus random scenes (seeded):
 mono straight flights past stationary spheres 3-25 m away, stereo (0.30 m) flights past obstacles at
-1-9 m, mono and stereo flights among obstacles moving no faster than the max speed.
+1-9 m, mono and stereo flights among obstacles moving no faster than the max speed. Pipeline mode
+scores ``PIPELINE_SCENES``, on which fusion and grouping settings were fitted; ``scene_set="heldout"``
+(``--set heldout``) scores ``PIPELINE_SCENES_HELDOUT`` instead (same families, used to fit nothing),
+``"both"`` the two side by side.
 
 Metrics (one sample per track report per frame; ``in_view_s`` = time since the obstacle became
 continuously visible):
