@@ -52,6 +52,8 @@ from pipeline.sources import PacedSource, Source, VideoSource, open_capture
 __all__ = [
     "LIVE_SWITCH_INTERVAL_S",
     "PAIR_WAIT_SLACK_S",
+    "SKIP_AFTER_INTERVALS",
+    "SKIPPED",
     "LiveFrame",
     "frame_time",
     "Grabber",
@@ -73,6 +75,14 @@ PAIR_WAIT_SLACK_S = 0.1
 
 #: Longest single condition wait (s), so waits re-read the injected clock.
 _WAIT_POLL_S = 0.05
+
+#: Retrieve is skipped for a frame the run loop will not take when the loop's expected ready time is
+#: more than this many frame intervals away (1 = the next frame arrives first; the 0.1 is arrival jitter).
+SKIP_AFTER_INTERVALS = 1.1
+
+#: What a reader's ``read()`` returns as the image of a frame it grabbed but did not decode (see
+#: :attr:`CaptureReader.wanted`): counted as grabbed and stale, never published.
+SKIPPED = object()
 
 
 @dataclass(frozen=True)
@@ -111,6 +121,9 @@ class CaptureReader:
     ends = False  # a camera never ends: a failure means reopen
     arrival_s = None  # the grabber stamps the arrival itself
     decode_s: float | None = None  # seconds the last frame's retrieve (+ grey conversion) took
+    #: set by the :class:`Grabber` of the lead camera: ``wanted() -> bool``, False when the run loop will
+    #: still be busy when the next frame arrives (this one would be dropped unseen); None: always retrieve
+    wanted: Callable[[], bool] | None = None
 
     def __init__(self, ref: int | str, timeout_s: float = 5.0, grey: bool = False):
         import cv2
@@ -134,9 +147,15 @@ class CaptureReader:
         # read() = grab() (waits for the device's next frame) + retrieve() (decodes / converts it): split
         # so that ``decode_s`` is the decode (retrieve + grey conversion), not the wait for the camera
         # (with OpenCV's FFmpeg backend, i.e. URLs, grab() decodes and retrieve() only converts).
+        # A frame the loop will not take (it is still busy when the next one arrives) is grabbed, so the
+        # device's queue moves on, but not retrieved: with V4L2 the retrieve is the MJPEG decode / colour
+        # conversion, with FFmpeg the pixel-format conversion (grab decodes there).
         self.decode_s = None
         if not self.cap.grab():
             return None, None
+        wanted = self.wanted
+        if wanted is not None and not wanted():
+            return SKIPPED, None
         t0 = time.perf_counter()
         ok, img = self.cap.retrieve()
         if not ok or img is None:
@@ -222,9 +241,13 @@ class Grabber:
         name: camera name (for messages).
         reconnect_initial_s / reconnect_max_s: back-off of reopen attempts (doubling), seconds.
         stall_timeout_s: no frame for this long counts as a stopped camera (reopened).
+        skip_unwanted: give readers that can grab without decoding (a ``wanted`` attribute, e.g.
+            :class:`CaptureReader`) :meth:`wanted`, so a frame the run loop will not take is not decoded.
+            For the lead camera only: the loop tells it when it expects to be ready (:meth:`expect_ready`).
 
-    Counters: ``grabbed``, ``stale`` (replaced before taken), ``reconnects``, ``errors`` (last message),
-    ``lag`` (for readers that give a due time, e.g. a paced replay: how late frames were published).
+    Counters: ``grabbed``, ``stale`` (replaced before taken, or skipped), ``skipped`` (grabbed but not
+    decoded: the loop was busy past the next frame), ``reconnects``, ``errors`` (last message), ``lag``
+    (for readers that give a due time, e.g. a paced replay: how late frames were published).
     """
 
     def __init__(
@@ -236,8 +259,13 @@ class Grabber:
         stall_timeout_s: float = 2.0,
         clock: Callable[[], float] = time.monotonic,
         nice: int | None = None,
+        skip_unwanted: bool = False,
     ):
         self.open_reader = open_reader
+        self.skip_unwanted = bool(skip_unwanted)
+        self._ready_s: float | None = None  # when the run loop expects to take its next frame (clock)
+        self._grab_s: deque[float] = deque(maxlen=9)  # clock at the last grabs (skipped ones too)
+        self.skipped = 0
         self.name = name
         self.backoff0 = float(reconnect_initial_s)
         self.backoff_max = float(reconnect_max_s)
@@ -289,6 +317,28 @@ class Grabber:
             self.grabbed += 1
             self._cond.notify_all()
 
+    def expect_ready(self, ready_s: float | None) -> None:
+        """The run loop expects to take its next frame at ``ready_s`` (clock; None: now / unknown)."""
+        self._ready_s = ready_s
+
+    def wanted(self) -> bool:
+        """Whether the frame just grabbed will be taken: False only when the run loop expects to be busy
+        for more than ``SKIP_AFTER_INTERVALS`` frame intervals (from the last grabs' times), i.e. a newer
+        frame will have arrived by then. True while either is unknown."""
+        ready, g = self._ready_s, self._grab_s
+        if ready is None or len(g) < 3:
+            return True
+        interval = (g[-1] - g[0]) / (len(g) - 1)  # mean interval between grabs
+        return not interval > 0 or ready - self.clock() <= SKIP_AFTER_INTERVALS * interval
+
+    def _skip(self) -> None:
+        """A frame grabbed but not decoded: counted as grabbed and stale (dropped), not published."""
+        with self._cond:
+            self._last_publish_s = self.clock()  # the camera is alive
+            self.grabbed += 1
+            self.stale += 1
+            self.skipped += 1
+
     def _set_nice(self) -> None:
         """Give this (the grabber's) thread the nice value asked for, when the OS allows it."""
         import os
@@ -321,12 +371,19 @@ class Grabber:
                     self._stop.wait(backoff)
                     backoff = min(backoff * 2, self.backoff_max)
                     continue
+            if self.skip_unwanted and hasattr(reader, "wanted") and reader.wanted is None:
+                reader.wanted = self.wanted
             t_read = self.clock()
             try:
                 image, t_s = reader.read()
             except Exception as e:  # a driver error is a stopped camera, not the end of the run
                 image, t_s = None, None
                 self.last_error = f"{self.name}: {e}"
+            if image is not None:
+                self._grab_s.append(self.clock())
+            if image is SKIPPED:
+                self._skip()
+                continue
             arrival = getattr(reader, "arrival_s", None)  # a paced replay's due time, else now
             dec = getattr(reader, "decode_s", None)
             if image is not None and (
@@ -353,6 +410,7 @@ class Grabber:
     def take(self, timeout_s: float) -> LiveFrame | None:
         """The newest frame not taken yet; waits up to ``timeout_s`` (s, on ``clock``). None on timeout
         or when finished."""
+        self._ready_s = None  # the loop is ready now: the next frame is wanted
         with self._cond:
             deadline = self.clock() + timeout_s
             while self._latest is None or self._latest.seq <= self._taken_seq:
@@ -723,6 +781,7 @@ def run_live(
                 lv.reconnect_max_s,
                 lv.stall_timeout_s,
                 nice=lv.grabber_nice,
+                skip_unwanted=not grabbers,  # the lead camera: frames the loop will not take stay undecoded
             )
             grabbers.append(g.start(first))
     except BaseException:
@@ -752,6 +811,7 @@ def run_live(
     # written and flushed); and, beside them, the reader's decode time of the frame
     parts = {k: RunningStats() for k in ("lag", "queue", "process", "write", "decode")}
     unpaired: dict[str, int] = {}  # processed lead frames another camera had no frame within tolerance for
+    busy: deque[float] = deque(maxlen=15)  # the last frames' times from taken to ready for the next (s)
     timings = StageTimings()
     frames = 0
     no_pose = 0
@@ -775,6 +835,8 @@ def run_live(
                     break
                 lead = grabbers[0].take(timeout_s=0.25)
                 t_taken = time.monotonic()
+                if lead is not None and busy:  # busy until about the median of the last frames' times
+                    grabbers[0].expect_ready(t_taken + sorted(busy)[len(busy) // 2])
                 if lead is None:
                     if grabbers[0].finished:
                         break
@@ -843,6 +905,7 @@ def run_live(
                         video.write(img)
                 if on_frame is not None:
                     on_frame(frames, {"latency_s": lat})
+                busy.append(time.monotonic() - t_taken)  # taken -> ready for the next frame
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -875,6 +938,8 @@ def run_live(
             "stale_frames_dropped": {g.name: g.stale for g in grabbers},
             "frames_grabbed": {g.name: g.grabbed for g in grabbers},
             "drop_rate": {g.name: g.stale / g.grabbed if g.grabbed else None for g in grabbers},
+            # of the dropped: grabbed but never decoded (the loop was busy past the next frame; cameras)
+            "frames_not_decoded": {g.name: g.skipped for g in grabbers},
             "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
             "grabber_nice": {g.name: g.nice for g in grabbers},
             "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},

@@ -484,3 +484,85 @@ def test_live_loop_runs_with_the_set_up_objects_frozen_for_the_collector(tmp_pat
     assert r.frames >= 1 and len(counts) == r.frames
     assert min(counts) > 10_000  # modules, rig, front end: frozen before the first frame
     assert gc.get_freeze_count() == 0
+
+
+# ------------------------------------------------------------------ frames the loop will not take
+def test_wanted_is_false_only_when_the_loop_is_busy_past_the_next_frame():
+    clock = FakeClock()
+    g = _grabber(clock)
+    assert g.wanted()  # nothing known yet
+    for _ in range(5):  # grabs every 10 ms
+        g._grab_s.append(clock.t)
+        clock.t += 0.010
+    assert g.wanted()  # the loop has not said when it will be ready
+    g.expect_ready(clock.t + 0.030)  # busy for three more frame intervals: a newer frame comes first
+    assert not g.wanted()
+    g.expect_ready(clock.t + 0.0105)  # ready within 1.1 intervals (arrival jitter): this is its frame
+    assert g.wanted()
+    g.expect_ready(clock.t - 0.005)  # overdue: wanted
+    assert g.wanted()
+    g.expect_ready(clock.t + 0.030)
+    g.take(timeout_s=0.0)  # the loop waits for a frame: any frame is wanted
+    assert g.wanted()
+
+
+class FakeCam:
+    """A camera at ``rate_hz``: ``grab`` waits for the next frame; ``retrieve`` (the decode) is counted."""
+
+    def __init__(self, n, rate_hz):
+        self.n, self.period, self.k, self.retrieved = n, 1.0 / rate_hz, 0, []
+        self.t0 = time.monotonic()
+
+    def grab(self):
+        if self.k >= self.n:
+            time.sleep(0.01)
+            return False
+        wait = self.t0 + self.k * self.period - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
+        self.k += 1
+        return True
+
+    def retrieve(self):
+        self.retrieved.append(self.k - 1)
+        return True, np.full((H, W), (self.k - 1) % 256, np.uint8)
+
+    def release(self):
+        pass
+
+
+def _fake_camera_reader(cam):
+    from pipeline.live import CaptureReader
+
+    r = CaptureReader.__new__(CaptureReader)  # a camera without the device: its capture is the fake
+    r.ref, r.grey, r.cap, r.wanted = 0, False, cam, None
+    return r
+
+
+def test_capture_reader_does_not_decode_an_unwanted_frame():
+    from pipeline.live import SKIPPED
+
+    cam = FakeCam(3, 1000.0)
+    r = _fake_camera_reader(cam)
+    img, _ = r.read()
+    assert img is not SKIPPED and cam.retrieved == [0]
+    r.wanted = lambda: False
+    img, _ = r.read()
+    assert img is SKIPPED and cam.retrieved == [0] and cam.k == 2  # grabbed (the queue moved), not decoded
+
+
+def test_camera_frames_the_busy_loop_will_not_take_are_dropped_without_decoding(tmp_path):
+    """A 100 Hz camera and a 40 ms pipeline: most frames arrive while the loop is busy for several more
+    intervals; they are grabbed but not decoded, and counted as dropped. Every processed frame was
+    decoded, and each was the newest frame when the loop took it (frame indices only increase)."""
+    cam = FakeCam(60, 100.0)
+    rig = mono_rig()
+    front = SlowFrontEnd(rig, delay_s=0.04)
+    r = _live(tmp_path, [lambda: _fake_camera_reader(cam)], front=front, max_frames=8)
+    s = r.summary
+    assert r.frames == 8
+    skipped = s["frames_not_decoded"]["cam0"]
+    assert skipped > 0 and skipped <= s["stale_frames_dropped"]["cam0"]
+    assert s["frames_grabbed"]["cam0"] == len(cam.retrieved) + skipped  # every grabbed frame: decoded or not
+    seqs = [c[0] for c in front.calls]
+    assert seqs == sorted(seqs)
