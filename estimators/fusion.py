@@ -79,13 +79,16 @@ Measurements
     * Gating: each bearing (2 dof) / stereo point (3 dof) update is rejected when its NIS
       ``y^T S^-1 y`` exceeds the chi-square quantile of ``gate_probability``; rejections are
       counted (``gated``), and after ``reinit_after_gated`` consecutive rejections the filter is
-      dropped and re-initialised from fresh triangulations.
+      restarted (``_restart``, below).
     * Member-set replacement (``member_reset_frac``): when more than that share of a track's
-      member features (with >= feature_min_count of them, and >= that many last frame) were not
-      its members in the previous frame, the front end has handed the id to another set of
-      points (a confirmed track taking over a younger one of the same obstacle, trackers/grouping).
-      Its state, covariance, sightings (mono baselines, bounds) and velocity reference belong to
-      the old points, so the filter is dropped and started again from this frame's measurements
+      member feature rays (with >= 2 of them now and in the frame it was last seen: a share of
+      one ray says nothing) were not its members in that frame, the front end has handed the id
+      to another set of points (a confirmed track taking over a younger one of the same
+      obstacle, trackers/grouping). Its state, covariance, sightings (mono baselines, bounds)
+      and velocity reference belong to the old points, so the filter is restarted.
+    * Restart (``_restart``, the one path for both causes above): the filter, sightings, bounds,
+      velocity reference and evidence and the moving hypothesis are dropped; the track keeps its
+      id, label, gate counters and sources and starts again from this frame's measurements
       (feature points, stereo fix, or a fresh mono pair) instead of reporting the old state with
       its old, small covariance.
 
@@ -110,7 +113,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from estimators import geometry
 from estimators.egomotion import EgoMotion
 from estimators.errors import ConfigError, InputError
-from estimators.fusion_stats import chi2_ppf
+from estimators.fusion_stats import chi2_ppf, median_variance_factor
 from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
 from estimators.se3 import Pose
@@ -247,18 +250,18 @@ class FusionSettings:
         lost_after_s: a track not observed for this long (s) is ended (reported once as lost).
             Default 0.5.
         reinit_after_gated: consecutive gated updates after which the filter restarts. Default 5.
-        member_reset_frac: a track whose member features (>= feature_min_count now and in the
-            previous frame) are more than this share new since the previous frame restarts its
-            filter and sightings (the id now stands for other points; >= 1 = never). Default 0.5.
+        member_reset_frac: a track whose member feature rays (>= 2 now and in the frame it was
+            last seen) are more than this share new since that frame restarts its filter and
+            sightings (the id now stands for other points; >= 1 = never). Default 0.5: a majority
+            rule: the state stands for the points most of its members are (not fitted; on one
+            recording of the 5 tracked pipeline scenes the range NEES mean is 3.13 / 3.17 / 3.17 /
+            3.20 for 0.3 / 0.5 / 0.7 / 1 = never).
         feature_velocity_lag_s: interval (s) of the velocity measurements of stereo tracks from
             their shared features' own displacements (``_feature_velocity``; 0 = off). Default 0.1
             (the moving drones of the tracked stereo scenes keep a stereo track for 0.2-0.7 s; two
             recordings of the 5 scenes, speed / heading error and reports with a velocity: 0.1 s
             14.1 % / 1.6 deg / 33 % and 4.1 % / 0.9 deg / 18 %; 0.2 s (>= 3 ids) 7.6 % / 1.3 deg /
             13 % and none reported; 4-10 reports each: small samples).
-        feature_velocity_min_mps: a feature velocity above this (m/s) and 3 sigma marks the
-            obstacle as moving: its member features then no longer range it as static points
-            (feature_ranging_moving). Default 0.3.
         velocity_report_max_sigma_mps: velocity is reported only when its largest sigma (m/s) is at
             most this, and only for tracks a stereo fix has fed. Default 1.0.
     """
@@ -309,7 +312,6 @@ class FusionSettings:
     member_reset_frac: float = 0.5
     velocity_report_max_sigma_mps: float = 1.0
     feature_velocity_lag_s: float = 0.1
-    feature_velocity_min_mps: float = 0.3
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -641,11 +643,13 @@ class _Track:
     struct_sigma_m: float = 0.0  # features' spread about the representative ray (not filtered)
     feature_point: np.ndarray | None = None  # the median member feature's own point (W), this frame
     feature_stereo_point: np.ndarray | None = None  # the median shared feature's stereo point (W)
-    feature_stereo_fid: int | None = None  # the id of that feature (kept while it stays inner)
+    feature_stereo_fid: int | None = None  # the id of that feature (kept while both cameras see it)
+    feature_stereo_anchor: bool = False  # the filter's position is on another point: re-anchor it
     t_ranged: float = -math.inf  # last time a range measurement (stereo, features) fed the state
     vel_ref: tuple | None = None  # (t_s, shared feature ids (sorted), their two-ray points (K, 3) W)
     feature_velocity: tuple | None = None  # (v_W (3,), R (3, 3)) measured this frame, or None
-    vel_moving: bool = False  # the last feature velocity differs from 0 (not a static obstacle)
+    vel_moving: bool = False  # its velocity evidence rejects zero (not a static obstacle)
+    vel_acc: tuple | None = None  # velocity evidence (v (3,), P (3, 3), t_s) from feature velocities
     vel_assumed: bool = False  # the state's velocity is the prior's (state replaced), not measured
     n_members: int = 0  # member feature rays (all views) in the last frame it was seen
     t_members: float = -math.inf  # time of that frame
@@ -684,6 +688,7 @@ class ObstacleFusion:
         s = self.settings
         self._gate2 = chi2_ppf(s.gate_probability, 2)
         self._gate3 = chi2_ppf(s.gate_probability, 3)
+        self._chi2_gates: dict[int, float] = {}
 
     # ------------------------------------------------------------------------------- public API
     @property
@@ -746,8 +751,9 @@ class ObstacleFusion:
         batch: list[tuple[_Track, _Sighting]] = []
         rest: list[tuple[_Track, _Sighting]] = []
         for tr, sg, _status in work:
-            if tr.feature_range is not None and (
-                    not tr.moving or (self.settings.feature_ranging_moving and not tr.vel_moving)):
+            if tr.vel_moving:  # its velocity evidence rejects a static obstacle: its features'
+                tr.feature_range = tr.feature_point = None  # static points are not its range
+            if tr.feature_range is not None and (not tr.moving or self.settings.feature_ranging_moving):
                 batch.append((tr, sg))  # member features fit static points: they range the track
             else:
                 rest.append((tr, sg))
@@ -893,9 +899,9 @@ class ObstacleFusion:
     def _member_resets(self, work: list[tuple[_Track, _Sighting, str]], feats, t_s: float) -> None:
         """Restart the tracks whose member set was replaced since the previous frame (see
         ``member_reset_frac``): new share = (member rays whose feature id was not this track's member
-        in the previous frame) / (member rays now), over all views; one sorted look-up for all
-        tracks. A restarted track keeps its id, label, gate counters and sources, and loses its
-        filter, sightings, velocity reference and moving hypothesis."""
+        in the previous frame) / (member rays now), over all views, for tracks with >= 2 member
+        rays now and then (the share of a single ray says nothing); one sorted look-up for all
+        tracks. A replaced track is restarted (``_restart``)."""
         s = self.settings
         prev, t_prev = self._prev_members, self._prev_t
         self._prev_t = t_s
@@ -919,7 +925,7 @@ class ObstacleFusion:
         j = np.minimum(np.searchsorted(pid, ids), len(pid) - 1)
         new = ~((pid[j] == ids) & (ptr[j] == owner))  # not this track's member last frame
         n_new = np.bincount(g, weights=new, minlength=G)
-        m = 2
+        m = 2  # fewest member rays now and then (one ray's share is 0 or 1)
         off = np.cumsum(n) - n  # (feats are grouped track by track, in work's order)
         for k, (tr, _sg, _st) in enumerate(work):
             nk = int(n[k])
@@ -936,13 +942,18 @@ class ObstacleFusion:
 
     @staticmethod
     def _restart(tr: _Track, reason: str) -> None:
-        """Drop a track's filter and everything tied to its old points (sightings, velocity
-        reference, moving hypothesis); it starts again from the next measurements."""
+        """The one restart path (members replaced, or ``reinit_after_gated`` gated updates in a
+        row): drop a track's filter and everything tied to its old points (sightings, bounds,
+        velocity reference and evidence, moving hypothesis); it keeps its id, label, gate counters
+        and sources and starts again from this frame's measurements."""
         tr.kf = None
         tr.moving = False
         tr.vel_assumed = False
         tr.vel_ref = None
+        tr.vel_acc = None
+        tr.vel_moving = False
         tr.feature_stereo_fid = None
+        tr.feature_stereo_anchor = False
         tr.history.clear()
         tr.bounds = None
         tr.gated_run = 0
@@ -1022,7 +1033,9 @@ class ObstacleFusion:
                 if not tr.moving:  # first stereo fix: velocity becomes observable, drop the static prior
                     self._to_moving(tr, sg.t_s)
                     tr.vel_assumed = tr.feature_stereo is not None and s.feature_velocity_lag_s > 0
-                if s.stereo_update == "point" or tr.feature_stereo is not None:
+                if tr.feature_stereo is not None and tr.feature_stereo_anchor:
+                    self._anchor_position(tr, *stereo)  # (the state is on another point)
+                elif s.stereo_update == "point" or tr.feature_stereo is not None:
                     # (a feature stereo fix lies on the first camera's representative ray; the
                     # second camera's representative bearing points at another part of the object)
                     self._point_update(tr, *stereo)
@@ -1033,15 +1046,14 @@ class ObstacleFusion:
                 tr.t_ranged = sg.t_s
                 if tr.feature_velocity is not None:  # its features' own displacements
                     self._velocity_update(tr, *tr.feature_velocity)
+                elif tr.vel_assumed and tr.vel_acc is not None:  # (no measurement this frame)
+                    self._adopt_velocity_evidence(tr)
             else:  # (only the first view's bearing when the two are different points: ghost)
                 for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
                     self._bearing_update(tr, v)
                 tr.sources.add("mono")
-            if tr.gated_run >= s.reinit_after_gated:
-                tr.kf = None  # diverged or re-associated: start again from fresh triangulations
-                tr.moving = False
-                tr.gated_run = 0
-                tr.reason = f"filter restarted after {s.reinit_after_gated} gated measurements"
+            if tr.gated_run >= s.reinit_after_gated:  # diverged or re-associated: start again
+                self._restart(tr, f"filter restarted after {s.reinit_after_gated} gated measurements")
         if tr.kf is not None and not tr.moving:  # stereo measures range itself; the bounds
             self._apply_bounds(tr, sg)              # rest on an assumed max speed
         tr.history.append(sg)
@@ -1422,8 +1434,13 @@ class ObstacleFusion:
         fid = ids[ia][ok]
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
         self._members_st = (gg, r, b)  # every track's shared features' two-ray points
-        if s.feature_velocity_lag_s > 0:
-            self._feature_velocity(work, gg, fid, p_mid, sr)
+        if s.feature_velocity_lag_s > 0:  # (across the ray: each ray misses by sigma_f d, and
+            # the midpoint averages the two independent misses: sigma_f d / sqrt(2))
+            # (along: from the two cameras' midpoint, the axis of the two-ray point's error)
+            u_mid = p_mid - 0.5 * (c_a[ok] + c_b[ok])
+            u_mid /= np.sqrt(_dot_rows(u_mid, u_mid))[:, None]
+            self._feature_velocity(work, gg, fid, p_mid, sr, s.feature_sigma_rad * depth[ok] / math.sqrt(2.0),
+                                   u_mid)
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
@@ -1435,29 +1452,33 @@ class ObstacleFusion:
             sel = _group_lower_median_index(gi, ri, n_in, s.feature_point_quantile)
             # the fix is fused every frame: only its random part (k sigma_r,f) is its noise; the
             # floor (a surface offset of the tracked corners) does not average out over frames and
-            # is added to the reported sigma instead (struct_sigma_m)
             # is added to the reported sigma instead (struct_sigma_m). The chosen feature is kept
             # while it stays among the inner ones: the fused point must not jump between corners
-            # (that would read as velocity)
+            # (that would read as velocity, or be gated); when another is chosen, the filter's
+            # position is re-anchored on it (``feature_stereo_anchor``)
+            inner_idx = np.flatnonzero(inner)
             chosen = np.full(G, -1, dtype=np.int64)
-            chosen[gi[sel]] = sel
-            fid_i, p_i = fid[inner], p_mid[inner]
+            chosen[gi[sel]] = inner_idx[sel]  # (index into the shared features)
             prev = {}
             for k in np.flatnonzero(cnt >= n_min).tolist():
                 f_prev = work[k][0].feature_stereo_fid
                 if f_prev is not None:
                     prev[(k, f_prev)] = None
             if prev:
-                for j, key in enumerate(zip(gi.tolist(), fid_i.tolist(), strict=True)):
+                for j, key in zip(inner_idx.tolist(), zip(gi.tolist(), fid[inner].tolist(), strict=True),
+                                  strict=True):
                     if key in prev:
                         chosen[key[0]] = j
             for k in np.flatnonzero(cnt >= n_min).tolist():
                 j = int(chosen[k])
-                zk = float(ri[j])
+                zk = float(r[j])
                 tr = work[k][0]
-                tr.feature_stereo = (zk, max(s.feature_point_sigma_k * float(si[j]), 1e-3 * zk), int(n_in[k]))
-                tr.feature_stereo_point = p_i[j]
-                tr.feature_stereo_fid = int(fid_i[j])
+                tr.feature_stereo = (zk, max(s.feature_point_sigma_k * float(sr[j]), 1e-3 * zk), int(n_in[k]))
+                tr.feature_stereo_point = p_mid[j]
+                f_new = int(fid[j])
+                if tr.feature_stereo_fid is not None and tr.feature_stereo_fid != f_new:
+                    tr.feature_stereo_anchor = True
+                tr.feature_stereo_fid = f_new
                 tr.struct_sigma_m = s.feature_range_floor_frac * zk
             return
         z = _group_median(gi, ri, G)
@@ -1472,18 +1493,39 @@ class ObstacleFusion:
             work[k][0].struct_sigma_m = float(struct[k])
 
     def _feature_velocity(self, work, gg: np.ndarray, fid: np.ndarray, p_mid: np.ndarray,
-                          sr: np.ndarray) -> None:
+                          sr: np.ndarray, st: np.ndarray, u: np.ndarray) -> None:
         """Velocity of each stereo track from its own shared features' two-ray points (gg (K,)
-        work index, fid (K,) feature ids, p_mid (K, 3) points in W, sr (K,) their range sigmas, m).
+        work index, fid (K,) feature ids, p_mid (K, 3) points in W, sr (K,) their sigmas along the
+        viewing ray u (K, 3) (unit, W) and st (K,) across it, m).
 
-        Every ``feature_velocity_lag_s`` the points of the ids seen then and now (>= 2) give
-            v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref),   v = per-axis median of the v_i,
-            R = diag(max((1.4826 MAD_axis)^2, 2 median sr_i^2 / dt^2) * pi / (2 n))
-        (pi / 2: the median's variance over the mean's); the current points become the next
-        reference, so successive measurements share no point (independent, fused once each). A
-        track's one chosen point would jump between corners; the features' own displacements
-        do not. ``vel_moving``: |v| exceeds feature_velocity_min_mps and 3 sigma (the obstacle
-        moves: its features' static least-squares points would be wrong)."""
+        A two-ray point's covariance is C = sr^2 u u^T + st^2 (I - u u^T): along the ray the
+        stereo range sigma (sqrt(2) sigma_f d / sin parallax), across it sigma_f d / sqrt(2) (the
+        midpoint of two rays that each miss by sigma_f d), ~40x smaller at 4 m with a 0.30 m
+        baseline. Every ``feature_velocity_lag_s`` the points of the ids seen
+        then and now (>= 2) give v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref) (the thesis's
+        binocular speed, sec. 3.2.2: two stereo fixes 0.1 s apart, here per physical point).
+        They are reduced in the track's ray frame Q = [a, e1, e2] (a the mean viewing direction,
+        E = tangent_basis(a)), where C is nearly diagonal:
+            w_i = Q^T v_i,   w = per-axis median of the w_i,
+            s2_ik = q_k^T (C_i(t_ref) + C_i(t)) q_k / dt^2,   s2_k = median_i s2_ik,
+            R_Q = diag(s2_k c_n / n + q dt / 3)
+        (c_n = n Var(median) / sigma^2 of n normal samples, ``median_variance_factor``: 1.29 for
+        6, pi / 2 for many; q dt / 3: the mean velocity over dt against the velocity at t under
+        white acceleration of PSD q = max_accel^2 tau, the moving filter's process model). On an
+        axis where the features do not move alike at that noise, sum_i (w_ik - w_k)^2 / s2_ik >
+        chi2_(n-1)(gate_probability) (members of another object or of the background, or more noise
+        than sigma_f), s2_k is max(s2_k, (1.4826 MAD_k)^2) instead. v = Q w, R = Q R_Q Q^T. The
+        next frame's points become the next reference, so successive measurements share no point
+        (independent, fused once each; sharing the end points would correlate them negatively).
+
+        Each measurement also updates the track's velocity evidence ``vel_acc`` (v, P, t), a
+        3-D constant-velocity filter of these measurements alone (process noise as the moving
+        filter's, q = max_accel^2 tau), held at the intervals' midpoints t - dt / 2 (where the
+        mean velocity differs from the velocity by only q dt / 12, which replaces q dt / 3 in R
+        there); ``vel_moving``: it rejects zero velocity,
+        v^T P^-1 v > chi2_3(gate_probability), i.e. the obstacle moves and its features' static
+        least-squares points would be wrong. A track's one chosen point would jump between
+        corners; the features' own displacements do not."""
         s = self.settings
         t_s = work[0][1].t_s
         order = np.argsort(gg, kind="stable")
@@ -1493,31 +1535,78 @@ class ObstacleFusion:
             tr = work[int(gg[idx[0]])][0]
             f = fid[idx]
             o = np.argsort(f)
-            f, P, S = f[o], p_mid[idx][o], sr[idx][o]
+            idx = idx[o]
+            f, P, S, T, U = f[o], p_mid[idx], sr[idx], st[idx], u[idx]
             ref = tr.vel_ref
             # (a reference sharing a single id is replaced by a later frame sharing more: the first
             # frames of a stereo track often share one)
             if (ref is None or t_s - ref[0] > 3.0 * s.feature_velocity_lag_s
                     or (len(ref[1]) < 2 and len(f) > len(ref[1]))):
-                tr.vel_ref = (t_s, f, P, S)
+                tr.vel_ref = (t_s, f, P, S, T, U)
                 continue
             dt = t_s - ref[0]
             if dt < s.feature_velocity_lag_s - 1e-9:
                 continue
             _, ka, kb = np.intersect1d(ref[1], f, assume_unique=True, return_indices=True)
-            tr.vel_ref = (t_s, f, P, S)
+            tr.vel_ref = None  # (the next frame's points are the next reference: no shared point)
             n = len(ka)
             if n < 2:
                 continue
-            V = (P[kb] - ref[2][ka]) / dt
-            v = np.median(V, axis=0)
-            mad2 = (1.4826 * np.median(np.abs(V - v), axis=0)) ** 2
-            noise2 = float(np.median(ref[3][ka] ** 2 + S[kb] ** 2)) / (dt * dt)
-            R = np.diag(np.maximum(mad2, noise2) * (math.pi / (2.0 * n)))
-            tr.feature_velocity = (v, R)
-            sv = math.sqrt(float(np.trace(R)) / 3.0)
-            speed = float(np.linalg.norm(v))
-            tr.vel_moving = speed > max(s.feature_velocity_min_mps, 3.0 * sv)
+            a = U[kb].sum(axis=0)
+            a /= math.sqrt(float(a @ a))
+            Q = np.empty((3, 3))
+            Q[:, 0] = a
+            Q[:, 1:] = tangent_basis(a)
+            W = ((P[kb] - ref[2][ka]) / dt) @ Q  # (n, 3) per-feature velocities in the ray frame
+            w = np.median(W, axis=0)
+            var = np.zeros((n, 3))  # q_k^T C_i q_k of both points: sr^2 (q.u)^2 + st^2 (1 - (q.u)^2)
+            for Ui, Si, Ti in ((ref[5][ka], ref[3][ka], ref[4][ka]), (U[kb], S[kb], T[kb])):
+                c2 = (Ui @ Q) ** 2
+                var += (Si * Si)[:, None] * c2 + (Ti * Ti)[:, None] * (1.0 - c2)
+            var /= dt * dt
+            var_k = np.median(var, axis=0)
+            # features that do not move alike at that noise (chi-square test of their spread at the
+            # gate probability: another object's or the background's members, or more noise than
+            # sigma_f): their spread (1.4826 MAD) is the noise instead, when larger
+            chi = np.sum((W - w) ** 2 / var, axis=0)
+            gate = self._chi2_gate(n - 1)
+            if (chi > gate).any():
+                mad2 = (1.4826 * np.median(np.abs(W - w), axis=0)) ** 2
+                var_k = np.where(chi > gate, np.maximum(mad2, var_k), var_k)
+            # (+ q dt / 12 on each axis: the displacement measures the mean velocity over dt, which
+            # differs from the velocity at the interval's midpoint by that much under the filter's
+            # white acceleration, PSD q = max_accel^2 tau; q dt / 3 from the velocity at its end)
+            q = s.max_accel_mps2**2 * s.accel_time_s
+            rq = var_k * (median_variance_factor(n) / n)
+            v = Q @ w
+            tr.feature_velocity = (v, (Q * (rq + q * dt / 3.0)) @ Q.T)
+            self._velocity_evidence(tr, v, (Q * (rq + q * dt / 12.0)) @ Q.T, t_s - 0.5 * dt)
+
+    def _chi2_gate(self, k: int) -> float:
+        """chi2_k(gate_probability), cached per degrees of freedom k >= 1."""
+        g = self._chi2_gates.get(k)
+        if g is None:
+            g = self._chi2_gates[k] = chi2_ppf(self.settings.gate_probability, max(int(k), 1))
+        return g
+
+    def _velocity_evidence(self, tr: _Track, v: np.ndarray, R: np.ndarray, t_s: float) -> None:
+        """Fuse one feature velocity v (3,) m/s, covariance R (3, 3), into the track's velocity
+        evidence ``vel_acc`` (a constant-velocity filter: P += q dt I between measurements,
+        q = max_accel_mps2^2 accel_time_s, the moving filter's process noise; then the Kalman
+        update with H = I) and set ``vel_moving`` (zero velocity rejected at gate_probability)."""
+        s = self.settings
+        acc = tr.vel_acc
+        if acc is None:
+            x, P = v, R
+        else:
+            x0, P0, t0 = acc
+            P0 = P0 + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * (t_s - t0))
+            K = P0 @ np.linalg.inv(P0 + R)  # x = x0 + K (v - x0), P = (I - K) P0
+            x = x0 + K @ (v - x0)
+            P = P0 - K @ P0
+            P = 0.5 * (P + P.T)
+        tr.vel_acc = (x, P, t_s)
+        tr.vel_moving = float(x @ np.linalg.solve(P, x)) > self._gate3
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
@@ -1574,23 +1663,32 @@ class ObstacleFusion:
         P = np.zeros((K, 6, 6))
         P[:, :3, :3] = _ray_covariances(X[:, :3] - o, sig, sb)
         P[:, 3, 3] = P[:, 4, 4] = P[:, 5, 5] = s.static_velocity_sigma_mps**2
-        # a moving-hypothesis track whose features fit static points: its velocity is assumed
-        # (0), not measured, so it keeps the velocity prior's sigma (and reports no velocity)
-        mov = [k for k, (tr, _sg) in enumerate(batch) if tr.moving]
-        if mov:
-            vp = self._velocity_prior_sigma(fc.t_s) ** 2
-            P[mov, 3, 3] = P[mov, 4, 4] = P[mov, 5, 5] = vp
-            for k in mov:
-                batch[k][0].vel_assumed = True
+        # a track with velocity evidence (its shared features' stereo displacements, which do
+        # not reject zero velocity, or it would not be here): velocity observable (moving
+        # hypothesis), and its velocity is that evidence (v, P; P += q dt I since its last
+        # measurement). A moving-hypothesis track without evidence: its velocity is assumed (0),
+        # not measured, so it keeps the velocity prior's sigma (and reports no velocity)
+        vp = None
+        for k, (tr, _sg) in enumerate(batch):
+            if tr.vel_acc is not None:
+                v, Pv, t_acc = tr.vel_acc
+                X[k, 3:] = v
+                P[k, 3:, 3:] = Pv + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * (fc.t_s - t_acc))
+                tr.moving = True
+                tr.vel_assumed = False
+            elif tr.moving:
+                if vp is None:
+                    vp = self._velocity_prior_sigma(fc.t_s) ** 2
+                P[k, 3, 3] = P[k, 4, 4] = P[k, 5, 5] = vp
+                tr.vel_assumed = True
         r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
-        v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
             tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
+            tr.feature_stereo_anchor = True  # (a static feature's point, not the stereo one)
             if tr.kf is None:
-                tr.kf = self._new_kf(X[k, :3], P[k, :3, :3], v_sigma)
-            else:  # the state is replaced: no prediction needed
-                tr.kf.x = X[k]
-                tr.kf.P = P[k]
+                tr.kf = ExtendedKalmanFilter(dim_x=6, dim_z=2)
+            tr.kf.x = X[k]  # the state is replaced: no prediction needed
+            tr.kf.P = P[k]
             tr.t_kf = sg.t_s
             tr.t_ranged = sg.t_s
             tr.gated_run = 0
@@ -1635,6 +1733,7 @@ class ObstacleFusion:
     def _init_stereo(self, tr: _Track, sg: _Sighting, stereo) -> None:
         p, R = stereo
         tr.kf = self._new_kf(p, R, self._velocity_prior_sigma(sg.t_s))
+        tr.feature_stereo_anchor = tr.feature_stereo is None  # (the representative rays' point)
         tr.t_kf = sg.t_s
         tr.moving = True
         # from its features' stereo points: the velocity waits for their displacements
@@ -1651,6 +1750,7 @@ class ObstacleFusion:
         sigma = math.sqrt(0.5 * (va.sigma_rad**2 + vb.sigma_rad**2))
         R = _ray_covariance(tri.p - vb.c_W, tri.range_sigma_m, sigma)
         tr.kf = self._new_kf(tri.p, R, self.settings.static_velocity_sigma_mps)
+        tr.feature_stereo_anchor = True  # (on the representative ray)
         tr.t_kf = past.t_s
         tr.moving = False
         tr.gated_run = 0
@@ -1741,25 +1841,53 @@ class ObstacleFusion:
         y = p_W - tr.kf.x[:3]  # z - H x
         return self._gated_update(tr, y, H, R, self._gate3)
 
+    def _anchor_position(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> None:
+        """Put the filter's position on the feature stereo point p_W (3,) W, covariance R (3, 3),
+        keeping its velocity (x_p = p, P_pp = R, no position-velocity correlation): the state stood
+        for another point of the object (another corner, the static features' median point, the
+        representative ray), whose offset to this one is not motion."""
+        kf = tr.kf
+        kf.x = kf.x.copy()
+        kf.x[:3] = p_W
+        kf.P = kf.P.copy()
+        kf.P[:3, :3] = R
+        kf.P[:3, 3:] = 0.0
+        kf.P[3:, :3] = 0.0
+        tr.feature_stereo_anchor = False
+
     def _velocity_update(self, tr: _Track, v_W: np.ndarray, R: np.ndarray) -> bool:
         """Fuse a measured velocity v_W (3,) m/s in W with covariance R (3, 3): z = v,
         H = [0 I] (gated like a stereo point, 3 dof). A track whose velocity was assumed (its state
-        was replaced by a static feature point) takes the measurement as its velocity (x_v = v,
-        P_vv = R, no position-velocity correlation): the jump from that point to the stereo
-        fixes has been read as velocity by then."""
-        kf = tr.kf
+        was replaced by a static feature point) takes its velocity evidence (``vel_acc``, which
+        holds this measurement) as its velocity instead (x_v, P_vv from it, no position-velocity
+        correlation): the jump from that point to the stereo fixes has been read as velocity by
+        then."""
         if tr.vel_assumed:
-            kf.x = kf.x.copy()
-            kf.x[3:] = v_W
-            kf.P = kf.P.copy()
-            kf.P[:3, 3:] = 0.0
-            kf.P[3:, :3] = 0.0
-            kf.P[3:, 3:] = R
-            tr.vel_assumed = False
+            self._adopt_velocity_evidence(tr, (v_W, R))
             return True
         H = np.zeros((3, 6))
         H[:, 3:] = np.eye(3)
         return self._gated_update(tr, v_W - tr.kf.x[3:], H, R, self._gate3)
+
+    def _adopt_velocity_evidence(self, tr: _Track, meas: tuple | None = None) -> None:
+        """Set the velocity of a track whose velocity was assumed (x_v, P_vv) from its velocity
+        evidence ``vel_acc`` (which holds every feature velocity so far; P += q dt I since its
+        last one, q = max_accel^2 tau), else from the measurement meas = (v (3,), R (3, 3)); no
+        position-velocity correlation."""
+        kf = tr.kf
+        if tr.vel_acc is not None:
+            v, P, t_acc = tr.vel_acc
+            s = self.settings
+            P = P + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * max(tr.t_kf - t_acc, 0.0))
+        else:
+            v, P = meas
+        kf.x = kf.x.copy()
+        kf.x[3:] = v
+        kf.P = kf.P.copy()
+        kf.P[:3, 3:] = 0.0
+        kf.P[3:, :3] = 0.0
+        kf.P[3:, 3:] = P
+        tr.vel_assumed = False
 
     def _apply_bounds(self, tr: _Track, sg: _Sighting) -> None:
         """Range pseudo-measurement at the violated bound (soft projection into the interval)."""
@@ -1872,9 +2000,11 @@ class ObstacleFusion:
         bearing differs from it when the track's members near that bearing lie at other depths
         (features of the background or of another object grouped into the track, a corner on an
         occluding edge). With the member points of this frame (static tracks: the features'
-        least-squares points that fit a static point; moving ones: the shared features' two-ray
-        points), ranges r_i, the neighbourhood is the ceil(share n) members (at least min_n, at
-        most n) whose current rays are nearest the reported bearing, and
+        least-squares points that fit a static point; moving ones ranged by feature stereo: the
+        shared features' two-ray points; a track whose velocity evidence rejects zero never uses
+        static points: none without a feature stereo fix), ranges r_i, the neighbourhood is the
+        ceil(share n) members (at least min_n, at most n) whose current rays are nearest the
+        reported bearing, and
             d = quantile_q |r_i - r|  (each capped at r),   extra = w max(1.4826 d - t r, 0)
         (q above 0.5: a minority of outlying members does not count; t r: the object's own depth
         extent, already in the feature sigma). 0 for tracks without member points this frame.
@@ -1893,7 +2023,7 @@ class ObstacleFusion:
                 continue
             if tr.moving and tr.feature_range is None and tr.feature_stereo is not None:
                 j_st[gi] = j
-            else:
+            elif not tr.vel_moving:  # (a moving obstacle's static points are wrong)
                 j_ls[gi] = j
         jj_l, r_l, b_l = [], [], []
         for mem, jmap in ((self._members_ls, j_ls), (self._members_st, j_st)):

@@ -15,7 +15,7 @@ import math
 
 from estimators.errors import InputError
 
-__all__ = ["chi2_cdf", "chi2_ppf", "nees_interval", "normal_ppf"]
+__all__ = ["chi2_cdf", "chi2_ppf", "median_variance_factor", "nees_interval", "normal_ppf"]
 
 _WH_MIN_DOF = 200
 
@@ -98,3 +98,24 @@ def nees_interval(dof: int, n_runs: int, prob: float = 0.95) -> tuple[float, flo
     a = 0.5 * (1.0 - prob)
     kk = _check_dof(dof) * int(n_runs)
     return chi2_ppf(a, kk) / n_runs, chi2_ppf(1.0 - a, kk) / n_runs
+
+
+# n Var(median) / sigma^2 of n independent normal samples (even n: the mean of the two middle ones,
+# as np.median), n = 2..16: Monte Carlo, 2e6 draws per n (+-0.002); n = 2 is exactly 1 (the mean) and
+# n = 3 is 3 x 0.4487, the variance of the middle order statistic of three (David and Nagaraja 2003,
+# Order Statistics, 3rd ed.). It tends to pi / 2 (odd n from below, even n more slowly).
+_MEDIAN_VAR = (1.0, 1.346, 1.191, 1.433, 1.289, 1.475, 1.343, 1.496, 1.384, 1.509, 1.411, 1.517, 1.430,
+               1.525, 1.447)
+
+
+def median_variance_factor(n: int) -> float:
+    """c_n = n Var(median) / sigma^2 for the median of n >= 1 independent normal samples of variance
+    sigma^2 (so Var(median) = c_n sigma^2 / n); pi / 2 (the large-n limit, an upper bound within 9 %)
+    beyond n = 16."""
+    if int(n) != n or n < 1:
+        raise InputError(f"median_variance_factor: expected a sample count n >= 1, got {n!r}")
+    n = int(n)
+    if n == 1:
+        return 1.0
+    return _MEDIAN_VAR[n - 2] if n - 2 < len(_MEDIAN_VAR) else math.pi / 2.0
+
