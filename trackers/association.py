@@ -126,6 +126,7 @@ def stereo_klt(
     guess_b: np.ndarray | None = None,
     check: np.ndarray | None = None,
     recheck_px: float = 1.0,
+    follow_levels: int | None = None,
 ) -> StereoKLT:
     """Find camera a's features in camera b's image by KLT, checked by the epipolar constraint and
     (where needed) forward-backward. One forward KLT call for all rows, each starting from its own
@@ -144,6 +145,9 @@ def stereo_klt(
         check: (N,) bool, rows that get the backward check whatever happens (None: all). A row
             with a finite guess whose forward result lands more than ``recheck_px`` from it is
             checked too; every other row is kept on the forward result and the epipolar test.
+        follow_levels: pyramid levels of the forward pass for rows with a finite guess (a followed
+            match starts within a pixel or two of its answer, so it needs no coarse levels); the
+            other rows use ``levels``. None: ``levels`` for all rows (one call).
     Returns:
         ``StereoKLT`` (idx, uv_b, b_b, checked).
     """
@@ -171,17 +175,26 @@ def stereo_klt(
     ob = np.zeros(2) if off_b is None else np.asarray(off_b, float).reshape(2)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
     p0 = (uv_a[idx] - oa).reshape(-1, 1, 2).astype(np.float32)
-    p1, st, _ = cv2.calcOpticalFlowPyrLK(
-        grey_a,
-        grey_b,
-        p0,
-        (start[idx] - ob).reshape(-1, 1, 2).astype(np.float32),
-        winSize=(win_px, win_px),
-        maxLevel=levels,
-        criteria=crit,
-        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-    )
-    good = st.reshape(-1) == 1
+    p1 = (start[idx] - ob).reshape(-1, 1, 2).astype(np.float32)
+    st = np.zeros(len(idx), np.uint8)
+    # one forward call per pyramid depth: followed rows (own guess) at follow_levels, others at levels
+    near = own[idx] if follow_levels is not None and follow_levels < levels else np.zeros(len(idx), bool)
+    for rows, lv in ((np.flatnonzero(near), follow_levels), (np.flatnonzero(~near), levels)):
+        if not len(rows):
+            continue
+        q, s_q, _ = cv2.calcOpticalFlowPyrLK(
+            grey_a,
+            grey_b,
+            p0[rows],
+            p1[rows],
+            winSize=(win_px, win_px),
+            maxLevel=lv,
+            criteria=crit,
+            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        )
+        p1[rows] = q
+        st[rows] = s_q.reshape(-1)
+    good = st == 1
     uv_b = p1.reshape(-1, 2).astype(float) + ob
     # the backward check: rows asked for, and followed rows that did not land where expected
     chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()

@@ -144,7 +144,7 @@ class FrontEnd:
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
         known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px", "recheck_every",
-                 "recheck_px"}
+                 "recheck_px", "follow_levels"}
         bad = sorted(set(a) - known)
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
@@ -159,6 +159,14 @@ class FrontEnd:
         # frames, or when it lands more than recheck_px from where last frame's match predicts
         self.recheck_every = int(a.get("recheck_every", 4))
         self.recheck_px = float(a.get("recheck_px", 1.0))
+        # pyramid levels of the stereo KLT for a match followed from last frame (it starts within a
+        # pixel or two of its answer); new ones search with 4 levels
+        fl = a.get("follow_levels", 1)
+        self.follow_levels = None if fl is None else int(fl)
+        if self.follow_levels is not None and self.follow_levels < 0:
+            raise ConfigError(
+                f"FrontEnd association: follow_levels expected an integer >= 0 or null, got {fl!r}"
+            )
         if self.recheck_every < 1 or not self.recheck_px >= 0:
             raise ConfigError(
                 "FrontEnd association: recheck_every expected an integer >= 1 and recheck_px a "
@@ -465,6 +473,7 @@ class FrontEnd:
                 guess_b=guess,
                 check=(last < 0) | (self._n - last >= self.recheck_every),
                 recheck_px=self.recheck_px,
+                follow_levels=self.follow_levels,
             )
             tried[todo] = True
             found = todo[r.idx]

@@ -349,3 +349,29 @@ def test_followed_stereo_klt_starts_from_its_guess_and_checks_only_what_moved():
     common, i, j = np.intersect1d(r.idx, full.idx, return_indices=True)
     assert len(common) > 0.95 * len(full.idx)
     np.testing.assert_allclose(r.uv_b[i], full.uv_b[j], atol=0.05)
+
+
+def test_followed_stereo_klt_on_fewer_levels_lands_where_the_full_search_does():
+    """follow_levels: rows with a guess (0.3 or 4.3 px off the pixel where the model projects
+    R b_a, the expected answer of a pure rotation) searched on 2 pyramid levels instead of 5 are
+    found at that pixel as with the full search; rows without a guess still use all levels."""
+    import cv2
+
+    from trackers.association import stereo_klt
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    cv2.setNumThreads(1)
+    uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
+    expected, ok = model.bearing_to_pixel(b_a @ R_b_a.T)
+    uv_a, b_a, expected = uv_a[ok], b_a[ok], expected[ok]
+    n = len(b_a)
+    guess = expected + np.array([0.3, 0.0])
+    guess[np.arange(n) % 3 == 1] += np.array([0.0, 4.0])
+    none = np.arange(n) % 3 == 2
+    guess[none] = np.nan
+    full = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess)
+    few = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, follow_levels=1)
+    assert len(few.idx) >= 0.97 * len(full.idx) and none[few.idx].sum() == none[full.idx].sum()
+    assert np.median(np.linalg.norm(few.uv_b - expected[few.idx], axis=1)) < 0.3
+    common, i, j = np.intersect1d(few.idx, full.idx, return_indices=True)
+    np.testing.assert_allclose(few.uv_b[i], full.uv_b[j], atol=0.05)
