@@ -563,7 +563,11 @@ class FrontEnd:
             ua, ub = members[a], members[b]
             idx, uv_b, _ = self._stereo(a, b, ua[0])
             if len(idx) and len(ub[1]):
-                d2 = ((uv_b[:, None, :] - ub[1][None, :, :]) ** 2).sum(-1)
+                # squared px, du^2 + dv^2 written out (the same numbers as ((a - b) ** 2).sum(-1),
+                # whose reduction over a length-2 axis took 10x as long: 3.7 vs 0.35 ms at 260 x 450)
+                du = uv_b[:, 0, None] - ub[1][None, :, 0]
+                dv = uv_b[:, 1, None] - ub[1][None, :, 1]
+                d2 = du * du + dv * dv
                 j = np.argmin(d2, axis=1)
                 near = d2[np.arange(len(idx)), j] <= self.groupers[b].link_px ** 2
                 for i, jj in zip(idx[near], j[near], strict=True):
@@ -584,14 +588,19 @@ class FrontEnd:
                     best_a[ta] = (v, tb)
                 if v > best_b.get(tb, (0, -1))[0]:
                     best_b[tb] = (v, ta)
+            held: dict[str, set[int]] = {}  # camera -> global ids of its live local tracks
             for ta, (v, tb) in best_a.items():
                 if v < self.min_votes or best_b[tb][1] != ta:
                     continue
                 ga, gb = self._global(ta), self._global(tb)
                 if ga == gb:
                     continue
-                if self._members_of(ga, b) or self._members_of(gb, a):
+                for cam in (a, b):
+                    if cam not in held:
+                        held[cam] = self._gids_in(cam)
+                if ga in held[b] or gb in held[a]:
                     continue  # already linked to another track in that camera
+                held.clear()  # the merge below re-maps global ids
                 # the surviving id: the one the reference camera (the rig's first) tracks, else the
                 # one confirmed for longer, so the id downstream filters know carries on
                 keep, drop = self._survivor(ga, gb)
@@ -789,6 +798,13 @@ class FrontEnd:
             v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
             v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
             seen[b][k] = v
+
+    def _gids_in(self, camera: str) -> set[int]:
+        """The global ids of ``camera``'s live local tracks (``_members_of`` for many ids)."""
+        tracks = list(self.groupers[camera].tracks) if camera in self.groupers else []
+        if camera in self.boxers:
+            tracks += list(self.boxers[camera].tracks)
+        return set(map(self._global, tracks))
 
     def _members_of(self, gid: int, camera: str) -> bool:
         """Whether global track gid already has a live local track in ``camera``."""
