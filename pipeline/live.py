@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import gc
 import http.server
 import sys
 import threading
@@ -655,6 +656,26 @@ class MjpegServer:
 
 
 # ------------------------------------------------------------------------------------------- loop
+class _GcClock:
+    """Total seconds (``time.perf_counter``) spent in Python's cyclic garbage collector since it was
+    made, any thread; ``close()`` stops counting."""
+
+    def __init__(self) -> None:
+        self.total_s = 0.0
+        self._t0 = 0.0
+        gc.callbacks.append(self._on_gc)
+
+    def _on_gc(self, phase: str, info: dict) -> None:
+        if phase == "start":
+            self._t0 = time.perf_counter()
+        else:
+            self.total_s += time.perf_counter() - self._t0
+
+    def close(self) -> None:
+        if self._on_gc in gc.callbacks:
+            gc.callbacks.remove(self._on_gc)
+
+
 @dataclass
 class LiveResult:
     """Frames processed, stale frames dropped, latency statistics (seconds), reconnects, summary."""
@@ -715,7 +736,8 @@ def run_live(
         on_event: called with human-readable notes (the preview URL); the CLI prints them.
         latency_log: a CSV file to write one line per processed frame to: ``seq, t_s`` and the latency
             with its parts in seconds (``latency_s = lag_s + queue_s + process_s + write_s``; ``decode_s``
-            beside), as in summary.json's ``latency_parts``.
+            beside), as in summary.json's ``latency_parts``; then ``process_cpu_s`` (the loop thread's CPU
+            time within process_s) and ``gc_s`` (garbage collection within process_s + write_s).
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
@@ -754,7 +776,7 @@ def run_live(
             log = Path(latency_log).open("w", encoding="utf-8")
         except OSError as e:
             raise InputError(f"latency_log: cannot write {str(latency_log)!r} ({e.strerror or e})") from None
-        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s\n")
+        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s\n")
     grabbers: list[Grabber] = []
     opened: list[Any] = []
     try:
@@ -809,7 +831,11 @@ def run_live(
     # by the loop: the frame waits in the grabber's one-frame slot while the previous frame is processed),
     # process (taken -> reports: pairing, pose, front end, fusion), write (the tracks.jsonl line encoded,
     # written and flushed); and, beside them, the reader's decode time of the frame
-    parts = {k: RunningStats() for k in ("lag", "queue", "process", "write", "decode")}
+    # beside them too, where a slow frame's time went: process_cpu (the loop thread's own CPU time from
+    # taken to reports; process minus this is time the core gave to the grabbers or to other programs)
+    # and gc (Python's cyclic collector, any thread, from taken to written)
+    parts = {k: RunningStats() for k in ("lag", "queue", "process", "write", "decode", "process_cpu", "gc")}
+    gc_clock = _GcClock()
     unpaired: dict[str, int] = {}  # processed lead frames another camera had no frame within tolerance for
     busy: deque[float] = deque(maxlen=15)  # the last frames' times from taken to ready for the next (s)
     timings = StageTimings()
@@ -835,6 +861,7 @@ def run_live(
                     break
                 lead = grabbers[0].take(timeout_s=0.25)
                 t_taken = time.monotonic()
+                cpu_taken, gc_taken = time.thread_time(), gc_clock.total_s
                 if lead is not None and busy:  # busy until about the median of the last frames' times
                     grabbers[0].expect_ready(t_taken + sorted(busy)[len(busy) // 2])
                 if lead is None:
@@ -876,8 +903,10 @@ def run_live(
                 reports = fusion.step(obs, lead.seq, t_s)
                 timings.add_all(getattr(fusion, "timings", None))
                 t_proc = time.monotonic()
+                cpu_s = time.thread_time() - cpu_taken
                 items = writer.write(lead.seq, t_s, reports)  # one write + flush per frame
                 t_done = time.monotonic()
+                gc_s = gc_clock.total_s - gc_taken
                 timings.add("write", t_done - t_proc)
                 lat = t_done - lead.arrival_s
                 latency.add(lat)
@@ -891,10 +920,13 @@ def run_live(
                 parts["write"].add(t_done - t_proc)
                 if lead.decode_s is not None:
                     parts["decode"].add(lead.decode_s)
+                parts["process_cpu"].add(cpu_s)
+                parts["gc"].add(gc_s)
                 if log is not None:
                     log.write(
                         f"{lead.seq},{t_s!r},{lat:.6f},{lag_s:.6f},{queue_s:.6f},{t_proc - t_taken:.6f},"
-                        f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'}\n"
+                        f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'},"
+                        f"{cpu_s:.6f},{gc_s:.6f}\n"
                     )
                 frames += 1
                 if annotator is not None and frames % cfg.outputs.every_n == 0:
@@ -909,6 +941,7 @@ def run_live(
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        gc_clock.close()
         sys.setswitchinterval(switch_interval)
         for g in grabbers:
             g.stop()

@@ -386,8 +386,8 @@ def test_live_and_scaling_rows_keep_measured_values_out_of_their_names(tmp_path)
     b.clip = lambda res, rig, n=None: clip
     part = {"median_s": 0.0123, "p99_s": 0.0456}  # 12.3 ms / 45.6 ms: distinctive, and nowhere in a name
     live = {"latency": part, "decode_median_s": 0.0017, "dropped": 7, "offered": 31, "cpu_busy": 0.987,
-            "loadavg_1min": [3.21, 4.56], "parts": {k: part for k in ("lag", "queue", "process", "write",
-                                                                        "decode")}}
+            "loadavg_1min": [3.21, 4.56],
+            "parts": {k: part for k in ("lag", "queue", "process", "write", "decode", "process_cpu", "gc")}}
     pipe = {"fps": 55.5, "observations_mean": 7.77, "tracked_features_mean": 333.3,
             "grouped_features_mean": 222.2}
     b.run = lambda task, threads, timeout_s=0: dict(live if task["kind"] == "live" else pipe)
@@ -401,8 +401,23 @@ def test_live_and_scaling_rows_keep_measured_values_out_of_their_names(tmp_path)
         "machine load average (1 min, larger of start and end)"))
     assert load.value == pytest.approx(4.56)
     split = [r for r in b.rows if r.section.startswith("live latency split")]
-    assert len(split) == 7 and all(r.extra.get("p99_ms") == pytest.approx(45.6) for r in split[:5])
+    assert len(split) == 9 and all(r.extra.get("p99_ms") == pytest.approx(45.6) for r in split[:7])
     assert any(r.value == pytest.approx(7.77) for r in b.rows)  # obstacles per frame: a value, not a name
     table = bench.format_table(b.rows)
     line = next(ln for ln in table.split("\n") if "taken -> reports" in ln)
     assert "12.3 ms" in line and "45.6 ms" in line  # median and p99 in their columns
+
+
+def test_live_latency_without_the_looped_clips_restarts(tmp_path):
+    """A 10-frame clip looped: seq 0..29 delivered, every 3rd processed, clip positions 0 3 6 9 2 5 8 1 4 7.
+    The position decreases at seq 12 (9 -> 2) and seq 21 (8 -> 1): the clip restarted there, and those
+    frames and the one after each are left out."""
+    csv_path = tmp_path / "latency.csv"
+    seqs = list(range(0, 30, 3))  # positions 0 3 6 9 2 5 8 1 4 7: restarts before seq 12 and seq 21
+    lat = {s: 0.010 for s in seqs}
+    lat[12], lat[15], lat[21], lat[24] = 0.5, 0.4, 0.6, 0.3  # the cold starts after each restart
+    csv_path.write_text("seq,latency_s\n" + "".join(f"{s},{lat[s]}\n" for s in seqs))
+    out = bench.live_without_cuts(csv_path, 10, after=2)
+    assert out["cuts"] == 2 and out["frames_left_out"] == 4
+    assert out["latency"]["n"] == 6 and out["latency"]["max_s"] == pytest.approx(0.010)
+    assert bench.live_without_cuts(csv_path, 10, after=0)["latency"]["max_s"] == pytest.approx(0.6)

@@ -421,12 +421,14 @@ def test_latency_parts_add_up_per_frame_and_name_where_the_time_went(tmp_path):
     log = tmp_path / "latency.csv"
     r = _live(tmp_path, [lambda: LateReader(4)], front=SlowFrontEnd(rig, delay_s=0.1), latency_log=log)
     rows = log.read_text().splitlines()
-    assert rows[0] == "seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s"
+    assert rows[0] == "seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s"
     assert len(rows) == 1 + r.frames and r.frames >= 1
     for row in rows[1:]:
         lat, lag, queue, proc, write = (float(x) for x in row.split(",")[2:7])
         assert lag + queue + proc + write == pytest.approx(lat, abs=1e-5)
         assert lag >= 0.3 - 1e-3 and proc >= 0.1 and queue >= 0 and write >= 0
+        cpu, gc_s = (float(x) for x in row.split(",")[8:10])
+        assert 0 <= cpu < 0.05 and 0 <= gc_s <= proc + write  # the 0.1 s of process is a sleep, not CPU
     s = r.summary
     assert s["latency_parts"]["process"]["n"] == r.frames and s["latency_parts"]["lag"]["median_s"] >= 0.299
     assert s["drop_rate"]["cam0"] == pytest.approx(r.stale / s["frames_grabbed"]["cam0"])
@@ -566,3 +568,25 @@ def test_camera_frames_the_busy_loop_will_not_take_are_dropped_without_decoding(
     assert s["frames_grabbed"]["cam0"] == len(cam.retrieved) + skipped  # every grabbed frame: decoded or not
     seqs = [c[0] for c in front.calls]
     assert seqs == sorted(seqs)
+
+
+def test_latency_log_counts_a_garbage_collection_in_the_frame_it_stopped(tmp_path):
+    """A front end that forces a full collection on its second frame: that frame's gc_s is the time
+    the collection took (> 0), the first frame's is not larger than it."""
+    import gc
+
+    class Collecting(FakeFrontEnd):
+        n = 0
+
+        def process(self, images, frame, t_s, T_W_B=None):
+            Collecting.n += 1
+            if Collecting.n == 2:
+                gc.collect()
+            return super().process(images, frame, t_s)
+
+    log = tmp_path / "latency.csv"
+    r = _live(tmp_path, [lambda: LateReader(3)], front=Collecting(mono_rig()), latency_log=log)
+    assert r.frames >= 2
+    gc_s = [float(row.split(",")[9]) for row in log.read_text().splitlines()[1:]]
+    assert gc_s[1] > 0 and gc_s[1] >= gc_s[0]
+    assert r.summary["latency_parts"]["gc"]["max_s"] == pytest.approx(max(gc_s), abs=1e-6)
