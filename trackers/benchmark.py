@@ -370,7 +370,7 @@ def run_benchmark(
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
-    distinct track ids seen on each obstacle
+    distinct track ids seen on each obstacle, tracks the groupers split by motion (``track_splits``)
     (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
@@ -529,6 +529,7 @@ def run_benchmark(
         "obstacles": per,
         "switch_log": switch_log,
         "observations_per_frame": n_obs / nf,
+        "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
         **({"explain": ex.summary()} if ex is not None else {}),

@@ -21,6 +21,12 @@ write their new state and over components wide enough to be cut):
    when the older, confirmed piece loses its members (it left the image or was hidden), it takes
    over the younger piece that lies where its members went and moves like it, so the obstacle
    keeps the id downstream filters know (the younger id is reported lost).
+3c. Two surfaces in one track (an obstacle and what lies behind or beside it, whose
+   frame-to-frame flows agree within the tolerance): the members' flows over ``split_frames``
+   frames are compared between neighbours; where they jump (a parallax step at an occluding edge,
+   or an independently moving obstacle), not merely change smoothly, and the same part is found
+   ``split_persist`` frames in a row, that part leaves: it revives a memberless track predicted
+   there or starts a new one (see ``_split``).
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
    surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
    outside the lens do not count against it) and the flow field they span (an affine fit in the
@@ -95,6 +101,9 @@ class ObstacleTrack:
     member_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     keep_min: int = 0  # members it needs to stay seen (0: the grouper's default)
     extended: int = 0  # frames in a row on extended texture (the grouper's step 4)
+    split_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3c candidate
+    split_n: int = 0  # frames in a row the step 3c candidate split was found
+    split: bool = False  # split off another track by its motion (step 3c): not judged as texture
 
 
 class ObstacleGrouper:
@@ -124,6 +133,26 @@ class ObstacleGrouper:
             is dropped (confirmed tracks are kept).
         centre_gain: pull of the representative bearing towards the member mean per frame.
         sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
+        split_frames: window (frames) over which step 3c compares its members' motions. 10 frames
+            (1/3 s at 30 fps): long enough that the relative motion of two surfaces whose
+            frame-to-frame flows agree within the grouping tolerance (``flow_abs`` is the noise
+            floor of a ``flow_frames`` flow) adds up to a few pixels, short enough to be judged
+            while the features of a crossing obstacle live (the history keeps 32 samples).
+        split_min_px: step 3c links two neighbouring members when their window flows differ by
+            less than this many pixels over the window plus ``split_rel`` of the larger flow.
+            KLT follows a corner to 0.1-0.3 px per frame, so 1.5 px over the window is several
+            times what noise alone gives; 0 turns step 3c off.
+        split_rel: the relative part: a smooth surface's flow changes between neighbours
+            ``link_px`` apart (~0.1 rad at 720p) by about that fraction of itself (flow ~ 1/depth,
+            and depth changes across a fronto-parallel patch of 0.1 rad by ~0.1 at 45 degrees
+            off its normal), a depth step (an obstacle in front of what lies behind it) by more.
+        split_step: ... and a part leaves only when the flow jumps across its boundary (median over
+            the near pairs across it) by this many times what it changes between neighbours
+            within the parts (median over their near pairs), and by ``split_min_px``: a step, not
+            a gradient. On a smooth surface neighbouring pairs across any line differ about as
+            much as pairs beside it; 3 leaves room for noise in the medians.
+        split_persist: frames in a row the same split (half its features in common) must be found
+            before the track splits: evidence over several frames, not one.
         label: label of the tracks (the detector's name).
     """
 
@@ -148,6 +177,11 @@ class ObstacleGrouper:
         extended_frames: int = 3,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
+        split_frames: int = 10,
+        split_min_px: float = 1.5,
+        split_rel: float = 0.1,
+        split_step: float = 3.0,
+        split_persist: int = 3,
         label: str = "orb",
     ) -> None:
         if (
@@ -158,12 +192,15 @@ class ObstacleGrouper:
             or max_missed < 0
             or not 0 <= extended_sectors <= 8
             or extended_frames < 1
+            or split_frames < 2
+            or split_persist < 1
         ):
             raise ConfigError(
                 "ObstacleGrouper: expected link_px > 0, max_radius_px > 0, min_features >= 1, "
-                "confirm_frames >= 1, max_missed >= 0, 0 <= extended_sectors <= 8, extended_frames >= 1; got "
+                "confirm_frames >= 1, max_missed >= 0, 0 <= extended_sectors <= 8, extended_frames >= 1, "
+                "split_frames >= 2, split_persist >= 1; got "
                 f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}, "
-                f"{extended_sectors}, {extended_frames}"
+                f"{extended_sectors}, {extended_frames}, {split_frames}, {split_persist}"
             )
         self._ids = ids
         self.link_px = float(link_px)
@@ -183,6 +220,11 @@ class ObstacleGrouper:
         self.extended_frames = int(extended_frames)
         self.centre_gain = float(centre_gain)
         self.sigma_floor_px = float(sigma_floor_px)
+        self.split_frames = int(split_frames)
+        self.split_min_px = float(split_min_px)
+        self.split_rel = float(split_rel)
+        self.split_step = float(split_step)
+        self.split_persist = int(split_persist)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
         self._last_t_s: float | None = None
@@ -191,6 +233,7 @@ class ObstacleGrouper:
         self._bg_until = np.zeros(0, np.int64)
         self._frame = 0
         self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
+        self.splits = 0  # tracks split by step 3c so far (a diagnostic count)
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -323,6 +366,33 @@ class ObstacleGrouper:
             hj = np.flatnonzero(taken >= 0)
             rep[taken[hj]] = rep[hj]  # the heir's representative bearing carries on
             tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
+        # 3c. two surfaces in one track (an occluding edge, an obstacle crossing the background):
+        # split by the members' motion over split_frames frames, found split_persist frames in a row
+        split_born = np.zeros(TK, bool)
+        if self.split_min_px > 0 and T:
+            sp_rows, sp_tgt = self._split(
+                ft, t_s, R_C_Cprev, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
+            )
+            for rows_s, (src, dst) in zip(sp_rows, sp_tgt, strict=True):
+                fresh[src] = True  # (its representative restarts at its remaining members' mean)
+                if dst < 0:  # a new track
+                    dst = TK
+                    TK += 1
+                    K += 1
+                    rep = np.concatenate([rep, _normalise(b[rows_s].mean(0))[None]])
+                    tflow = np.concatenate([tflow, tflow[src][None]])
+                    fresh = np.concatenate([fresh, [True]])
+                    keep1 = np.concatenate([keep1, [False]])
+                    taken = np.concatenate([taken, [-1]])
+                    split_born = np.concatenate([split_born, [True]])
+                else:  # a memberless track revived by it
+                    tracks[dst].split = True
+                    fresh[dst] = True
+                    rep[dst] = _normalise(b[rows_s].mean(0))
+                owner[rows_s] = dst
+            if sp_rows:
+                self.splits += len(sp_rows)
+                tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
         # 4. representative bearing, sigma, reach
         own = np.flatnonzero(owner >= 0)
         o = owner[own]
@@ -357,7 +427,8 @@ class ObstacleGrouper:
         ext = np.zeros(TK, bool)
         # (confirmed tracks are not judged: an established obstacle keeps its track)
         tent = np.ones(TK, bool)
-        tent[:T] = [t.status == "tentative" for t in tracks]
+        tent[:T] = [t.status == "tentative" and not t.split for t in tracks]
+        tent &= ~split_born  # (split off by its motion against what surrounds it)
         if self.extended_sectors and np.any(alive & tent):
             a_idx = np.flatnonzero(alive & tent)
             ext[a_idx] = self._embedded(
@@ -414,6 +485,7 @@ class ObstacleGrouper:
                 tid = new_ids[ti - T]
                 tr = ObstacleTrack(tid, ft.name, empty_i, new_rep[ti], hits=0, label=self.label)
                 tr.keep_min = 1 if keep1[ti] else 0
+                tr.split = bool(split_born[ti])
                 self.tracks[tid] = tr
             tr.members, tr.member_b_C = ids_s[st[ti] : st[ti + 1]], b_s[st[ti] : st[ti + 1]]
             tr.b_C, tr.flow_rad_s, tr.sigma_rad, tr.uv = new_rep[ti], tflow[ti], sig[ti], uv_all[ti]
@@ -537,6 +609,206 @@ class ObstacleGrouper:
                 owner[owner == best] = i
                 out[best] = i
                 used[best] = used[i] = True
+        return out
+
+    def _split(
+        self,
+        ft: FeatureTracker,
+        t_s: float,
+        R: dict[int, np.ndarray] | None,
+        owner: np.ndarray,
+        rep: np.ndarray,
+        tracks: list[ObstacleTrack],
+        taken: np.ndarray,
+        rad_px: float,
+        flow: np.ndarray,
+        fvalid: np.ndarray,
+        tflow: np.ndarray,
+        R1: np.ndarray | None,
+        dt_s: float,
+    ) -> tuple[list[np.ndarray], list[tuple[int, int]]]:
+        """Step 3c: tracks whose members form two surfaces by their motion over the last
+        ``split_frames`` frames (an obstacle and what lies behind or beside it: a parallax step
+        at the occluding edge, or one of them moving), grouped together because their
+        frame-to-frame flows differ less than the grouping tolerance.
+
+        Per existing track (``tracks``, indices < T), each member tracked over at least half the
+        window gets a window flow ``(b_now - R_C_Cprev[k] b_k_ago) / dt`` (rad/s, k <=
+        split_frames frames back; rotation-compensated when that rotation is given), expressed
+        in the tangent plane at the track's representative bearing ``rep`` (TK,3) (there a camera
+        rotation's flow field is the same to second order in the track's size). The members are
+        re-linked: two members within ``link_rad`` link when their window flows differ by less
+        than ``split_min_px`` pixels over the shorter of their windows plus ``split_rel`` of the
+        larger flow (a smooth surface's flow changes little between neighbours; a depth step
+        or an independently moving obstacle makes a jump). A track whose linked members fall
+        into two components of 2 or more has a candidate split: the second largest component.
+        The track splits when a candidate was found ``split_persist`` frames in a row with half
+        of its features in common; the candidate's members leave: they revive a memberless track
+        predicted within ``max_radius`` of them whose flow agrees, else they start a new track.
+
+        Args: ft, t_s, R as in ``update``; owner (N,) track index per live feature (not changed);
+        rep (TK,3) unit bearings in C; tracks: the T existing tracks (their split state is
+        updated); taken (TK,) from ``_inherit``; rad_px: radians per pixel; flow (N,3), fvalid
+        (N,) the features' flows (rad/s) as in ``update``; tflow (TK,3) the tracks' mean flows;
+        R1 (3,3) or None, dt_s: the camera's rotation and the time since the last frame.
+        Returns (rows (K_i,) into the live features per split-off part, (source track index,
+        target track index or -1 for a new track) per part)."""
+        T = len(tracks)
+        L = self.split_frames
+        out_rows: list[np.ndarray] = []
+        out_tgt: list[tuple[int, int]] = []
+        back = np.minimum(ft.age - 1, L)  # samples back in the window (a feature has one per frame)
+        rows = np.flatnonzero((owner >= 0) & (owner < T) & (2 * back >= L))
+        o = owner[rows]
+        cnt = np.bincount(o, minlength=T)
+        judged = (cnt >= 4) & (taken[:T] < 0)
+        sel = judged[o]
+        rows, o = rows[sel], o[sel]
+        found = np.zeros(T, bool)
+        if len(rows):
+            b_then, t_then, _ = ft.bearing_ago(L)
+            b_then, bk = b_then[rows], back[rows]
+            if R:
+                Rs = np.tile(np.eye(3), (L + 1, 1, 1))
+                for kk, Rk in R.items():
+                    if 0 < kk <= L:
+                        Rs[kk] = Rk
+                b_then = np.einsum("nij,nj->ni", Rs[bk], b_then)
+            dt = np.maximum(t_s - t_then[rows], 1e-9)
+            f = (ft.b_C[rows] - b_then) / dt[:, None]  # window flow (rad/s)
+            rp = rep[:T]
+            ref = np.where(np.abs(rp[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+            e1 = _normalise(np.cross(ref, rp))
+            e2 = np.cross(rp, e1)
+            xy = np.stack([np.einsum("ij,ij->i", f, e1[o]), np.einsum("ij,ij->i", f, e2[o])], 1)
+            fn = np.hypot(xy[:, 0], xy[:, 1])
+            # tracks whose members' window flows all lie within half the smallest link tolerance
+            # of their mean cannot be cut (every pair links): only the others are looked at
+            nn = np.maximum(np.bincount(o, minlength=T), 1)
+            dev = np.hypot(
+                xy[:, 0] - (np.bincount(o, xy[:, 0], T) / nn)[o],
+                xy[:, 1] - (np.bincount(o, xy[:, 1], T) / nn)[o],
+            )
+            maxdev, maxdt = np.zeros(T), np.zeros(T)
+            np.maximum.at(maxdev, o, dev)
+            np.maximum.at(maxdt, o, dt)
+            cut_ok = 2.0 * maxdev >= self.split_min_px * rad_px / np.maximum(maxdt, 1e-9)
+            sel = cut_ok[o]
+            rows, o, xy, fn, dt = rows[sel], o[sel], xy[sel], fn[sel], dt[sel]
+            bj = ft.b_C[rows]
+            m = len(rows)
+            # member pairs of one track (rows are sorted by track: blocks), within link_rad
+            srt = np.argsort(o, kind="stable")
+            rows, o, xy, fn, bj, dt = rows[srt], o[srt], xy[srt], fn[srt], bj[srt], dt[srt]
+            cnt_o = np.bincount(o, minlength=T)
+            first = np.concatenate([[0], np.cumsum(cnt_o)])[o]  # block start of each row
+            reps_n = cnt_o[o]
+            ei = np.repeat(np.arange(m), reps_n)
+            ej = first[ei] + (np.arange(len(ei)) - np.repeat(np.cumsum(reps_n) - reps_n, reps_n))
+            keep = (ei != ej) & (np.einsum("ij,ij->i", bj[ei], bj[ej]) > np.cos(self.link_rad))
+            ei, ej = ei[keep], ej[keep]  # both directions of every near pair
+            dd = np.hypot(*(xy[ei] - xy[ej]).T)  # |window flow difference| (rad/s)
+            thr = self.split_min_px * rad_px / np.minimum(dt[ei], dt[ej])
+            thr = thr + self.split_rel * np.maximum(fn[ei], fn[ej])
+            linked = dd < thr
+            # only tracks with a near pair that does not link can fall apart
+            loose = np.bincount(o[ei[~linked]], minlength=T) > 0
+            if not np.any(loose):
+                ei = ej = dd = np.zeros(0, np.intp)
+                linked = np.zeros(0, bool)
+            li, lj = ei[linked], ej[linked]  # links, sorted by li
+            # connected components by min-label propagation over the links (as in _pieces)
+            labels = np.arange(m)
+            if len(li):
+                st = np.flatnonzero(np.r_[True, li[1:] != li[:-1]])
+                heads = li[st]
+                for _ in range(m):
+                    nxt = labels.copy()
+                    nxt[heads] = np.minimum(labels[heads], np.minimum.reduceat(labels[lj], st))
+                    nxt = nxt[nxt]
+                    if np.array_equal(nxt, labels):
+                        break
+                    labels = nxt
+            size = np.bincount(labels, minlength=m)
+            ids = ft.ids
+            # tracks with two parts of 2 or more members (a part lies in one track: links do)
+            root = np.flatnonzero((labels == np.arange(m)) & (size >= 2))
+            is_multi = judged & loose & (np.bincount(o[root], minlength=T) >= 2)
+            # per such track its second largest part (ties: the lower label): part A
+            root = root[is_multi[o[root]]]
+            rk = np.lexsort((root, -size[root], o[root]))  # by track, then size descending
+            root, ro = root[rk], o[root[rk]]
+            a_lab = np.full(T, -1)
+            rank = np.arange(len(ro)) - np.searchsorted(ro, ro)  # position within its track
+            a_lab[ro[rank == 1]] = root[rank == 1]
+            in_a = labels == a_lab[o]
+            # a step, not a gradient: the flow jumps across part A's boundary by split_step times
+            # what it changes between neighbours within the parts, and by the floor (per track:
+            # lower medians over its near pairs)
+            pe = is_multi[o[ei]]
+            cross = pe & (in_a[ei] != in_a[ej])
+            inner = pe & ~cross
+            med_c = self._group_lower_median(o[ei[cross]], dd[cross], T)
+            med_i = self._group_lower_median(o[ei[inner]], dd[inner], T)
+            mdt = np.bincount(o, dt, T) / np.maximum(np.bincount(o, minlength=T), 1)
+            floor_t = self.split_min_px * rad_px / np.maximum(mdt, 1e-9)
+            step = is_multi & (med_c >= np.maximum(self.split_step * np.nan_to_num(med_i), floor_t))
+            for t in np.flatnonzero(step):
+                ia = np.flatnonzero(in_a & (o == t))
+                move = rows[ia]
+                found[t] = True
+                tr = tracks[t]
+                mids = np.sort(ids[move])
+                prev = tr.split_ids
+                common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
+                tr.split_n = tr.split_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
+                tr.split_ids = mids
+                if tr.split_n >= self.split_persist:
+                    tr.split_n, tr.split_ids = 0, np.zeros(0, np.int64)
+                    out_rows.append(move)
+                    out_tgt.append((int(t), -1))
+        for t in np.flatnonzero(~found):  # no candidate this frame: the count restarts
+            tracks[t].split_n = 0
+        if out_rows:  # revive a memberless track predicted where the split-off side lies
+            cnt_all = np.bincount(owner[owner >= 0], minlength=T)[:T]
+            need = np.array([tr.keep_min or self._keep_min() for tr in tracks])
+            hits = np.array([tr.hits for tr in tracks])
+            cand = np.flatnonzero((cnt_all < need) & (taken[:T] < 0) & (hits > 0))
+            cos_r = np.cos(self.max_radius_rad)
+            used: set[int] = set()
+            pred = rep[cand] @ R1.T if R1 is not None else rep[cand]  # b <- R_C_Cprev b + flow dt
+            pred = _normalise(pred + tflow[cand] * dt_s) if self.coast_predict else pred
+            for i, mv in enumerate(out_rows):
+                c_mv = _normalise(ft.b_C[mv].mean(0))
+                fv = mv[fvalid[mv]]
+                if not len(cand) or not len(fv):
+                    continue
+                f_mv = flow[fv].mean(0)
+                agree = self._agree(f_mv[None], np.linalg.norm(f_mv)[None], tflow[cand])
+                cc = np.where(agree, pred @ c_mv, -2.0)
+                best_j = -1
+                for j in np.argsort(-cc):  # the closest unused one within max_radius
+                    if cc[j] <= cos_r:
+                        break
+                    if int(cand[j]) not in used:
+                        best_j = int(cand[j])
+                        break
+                if best_j >= 0:
+                    used.add(best_j)
+                    out_tgt[i] = (out_tgt[i][0], int(best_j))
+        return out_rows, out_tgt
+
+    @staticmethod
+    def _group_lower_median(keys: np.ndarray, vals: np.ndarray, T: int) -> np.ndarray:
+        """Per key 0..T-1 the lower median of ``vals`` (K,) with that key (K,) int; NaN for none."""
+        out = np.full(T, np.nan)
+        if not len(keys):
+            return out
+        order = np.lexsort((vals, keys))
+        cnt = np.bincount(keys, minlength=T)
+        start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+        has = np.flatnonzero(cnt > 0)
+        out[has] = vals[order][start[has] + (cnt[has] - 1) // 2]
         return out
 
     def _agree(self, f: np.ndarray, fn: np.ndarray, g: np.ndarray, loose: float = 1.0) -> np.ndarray:
