@@ -397,8 +397,16 @@ class FeatureTracker:
             return np.zeros((0, 32), np.uint8), np.zeros(0, np.intp)
         if not hasattr(self, "_orb_desc"):
             self._orb_desc = cv2.ORB_create(edgeThreshold=15, patchSize=15)
+        # on the lens crop ``roi`` (ORB blurs the whole image it is given): live features lie in the
+        # lens mask, >= 20 px inside the crop's edges (or on the frame's own edges), farther than
+        # the edge threshold (15 px) and the blurred patch (~12 px) reach, and the crop's origin is
+        # even (a multiple of 16), so keypoints round to the same pixels: the same descriptors
+        x0, y0 = 0, 0
+        if grey.shape[:2] == self.shape_hw:
+            x0, y0, x1, y1 = self.roi
+            grey = grey[y0:y1, x0:x1]
         kps = [
-            cv2.KeyPoint(float(u), float(v), 15.0, -1, 0, 0, int(i))
+            cv2.KeyPoint(float(u) - x0, float(v) - y0, 15.0, -1, 0, 0, int(i))
             for i, (u, v) in zip(idx, self.uv[idx], strict=True)
         ]
         kps, des = self._orb_desc.compute(grey, kps)

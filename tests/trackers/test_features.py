@@ -327,3 +327,21 @@ def test_feature_budget_follows_the_lens_size_in_pixels():
     assert make_tracker(equidistant(640, 480), max_features=123, **det).max_features == 123
     with pytest.raises(ConfigError):
         make_tracker(equidistant(640, 480), px_per_feature=0.0, **det)
+
+
+def test_describe_on_the_lens_crop_equals_cv2_on_the_whole_frame():
+    """describe() computes ORB descriptors on the lens's crop; cv2's ORB on the whole frame, for
+    keypoints at the same pixels, gives the same bytes and keeps the same rows."""
+    import cv2
+
+    model = equidistant(640, 360)  # lens radius 169 px: the crop is ~370 of 640 px wide
+    ft = make_tracker(model, max_features=300)
+    grey = SphereScene(model).render()
+    ft.track(grey, 0, 0.0)
+    x0, y0, x1, y1 = ft.roi
+    assert (x1 - x0) < 0.7 * 640 and ft.n_live > 100
+    des, rows = ft.describe(grey)
+    kps = [cv2.KeyPoint(float(u), float(v), 15.0, -1, 0, 0, i) for i, (u, v) in enumerate(ft.uv)]
+    kps, ref = cv2.ORB_create(edgeThreshold=15, patchSize=15).compute(grey, kps)
+    np.testing.assert_array_equal(rows, [k.class_id for k in kps])
+    np.testing.assert_array_equal(des, ref)
