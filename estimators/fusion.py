@@ -562,6 +562,16 @@ def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac
     return out
 
 
+def _median_rows(X: np.ndarray) -> np.ndarray:
+    """np.median(X, axis=0) of X (n >= 1, k), the same values (the middle row of the column-sorted X,
+    or the mean of the two middle ones for even n), without np.median's overhead on small arrays."""
+    Xs = np.sort(X, axis=0)
+    n = len(Xs)
+    if n % 2:
+        return Xs[n // 2]
+    return (Xs[n // 2 - 1] + Xs[n // 2]) / 2.0
+
+
 def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
     """Median of v (K,) within each group g (K,) in [0, n_groups) -> (n_groups,), 0 for empty groups
     (the mean of the two middle values for even counts, as np.median)."""
@@ -1531,22 +1541,24 @@ class ObstacleFusion:
         order = np.argsort(gg, kind="stable")
         gs = gg[order]
         cuts = np.flatnonzero(np.diff(gs)) + 1
+        lag = s.feature_velocity_lag_s
         for idx in np.split(order, cuts):
             tr = work[int(gg[idx[0]])][0]
+            ref = tr.vel_ref
+            # (a reference sharing a single id is replaced by a later frame sharing more: the first
+            # frames of a stereo track often share one)
+            new_ref = (ref is None or t_s - ref[0] > 3.0 * lag
+                       or (len(ref[1]) < 2 and len(idx) > len(ref[1])))
+            if not new_ref and t_s - ref[0] < lag - 1e-9:
+                continue  # (not due yet: nothing to sort)
             f = fid[idx]
             o = np.argsort(f)
             idx = idx[o]
             f, P, S, T, U = f[o], p_mid[idx], sr[idx], st[idx], u[idx]
-            ref = tr.vel_ref
-            # (a reference sharing a single id is replaced by a later frame sharing more: the first
-            # frames of a stereo track often share one)
-            if (ref is None or t_s - ref[0] > 3.0 * s.feature_velocity_lag_s
-                    or (len(ref[1]) < 2 and len(f) > len(ref[1]))):
+            if new_ref:
                 tr.vel_ref = (t_s, f, P, S, T, U)
                 continue
             dt = t_s - ref[0]
-            if dt < s.feature_velocity_lag_s - 1e-9:
-                continue
             _, ka, kb = np.intersect1d(ref[1], f, assume_unique=True, return_indices=True)
             tr.vel_ref = None  # (the next frame's points are the next reference: no shared point)
             n = len(ka)
@@ -1558,20 +1570,20 @@ class ObstacleFusion:
             Q[:, 0] = a
             Q[:, 1:] = tangent_basis(a)
             W = ((P[kb] - ref[2][ka]) / dt) @ Q  # (n, 3) per-feature velocities in the ray frame
-            w = np.median(W, axis=0)
+            w = _median_rows(W)
             var = np.zeros((n, 3))  # q_k^T C_i q_k of both points: sr^2 (q.u)^2 + st^2 (1 - (q.u)^2)
             for Ui, Si, Ti in ((ref[5][ka], ref[3][ka], ref[4][ka]), (U[kb], S[kb], T[kb])):
                 c2 = (Ui @ Q) ** 2
                 var += (Si * Si)[:, None] * c2 + (Ti * Ti)[:, None] * (1.0 - c2)
             var /= dt * dt
-            var_k = np.median(var, axis=0)
+            var_k = _median_rows(var)
             # features that do not move alike at that noise (chi-square test of their spread at the
             # gate probability: another object's or the background's members, or more noise than
             # sigma_f): their spread (1.4826 MAD) is the noise instead, when larger
             chi = np.sum((W - w) ** 2 / var, axis=0)
             gate = self._chi2_gate(n - 1)
             if (chi > gate).any():
-                mad2 = (1.4826 * np.median(np.abs(W - w), axis=0)) ** 2
+                mad2 = (1.4826 * _median_rows(np.abs(W - w))) ** 2
                 var_k = np.where(chi > gate, np.maximum(mad2, var_k), var_k)
             # (+ q dt / 12 on each axis: the displacement measures the mean velocity over dt, which
             # differs from the velocity at the interval's midpoint by that much under the filter's
