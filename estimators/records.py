@@ -47,26 +47,40 @@ class CameraView:
     feature_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     feature_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
-    def __post_init__(self) -> None:
-        # The front end builds ~100 of these a frame: checks in plain floats, arrays converted only
-        # when they are not already float64/int64 of the right shape.
-        b = self.b_C
+    def __init__(
+        self,
+        camera: str,
+        b_C: np.ndarray,
+        uv: np.ndarray,
+        sigma_rad: float,
+        feature_ids: np.ndarray | None = None,
+        feature_b_C: np.ndarray | None = None,
+    ) -> None:
+        # The front end builds ~60-100 of these a frame, so the dataclass's generated __init__ (each
+        # field through the frozen object.__setattr__, then __post_init__ setting four of them again)
+        # is replaced by this one: checks in plain floats, arrays converted only when they are not
+        # already float64/int64 of the right shape, the fields written once into __dict__ (7.2 -> ~4 us).
+        b = b_C
         if type(b) is not np.ndarray or b.dtype is not _F64 or b.shape != (3,):
             b = np.asarray(b, dtype=float).reshape(-1)
         if b.shape != (3,):
-            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
+            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {b_C!r}")
         x, y, z = b.tolist()
         n2 = x * x + y * y + z * z  # NaN or inf in any component -> n2 not finite
         if not (math.isfinite(n2) and abs(math.sqrt(n2) - 1.0) <= 1e-6):
-            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {self.b_C!r}")
-        sig = float(self.sigma_rad)
+            raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {b_C!r}")
+        sig = float(sigma_rad)
         if not (math.isfinite(sig) and sig > 0):
-            raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {self.sigma_rad!r}")
-        ids = self.feature_ids
-        if type(ids) is not np.ndarray or ids.dtype is not _I64 or ids.ndim != 1:
+            raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {sigma_rad!r}")
+        ids = feature_ids
+        if ids is None:
+            ids = np.zeros(0, dtype=np.int64)
+        elif type(ids) is not np.ndarray or ids.dtype is not _I64 or ids.ndim != 1:
             ids = np.asarray(ids, dtype=np.int64).reshape(-1)
-        fb = self.feature_b_C
-        if type(fb) is np.ndarray and fb.dtype is _F64 and fb.ndim == 2 and fb.shape[1] == 3:
+        fb = feature_b_C
+        if fb is None:
+            fb = np.zeros((0, 3))
+        elif type(fb) is np.ndarray and fb.dtype is _F64 and fb.ndim == 2 and fb.shape[1] == 3:
             # one BLAS call: the sum of squares is finite exactly when every value is (squares are >= 0,
             # so inf cannot cancel; NaN propagates), unless huge finite values overflow it: then the
             # element-wise check decides (numpy warns of the overflow: |x| > 1e154, never a bearing).
@@ -81,13 +95,15 @@ class CameraView:
             raise InputError(
                 f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"
             )
-        uv = self.uv
         if type(uv) is not np.ndarray or uv.dtype is not _F64 or uv.shape != (2,):
             uv = np.asarray(uv, dtype=float).reshape(2)
-        object.__setattr__(self, "b_C", b)
-        object.__setattr__(self, "uv", uv)
-        object.__setattr__(self, "feature_ids", ids)
-        object.__setattr__(self, "feature_b_C", fb)
+        d = self.__dict__  # frozen: no attribute assignment, but the instance dict is writable once here
+        d["camera"] = camera
+        d["b_C"] = b
+        d["uv"] = uv
+        d["sigma_rad"] = sigma_rad
+        d["feature_ids"] = ids
+        d["feature_b_C"] = fb
 
 
 @dataclass(frozen=True)
@@ -111,20 +127,37 @@ class ObstacleObservation:
     label: str = "orb"
     attributes: dict[str, Any] = field(default_factory=dict)
 
-    def __post_init__(self) -> None:
-        if self.status not in TRACK_STATUSES:
-            raise InputError(
-                f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {self.status!r}"
-            )
+    def __init__(
+        self,
+        track_id: int,
+        frame: int,
+        t_s: float,
+        status: TrackStatus,
+        views: tuple[CameraView, ...],
+        label: str = "orb",
+        attributes: dict[str, Any] | None = None,
+    ) -> None:
+        # written by hand, fields set once into __dict__, like CameraView's (4.7 -> ~1.5 us)
+        if status not in TRACK_STATUSES:
+            raise InputError(f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {status!r}")
         try:
-            finite = math.isfinite(self.t_s)  # a float (or numpy float); 0.05 us against np.isfinite's 1.5
+            finite = math.isfinite(t_s)  # a float (or numpy float); 0.05 us against np.isfinite's 1.5
         except TypeError:
             finite = False
         if not finite:
-            raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {self.t_s!r}")
-        names = [v.camera for v in self.views]
-        if len(set(names)) != len(names):
-            raise InputError(f"ObstacleObservation.views: one view per camera expected, got {names}")
+            raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {t_s!r}")
+        if len(views) > 1:
+            names = [v.camera for v in views]
+            if len(set(names)) != len(names):
+                raise InputError(f"ObstacleObservation.views: one view per camera expected, got {names}")
+        d = self.__dict__
+        d["track_id"] = track_id
+        d["frame"] = frame
+        d["t_s"] = t_s
+        d["status"] = status
+        d["views"] = views
+        d["label"] = label
+        d["attributes"] = {} if attributes is None else attributes
 
     @property
     def cameras(self) -> tuple[str, ...]:

@@ -83,3 +83,21 @@ def test_track_report_json_has_no_nan_and_round_trips():
     assert d["range_m"] is None and d["position_body_m"] is None
     assert d["azimuth_deg"] == pytest.approx(90.0)
     assert json.loads(json.dumps(d, allow_nan=False)) == d
+
+
+def test_records_keep_their_dataclass_behaviour_with_hand_written_inits():
+    """Defaults, immutability, equality and keyword construction as the generated __init__ gave them."""
+    import dataclasses
+
+    v = CameraView("cam0", [0.0, 0.0, 1.0], [1, 2], 0.01)
+    assert v.feature_ids.dtype == np.int64 and v.feature_ids.shape == (0,)
+    assert v.feature_b_C.shape == (0, 3) and v.uv.dtype == np.float64
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        v.camera = "cam1"
+    a = ObstacleObservation(track_id=1, frame=2, t_s=0.5, status="lost", views=())
+    b = ObstacleObservation(1, 2, 0.5, "lost", ())
+    assert a == b and a.label == "orb" and a.attributes == {}
+    a.attributes["x"] = 1  # each record has its own attributes dict, never a shared default
+    assert b.attributes == {}
+    assert [f.name for f in dataclasses.fields(CameraView)] == [
+        "camera", "b_C", "uv", "sigma_rad", "feature_ids", "feature_b_C"]
