@@ -175,15 +175,11 @@ def azimuth_elevation_deg(b_B: np.ndarray) -> tuple[float, float]:
     return float(np.degrees(np.arctan2(y, x))), float(np.degrees(np.arcsin(np.clip(z / n, -1.0, 1.0))))
 
 
-def _opt_float(x: float | None) -> float | None:
-    return x if x is None or type(x) is float else float(x)
-
-
 def _opt_list(a: np.ndarray | None) -> list[float] | None:
     if a is None:
         return None
     if type(a) is np.ndarray and a.dtype == np.float64:
-        return a.reshape(-1).tolist()  # plain floats, one C call
+        return (a if a.ndim == 1 else a.reshape(-1)).tolist()  # plain floats, one C call
     return [float(v) for v in np.asarray(a).reshape(-1)]
 
 
@@ -252,7 +248,10 @@ def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True)
         az = np.degrees(np.arctan2(y, x))  # azimuth = atan2(y, x): 0 = nose, +90 = left
         el = np.degrees(np.arcsin(np.clip(z / np.sqrt(x * x + y * y + z * z), -1.0, 1.0)))  # asin(z/|b|)
     out = []
+    F, opt_list = float, _opt_list
     for r, b, a, e in zip(reports, B.tolist(), az.tolist(), el.tolist(), strict=True):
+        # optional floats inline: None or a Python float as they are, anything else (numpy scalars,
+        # ints) through float(); no function call per field (~50 reports x 7 fields a frame)
         d: dict[str, Any] = {
             "id": int(r.id),
             "status": r.status,
@@ -260,18 +259,18 @@ def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True)
             "bearing_body": b,
             "azimuth_deg": a,
             "elevation_deg": e,
-            "range_m": _opt_float(r.range_m),
-            "range_sigma_m": _opt_float(r.range_sigma_m),
-            "range_min_m": _opt_float(r.range_min_m),
-            "range_max_m": _opt_float(r.range_max_m),
-            "position_body_m": _opt_list(r.position_body_m),
-            "velocity_world_mps": _opt_list(r.velocity_world_mps),
-            "speed_mps": _opt_float(r.speed_mps),
-            "ttc_s": _opt_float(r.ttc_s),
+            "range_m": v if (v := r.range_m) is None or type(v) is F else F(v),
+            "range_sigma_m": v if (v := r.range_sigma_m) is None or type(v) is F else F(v),
+            "range_min_m": v if (v := r.range_min_m) is None or type(v) is F else F(v),
+            "range_max_m": v if (v := r.range_max_m) is None or type(v) is F else F(v),
+            "position_body_m": opt_list(r.position_body_m),
+            "velocity_world_mps": opt_list(r.velocity_world_mps),
+            "speed_mps": v if (v := r.speed_mps) is None or type(v) is F else F(v),
+            "ttc_s": v if (v := r.ttc_s) is None or type(v) is F else F(v),
             "source": r.source,
             "label": r.label,
-            "nis": _opt_float(r.nis),
-            "innovation": _opt_list(r.innovation),
+            "nis": v if (v := r.nis) is None or type(v) is F else F(v),
+            "innovation": opt_list(r.innovation),
             "gated": int(r.gated),
             "unobservable_reason": r.unobservable_reason,
         }
