@@ -1449,8 +1449,9 @@ class ObstacleFusion:
             # (along: from the two cameras' midpoint, the axis of the two-ray point's error)
             u_mid = p_mid - 0.5 * (c_a[ok] + c_b[ok])
             u_mid /= np.sqrt(_dot_rows(u_mid, u_mid))[:, None]
-            self._feature_velocity(work, gg, fid, p_mid, sr, s.feature_sigma_rad * depth[ok] / math.sqrt(2.0),
-                                   u_mid)
+            k_f = s.feature_point_sigma_k  # (the tracked features' measured error over sigma_f)
+            self._feature_velocity(work, gg, fid, p_mid, k_f * sr,
+                                   k_f * s.feature_sigma_rad * depth[ok] / math.sqrt(2.0), u_mid)
         ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
@@ -1509,11 +1510,12 @@ class ObstacleFusion:
         viewing ray u (K, 3) (unit, W) and st (K,) across it, m).
 
         A two-ray point's covariance is C = sr^2 u u^T + st^2 (I - u u^T): along the ray the
-        stereo range sigma (sqrt(2) sigma_f d / sin parallax), across it sigma_f d / sqrt(2) (the
-        midpoint of two rays that each miss by sigma_f d), ~40x smaller at 4 m with a 0.30 m
-        baseline. Every ``feature_velocity_lag_s`` the points of the ids seen
-        then and now (>= 2) give v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref) (the thesis's
-        binocular speed, sec. 3.2.2: two stereo fixes 0.1 s apart, here per physical point).
+        stereo range sigma (sqrt(2) s_f d / sin parallax), across it s_f d / sqrt(2) (the midpoint
+        of two rays that each miss by s_f d), ~40x smaller at 4 m with a 0.30 m baseline; s_f =
+        feature_point_sigma_k sigma_f, a tracked feature's measured error (as for the stereo
+        fix). Every ``feature_velocity_lag_s`` the points of the ids seen then and now (>= 2) give
+        v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref) (the thesis's binocular speed, sec. 3.2.2: two
+        stereo fixes 0.1 s apart, here per physical point).
         They are reduced in the track's ray frame Q = [a, e1, e2] (a the mean viewing direction,
         E = tangent_basis(a)), where C is nearly diagonal:
             w_i = Q^T v_i,   w = per-axis median of the w_i,
@@ -1675,32 +1677,25 @@ class ObstacleFusion:
         P = np.zeros((K, 6, 6))
         P[:, :3, :3] = _ray_covariances(X[:, :3] - o, sig, sb)
         P[:, 3, 3] = P[:, 4, 4] = P[:, 5, 5] = s.static_velocity_sigma_mps**2
-        # a track with velocity evidence (its shared features' stereo displacements, which do
-        # not reject zero velocity, or it would not be here): velocity observable (moving
-        # hypothesis), and its velocity is that evidence (v, P; P += q dt I since its last
-        # measurement). A moving-hypothesis track without evidence: its velocity is assumed (0),
-        # not measured, so it keeps the velocity prior's sigma (and reports no velocity)
-        vp = None
-        for k, (tr, _sg) in enumerate(batch):
-            if tr.vel_acc is not None:
-                v, Pv, t_acc = tr.vel_acc
-                X[k, 3:] = v
-                P[k, 3:, 3:] = Pv + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * (fc.t_s - t_acc))
-                tr.moving = True
-                tr.vel_assumed = False
-            elif tr.moving:
-                if vp is None:
-                    vp = self._velocity_prior_sigma(fc.t_s) ** 2
-                P[k, 3, 3] = P[k, 4, 4] = P[k, 5, 5] = vp
-                tr.vel_assumed = True
+        # a moving-hypothesis track whose features fit static points: its velocity is assumed
+        # (0), not measured, so it keeps the velocity prior's sigma (its report's velocity, if any,
+        # is its velocity evidence: see _reports)
+        mov = [k for k, (tr, _sg) in enumerate(batch) if tr.moving]
+        if mov:
+            vp = self._velocity_prior_sigma(fc.t_s) ** 2
+            P[mov, 3, 3] = P[mov, 4, 4] = P[mov, 5, 5] = vp
+            for k in mov:
+                batch[k][0].vel_assumed = True
         r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
+        v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
             tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
             tr.feature_stereo_anchor = True  # (a static feature's point, not the stereo one)
             if tr.kf is None:
-                tr.kf = ExtendedKalmanFilter(dim_x=6, dim_z=2)
-            tr.kf.x = X[k]  # the state is replaced: no prediction needed
-            tr.kf.P = P[k]
+                tr.kf = self._new_kf(X[k, :3], P[k, :3, :3], v_sigma)
+            else:  # the state is replaced: no prediction needed
+                tr.kf.x = X[k]
+                tr.kf.P = P[k]
             tr.t_kf = sg.t_s
             tr.t_ranged = sg.t_s
             tr.gated_run = 0
@@ -1977,13 +1972,27 @@ class ObstacleFusion:
                 v_sig = np.sqrt(np.maximum(v_max, 0.0)).tolist()
                 vel_ok = {j: v_sig[m] <= s.velocity_report_max_sigma_mps and not trs[j].vel_assumed
                           for m, j in enumerate(moving)}
+            # a track whose filter velocity is assumed (static features range it) but whose shared
+            # features measured its velocity: that velocity evidence (P += q dt I since its last
+            # measurement), under the same sigma limit
+            ev = [j for j, tr in enumerate(trs) if tr.vel_acc is not None and not vel_ok.get(j, False)]
+            v_ev: dict[int, np.ndarray] = {}
+            if ev:
+                q = s.max_accel_mps2**2 * s.accel_time_s
+                Pe = np.array([trs[j].vel_acc[1] for j in ev])
+                age = np.array([max(t_now - trs[j].vel_acc[2], 0.0) for j in ev])
+                Pe += np.eye(3)[None] * (q * age)[:, None, None]
+                e_max = np.linalg.eigvalsh(Pe).max(axis=1).tolist()
+                for j, e in zip(ev, e_max, strict=True):
+                    if math.sqrt(max(e, 0.0)) <= s.velocity_report_max_sigma_mps:
+                        v_ev[j] = trs[j].vel_acc[0].copy()
             rng_l = rng.tolist()
             for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
                 kw.update(bearing_body=b_B[j], range_m=rng_l[j], range_sigma_m=sig[j],
                           position_body_m=p_B[j])
-                if vel_ok.get(j, False):
-                    v_W = X[j, 3:].copy()
+                if vel_ok.get(j, False) or j in v_ev:
+                    v_W = X[j, 3:].copy() if j not in v_ev else v_ev[j]
                     kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
                 if rw[j] < 0 and ww[j] > 1e-12:
                     kw["ttc_s"] = -rw[j] / ww[j]
