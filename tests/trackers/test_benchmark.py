@@ -121,11 +121,15 @@ def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
 # fb_levels=1 is the default again (noisy_1080p 0.934 / worst 0.708, turning 1.000, stereo_flying
 # 0.926 / 0.623), but moving_crossing's worst obstacle is 0.21 with it (0.71 with fb_levels=0): its
 # features are grouped with the background (trackers.benchmark --explain), so that guard is 0.18.
+# 2026-11-22 (fourth session): with the grouper's split by motion (step 3c) moving_crossing is
+# 0.846 / worst 0.629 (its box is no longer dropped as ground texture), so that guard is 0.75 / 0.5;
+# the others measured stereo_flying 0.933 / 0.660, noisy_1080p 0.934 / 0.708, wide_angle 0.851 /
+# 0.587, mono_straight 1.000 / 1.000 (guards unchanged).
 HEAVY = [
     # (scenario, min overall coverage, min per-obstacle coverage, max switches per obstacle-minute
     # over all obstacles)
     ("mono_straight", 0.9, 0.75, 35.0),
-    ("moving_crossing", 0.52, 0.18, 25.0),
+    ("moving_crossing", 0.75, 0.5, 25.0),
     ("wide_angle_beyond90", 0.7, 0.35, 30.0),
     ("noisy_1080p", 0.78, 0.4, 50.0),
     ("stereo_flying", 0.9, 0.62, 40.0),
