@@ -826,10 +826,13 @@ class FeatureTracker:
         gw = int(self.shape_hw[1] // r) + 3
         kc = (uv // r).astype(np.int64)
         pc = (pred // r).astype(np.int64)
-        near_cells = {
-            int((y + dy) * gw + (x + dx)) for x, y in pc.tolist() for dx in (-1, 0, 1) for dy in (-1, 0, 1)
-        }
-        return np.flatnonzero(np.isin(kc[:, 1] * gw + kc[:, 0], np.fromiter(near_cells, np.int64))), pred
+        # the 3x3 cells around each prediction, (L, 3, 3) keys (y + dy) gw + (x + dx), in numpy (a
+        # Python set of them took ~2 ms per detection with a few hundred lost features)
+        d = np.arange(-1, 2, dtype=np.int64)
+        near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
+            pc[:, 0, None, None] + d[None, None, :]
+        )
+        return np.flatnonzero(np.isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel())), pred
 
     def _match_lost(self, uv: np.ndarray, desc: np.ndarray, t_s: float) -> np.ndarray:
         """For each new keypoint, the index of the lost feature it re-acquires, or -1."""
