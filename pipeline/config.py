@@ -181,7 +181,8 @@ class TrackerConfig(_Section):
 
     features: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int), "
+        description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int; default null: "
+        "one per px_per_feature (700) px^2 of the lens mask, clipped to [250, 500]), "
         "grid ([cols, rows]), "
         "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
@@ -207,7 +208,8 @@ class TrackerConfig(_Section):
         default_factory=dict,
         description="dict: cross-camera association: every (frames, default 5), epipolar_deg (deg, 1.0), "
         "max_hamming (int, 64), min_votes (int, 3), klt_link_px (px, 1.5), recheck_every (frames, 4: "
-        "a followed stereo match's forward-backward re-check), recheck_px (px, 1.0).",
+        "a followed stereo match's forward-backward re-check), recheck_px (px, 1.0), follow_levels (int, 1: "
+        "pyramid levels searched for a match followed from the last frame; null: all levels).",
     )
     max_width: int | None = Field(
         None,
