@@ -209,7 +209,9 @@ class TrackerConfig(_Section):
         description="dict: cross-camera association: every (frames, default 5), epipolar_deg (deg, 1.0), "
         "max_hamming (int, 64), min_votes (int, 3), klt_link_px (px, 1.5), recheck_every (frames, 4: "
         "a followed stereo match's forward-backward re-check), recheck_px (px, 1.0), follow_levels (int, 1: "
-        "pyramid levels searched for a match followed from the last frame; null: all levels).",
+        "OpenCV maxLevel of the stereo KLT for a match followed from the last frame, i.e. 1 searches 2 "
+        "pyramid levels (full size and half) and 0 only the full-size image; new matches use maxLevel 4, "
+        "5 levels; null: maxLevel 4 for all).",
     )
     max_width: int | None = Field(
         None,

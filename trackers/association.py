@@ -145,9 +145,10 @@ def stereo_klt(
         check: (N,) bool, rows that get the backward check whatever happens (None: all). A row
             with a finite guess whose forward result lands more than ``recheck_px`` from it is
             checked too; every other row is kept on the forward result and the epipolar test.
-        follow_levels: pyramid levels of the forward pass for rows with a finite guess (a followed
-            match starts within a pixel or two of its answer, so it needs no coarse levels); the
-            other rows use ``levels``. None: ``levels`` for all rows (one call).
+        follow_levels: OpenCV maxLevel of the forward pass for rows with a finite guess (maxLevel
+            n searches n + 1 pyramid levels; a followed match starts within a pixel or two of its
+            answer, so it needs no coarse levels); the other rows use ``levels`` (also a maxLevel).
+            None: ``levels`` for all rows (one call).
     Returns:
         ``StereoKLT`` (idx, uv_b, b_b, checked).
     """

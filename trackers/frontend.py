@@ -159,14 +159,16 @@ class FrontEnd:
         # frames, or when it lands more than recheck_px from where last frame's match predicts
         self.recheck_every = int(a.get("recheck_every", 4))
         self.recheck_px = float(a.get("recheck_px", 1.0))
-        # pyramid levels of the stereo KLT for a match followed from last frame (it starts within a
-        # pixel or two of its answer); new ones search with 4 levels
+        # OpenCV maxLevel of the stereo KLT for a match followed from last frame (it starts within a
+        # pixel or two of its answer): 1 searches 2 pyramid levels (full size and half), 0 only the
+        # full-size image; new matches use maxLevel 4 (5 levels); null: maxLevel 4 for all
         fl = a.get("follow_levels", 1)
-        self.follow_levels = None if fl is None else int(fl)
-        if self.follow_levels is not None and self.follow_levels < 0:
+        if fl is not None and (isinstance(fl, bool) or not isinstance(fl, (int, np.integer)) or fl < 0):
             raise ConfigError(
-                f"FrontEnd association: follow_levels expected an integer >= 0 or null, got {fl!r}"
+                "FrontEnd association: follow_levels (OpenCV maxLevel of a followed stereo match's "
+                f"KLT) expected an integer >= 0 or null, got {fl!r}"
             )
+        self.follow_levels = None if fl is None else int(fl)
         if self.recheck_every < 1 or not self.recheck_px >= 0:
             raise ConfigError(
                 "FrontEnd association: recheck_every expected an integer >= 1 and recheck_px a "

@@ -106,6 +106,21 @@ def test_bad_options_are_config_errors(rig, opts):
         FrontEnd(rig, **opts)
 
 
+@pytest.mark.parametrize("bad", ["x", 2.7, -1, True, "2"])
+def test_follow_levels_must_be_a_non_negative_integer_or_null(rig, bad):
+    """association.follow_levels is OpenCV's maxLevel: a string, a float (2.7 would be truncated
+    to 2) or a negative value is a ConfigError naming the setting, the value and what is expected."""
+    with pytest.raises(ConfigError) as e:
+        FrontEnd(rig, association={"follow_levels": bad})
+    msg = str(e.value)
+    assert "follow_levels" in msg and repr(bad) in msg and "integer >= 0 or null" in msg
+
+
+@pytest.mark.parametrize("good", [None, 0, 1, 3])
+def test_follow_levels_accepts_integers_and_null(rig, good):
+    assert FrontEnd(rig, association={"follow_levels": good}).follow_levels == good
+
+
 def test_non_finite_time_is_an_error(model, rig):
     with pytest.raises(InputError, match="t_s"):
         FrontEnd(rig).process({"cam0": good_grey(model)}, 0, float("nan"))
