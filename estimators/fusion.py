@@ -756,6 +756,10 @@ class ObstacleFusion:
         self._gidx = {tr.id: i for i, (tr, _sg, _st) in enumerate(work)}
         self._bounds_batch(work)
         self._features_batch(work, t_s, feats)
+        ev = [tr for tr, _sg, _st in work if tr.vel_acc is not None]
+        if ev:  # "moving" re-decided every frame with the evidence's covariance grown to now
+            for tr, m in zip(ev, self._evidence_now(ev, t_s)[1], strict=True):
+                tr.vel_moving = m
         t1 = perf()
         t_est = t1 - t0 - t_end
         batch: list[tuple[_Track, _Sighting]] = []
@@ -1534,10 +1538,10 @@ class ObstacleFusion:
         3-D constant-velocity filter of these measurements alone (process noise as the moving
         filter's, q = max_accel^2 tau), held at the intervals' midpoints t - dt / 2 (where the
         mean velocity differs from the velocity by only q dt / 12, which replaces q dt / 3 in R
-        there); ``vel_moving``: it rejects zero velocity,
-        v^T P^-1 v > chi2_3(gate_probability), i.e. the obstacle moves and its features' static
-        least-squares points would be wrong. A track's one chosen point would jump between
-        corners; the features' own displacements do not."""
+        there); ``vel_moving``: it rejects zero velocity, v^T P^-1 v > chi2_3(gate_probability)
+        with P grown to each frame (re-decided every frame, ``_evidence_now``), i.e. the obstacle
+        moves and its features' static least-squares points would be wrong. A track's one chosen
+        point would jump between corners; the features' own displacements do not."""
         s = self.settings
         t_s = work[0][1].t_s
         order = np.argsort(gg, kind="stable")
@@ -1607,7 +1611,7 @@ class ObstacleFusion:
         """Fuse one feature velocity v (3,) m/s, covariance R (3, 3), into the track's velocity
         evidence ``vel_acc`` (a constant-velocity filter: P += q dt I between measurements,
         q = max_accel_mps2^2 accel_time_s, the moving filter's process noise; then the Kalman
-        update with H = I) and set ``vel_moving`` (zero velocity rejected at gate_probability)."""
+        update with H = I). ``vel_moving`` is decided from it each frame (``_evidence_now``)."""
         s = self.settings
         acc = tr.vel_acc
         if acc is None:
@@ -1620,7 +1624,21 @@ class ObstacleFusion:
             P = P0 - K @ P0
             P = 0.5 * (P + P.T)
         tr.vel_acc = (x, P, t_s)
-        tr.vel_moving = float(x @ np.linalg.solve(P, x)) > self._gate3
+
+    def _evidence_now(self, trs: list[_Track], t_s: float) -> tuple[np.ndarray, list[bool]]:
+        """The velocity evidence ``vel_acc`` = (v, P, t_e) of each track in trs (all with one)
+        grown to t_s: P(t_s) = P + q (t_s - t_e) I (q = max_accel_mps2^2 accel_time_s, the
+        evidence filter's process noise), (K, 3, 3) m^2/s^2, and whether it rejects zero velocity
+        now, v^T P(t_s)^-1 v > chi2_3(gate_probability) (K bools): evidence that is no longer
+        renewed stops deciding "moving" as its covariance grows."""
+        s = self.settings
+        q = s.max_accel_mps2**2 * s.accel_time_s
+        V = np.array([tr.vel_acc[0] for tr in trs]).reshape(len(trs), 3)
+        P = np.array([tr.vel_acc[1] for tr in trs]).reshape(len(trs), 3, 3)
+        age = np.array([max(t_s - tr.vel_acc[2], 0.0) for tr in trs])
+        P += np.eye(3)[None] * (q * age)[:, None, None]
+        chi = np.einsum("ki,ki->k", V, np.linalg.solve(P, V[:, :, None])[:, :, 0])
+        return P, (chi > self._gate3).tolist()
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
@@ -1925,8 +1943,12 @@ class ObstacleFusion:
 
         With a filter (state x = [p_W, v_W], P): r_W = p_W - o_W, range |r_W|, range sigma
         sqrt(u^T P_pp u + struct_sigma^2) with u = r_W / |r_W|, position_body_m = R_B_W r_W; for
-        moving tracks the velocity when its largest sigma is small enough; the time to closest
-        approach t* = -r.w / |w|^2 (w = v_W - v_drone_W) when closing. Without one: the first view's
+        moving tracks the velocity when its largest sigma is small enough and it was measured; for
+        a track whose filter velocity is assumed (static hypothesis, or the prior) the velocity
+        evidence's when that rejects zero (``_evidence_now``) and is small enough; the time to
+        closest approach t* = -r.w / |w|^2 (w = v_W - v_drone_W, v_W the reported velocity, else the
+        filter's assumed one; none for a measured velocity too uncertain to report) when closing.
+        Without one: the first view's
         bearing turned into B (the camera offset is unknown without range) and the bounds.
         """
         s = self.settings
@@ -1972,30 +1994,41 @@ class ObstacleFusion:
                 v_sig = np.sqrt(np.maximum(v_max, 0.0)).tolist()
                 vel_ok = {j: v_sig[m] <= s.velocity_report_max_sigma_mps and not trs[j].vel_assumed
                           for m, j in enumerate(moving)}
-            # a track whose filter velocity is assumed (static features range it) but whose shared
-            # features measured its velocity: that velocity evidence (P += q dt I since its last
-            # measurement), under the same sigma limit
+            # a track whose filter velocity is assumed or static (static features range it) but
+            # whose shared features measured its velocity: that velocity evidence (P += q dt I
+            # since its last measurement) when it rejects zero now (``vel_moving``, re-decided
+            # with that grown P) and under the same sigma limit; otherwise a static-hypothesis
+            # track's velocity is its filter's (the hypothesis its range and bounds rest on)
             ev = [j for j, tr in enumerate(trs) if tr.vel_acc is not None and not vel_ok.get(j, False)]
             v_ev: dict[int, np.ndarray] = {}
             if ev:
-                q = s.max_accel_mps2**2 * s.accel_time_s
-                Pe = np.array([trs[j].vel_acc[1] for j in ev])
-                age = np.array([max(t_now - trs[j].vel_acc[2], 0.0) for j in ev])
-                Pe += np.eye(3)[None] * (q * age)[:, None, None]
+                Pe, mov = self._evidence_now([trs[j] for j in ev], t_now)
                 e_max = np.linalg.eigvalsh(Pe).max(axis=1).tolist()
-                for j, e in zip(ev, e_max, strict=True):
-                    if math.sqrt(max(e, 0.0)) <= s.velocity_report_max_sigma_mps:
+                for j, e, m in zip(ev, e_max, mov, strict=True):
+                    if m and math.sqrt(max(e, 0.0)) <= s.velocity_report_max_sigma_mps:
                         v_ev[j] = trs[j].vel_acc[0].copy()
             rng_l = rng.tolist()
             for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
                 kw.update(bearing_body=b_B[j], range_m=rng_l[j], range_sigma_m=sig[j],
                           position_body_m=p_B[j])
-                if vel_ok.get(j, False) or j in v_ev:
-                    v_W = X[j, 3:].copy() if j not in v_ev else v_ev[j]
+                # one velocity per report: the reported one, else the velocity the filter assumes
+                # (a static-hypothesis track's 0, an assumed velocity's prior: the hypothesis its
+                # range rests on); a moving track whose measured velocity is too uncertain to
+                # report has no time to closest approach either
+                rwj, wwj = rw[j], ww[j]
+                if j in v_ev:
+                    v_W = v_ev[j]
+                    w_j = v_W - fc.v_drone_W
+                    rwj, wwj = float(_tdot(r_W[j], w_j)), float(_tdot(w_j, w_j))
                     kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
-                if rw[j] < 0 and ww[j] > 1e-12:
-                    kw["ttc_s"] = -rw[j] / ww[j]
+                elif vel_ok.get(j, False):
+                    v_W = X[j, 3:].copy()
+                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
+                elif tr.moving and not tr.vel_assumed:
+                    wwj = 0.0
+                if rwj < 0 and wwj > 1e-12:
+                    kw["ttc_s"] = -rwj / wwj
                 srcs = tr.sources
                 kw["source"] = _source_name("mono" in srcs, "stereo" in srcs, tr.bounded_now)
                 out[k] = _new_report(kw)

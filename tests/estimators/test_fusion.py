@@ -225,9 +225,10 @@ def test_stereo_from_physical_point_feature_ids_has_no_ghost():
     assert r_ghost.range_m is None or abs(r_ghost.range_m - true_r) / true_r > 0.10
 
 
-def _features_stereo_run(v_W: np.ndarray, T_s: float = 1.5):
+def _features_stereo_run(v_W: np.ndarray, T_s: float = 1.5, reports: list | None = None):
     """A 0.30 m stereo pair flying at 3 m/s sees six corners of an object near (7, -3, 0.5) that
-    moves at v_W; both cameras list the corners under the same (physical-point) ids."""
+    moves at v_W; both cameras list the corners under the same (physical-point) ids. Every
+    frame's (t_s, report, pose T_W_B) is appended to reports when given."""
     rng = np.random.default_rng(21)
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(3.0)
@@ -246,6 +247,8 @@ def _features_stereo_run(v_W: np.ndarray, T_s: float = 1.5):
             views.append(CameraView(c.name, _bearing(c, T_W_B, centre, sigma, rng), [0, 0], sigma,
                                     feature_ids=np.arange(6), feature_b_C=fb))
         (r,) = fus.step([ObstacleObservation(4, k, t, "confirmed", tuple(views))], k, t)
+        if reports is not None:
+            reports.append((t, r, T_W_B))
     true_r = float(np.linalg.norm(centre - T_W_B.t))
     return r, true_r, fus
 
@@ -253,13 +256,19 @@ def _features_stereo_run(v_W: np.ndarray, T_s: float = 1.5):
 def test_stereo_features_static_and_moving_obstacles():
     # static: the features' rays of both cameras and all frames meet (static points): the range
     # comes from them; moving at 1.8 m/s: they do not (chi test), the filter tracks the velocity
-    r, true_r, fus = _features_stereo_run(np.zeros(3))
+    reps: list = []
+    r, true_r, fus = _features_stereo_run(np.zeros(3), reports=reps)
     assert "stereo" in r.source
     assert abs(r.range_m - true_r) / true_r < 0.03
     x, P, _ = fus.state(4)  # a measured velocity, zero within its sigma (chi2_3(0.999))
     assert float(x[3:] @ np.linalg.solve(P[3:, 3:], x[3:])) <= 16.27
+    # the REPORTS of a static obstacle: no speed, or under 0.2 m/s, in every frame; and the time to
+    # closest approach of a static point passed by a drone flying at 3 m/s along x: its x offset / 3
+    assert all(rp.speed_mps is None or rp.speed_mps < 0.2 for _t, rp, _T in reps)
+    assert r.ttc_s is not None and r.ttc_s == pytest.approx((7.0 - 3.0 * 1.5) / 3.0, rel=0.05)
     v_true = np.array([-1.0, 1.5, 0.0])
-    r, true_r, _fus = _features_stereo_run(v_true)
+    reps = []
+    r, true_r, _fus = _features_stereo_run(v_true, reports=reps)
     assert "stereo" in r.source
     assert abs(r.range_m - true_r) / true_r < 0.04
     assert r.velocity_world_mps is not None
@@ -267,6 +276,20 @@ def test_stereo_features_static_and_moving_obstacles():
     dh = math.atan2(r.velocity_world_mps[1], r.velocity_world_mps[0]) - math.atan2(1.5, -1.0)
     assert abs(math.degrees(math.atan2(math.sin(dh), math.cos(dh)))) < 10.0
     assert abs(r.speed_mps - speed) / speed < 0.10
+    # one velocity per report: each ttc_s is the closed form from the report's own position and
+    # velocity and the drone's (3, 0, 0) m/s, t* = -r.w / |w|^2, w = v - v_drone
+    n_v = 0
+    for _t, rp, T_W_B in reps:
+        if rp.velocity_world_mps is None or rp.position_body_m is None:
+            continue
+        n_v += 1
+        r_W = T_W_B.R @ np.asarray(rp.position_body_m)
+        w = np.asarray(rp.velocity_world_mps) - np.array([3.0, 0.0, 0.0])
+        closing = float(r_W @ w) < 0
+        assert (rp.ttc_s is not None) == closing
+        if closing:
+            assert rp.ttc_s == pytest.approx(-float(r_W @ w) / float(w @ w), rel=1e-6)
+    assert n_v >= 10
 
 
 def test_group_median_matches_numpy_median():
