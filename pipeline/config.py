@@ -181,8 +181,9 @@ class TrackerConfig(_Section):
 
     features: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int; default null: "
-        "one per px_per_feature (700) px^2 of the lens mask, clipped to [250, 500]), "
+        description="dict: trackers.features.FeatureTracker keywords, e.g. max_features (int; default 500; "
+        "null, opt-in: one per px_per_feature (700) px^2 of the lens mask, clipped to [250, 500], picked "
+        "for CPU, not fitted: it costs worst-obstacle coverage at 640x480), "
         "grid ([cols, rows]), "
         "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "

@@ -100,21 +100,22 @@ class FeatureTracker:
         camera: an ``estimators.rig.Camera`` (name, model, T_C_B).
         detector: the keypoint Detector used for (re-)detection.
         ids: shared id counter (an ``itertools.count``) so ids are unique over the cameras.
-        max_features: live features kept at most; None (the default): from the lens's size in
-            pixels, one per ``px_per_feature`` px^2 of the lens mask, clipped to [250, 500]
-            (``MIN_FEATURES``, ``MAX_FEATURES``): a 720p lens (radius 338 px), and a 1080p frame
-            tracked at 1280 px wide, get 500 as before; a 640x480 lens (radius 226 px) 250. The
-            grouping's distances are in pixels of the lens too, so a smaller lens with the same
-            count only packs more features on each obstacle. (The floor: small renders keep as
-            many features as ``min_distance_px`` lets fit; a 384x216 lens holds ~300.)
-            Measured with trackers.benchmark (deterministic) on 7 presets rendered at 864x486
-            (lens radius 228 px), the 640x480 bench clip and the 640x360 demo, 500 -> 250
-            features: mean coverage 0.806 -> 0.803, id switches 18 -> 22; per scene mono_straight
-            0.960 -> 0.995, moving_crossing 0.903 -> 0.898, turning 0.998 -> 0.857 (one obstacle
-            0.95 -> 0.10), wide_angle 0.909 -> 0.893, stereo_flying 0.933 -> 0.930, bench clip
-            0.319 -> 0.372, moving_headon 0.531 -> 0.517, thesis_speed 0.734 -> 0.795, demo
-            0.965 -> 0.972; front-end CPU per frame 25-35 % less (mono_straight 14.4 -> 9.5 ms).
-        px_per_feature: see ``max_features`` (px^2 of lens per feature when the budget is derived).
+        max_features: live features kept at most (default 500). None (opt-in, picked for CPU, not
+            fitted): from the lens's size in pixels, one per ``px_per_feature`` px^2 of the lens
+            mask, clipped to [250, 500] (``MIN_FEATURES``, ``MAX_FEATURES``): a 720p lens (radius
+            338 px), and a 1080p frame tracked at 1280 px wide, get 500; a 640x480 lens (radius
+            226 px) 250. It costs worst-obstacle coverage at 640x480 scale: a review's
+            trackers.benchmark runs at that scale, 500 -> 250 features, turning's worst obstacle
+            0.875 -> 0.118, moving_crossing's 0.838 -> 0.475, mean worst-obstacle coverage 0.552
+            -> 0.469, for front-end CPU per frame 25-35 % less (mono_straight at 864x486 14.4 ->
+            9.5 ms); the 640x480 bench clip's whole pipeline (one pinned core, CPU) 18.5-19.1 ms
+            a frame with 500, 13.2-13.5 with None: still short of 100 fps (10 ms). Earlier measurement (7 presets
+            rendered at 864x486, the 640x480 bench clip and the 640x360 demo, 500 -> 250): mean
+            coverage 0.806 -> 0.803, id switches 18 -> 22, turning 0.998 -> 0.857 (one obstacle
+            0.95 -> 0.10). (The floor: small renders keep as many features as
+            ``min_distance_px`` lets fit; a 384x216 lens holds ~300.)
+        px_per_feature: see ``max_features`` (px^2 of lens per feature when the budget is derived,
+            i.e. with max_features=None).
         grid: (cols, rows) coverage grid; a cell inside the lens with fewer than ``min_per_cell``
             features triggers re-detection.
         min_per_cell: see ``grid``.
@@ -163,7 +164,7 @@ class FeatureTracker:
         camera,
         detector: Detector,
         ids: Iterator[int] | None = None,
-        max_features: int | None = None,
+        max_features: int | None = 500,
         px_per_feature: float = 700.0,
         grid: tuple[int, int] = (16, 9),
         min_per_cell: int = 1,
@@ -217,7 +218,7 @@ class FeatureTracker:
         self.reacquire_max_hamming = int(reacquire_max_hamming)
         self.H = int(history)
         self.mask = lens_mask(self.model, margin_px)
-        if max_features is None:  # the lens's size: one feature per px_per_feature px^2 of its mask
+        if max_features is None:  # opt-in: one feature per px_per_feature px^2 of the lens mask
             lens_px = int(np.count_nonzero(self.mask))
             max_features = min(MAX_FEATURES, max(MIN_FEATURES, round(lens_px / float(px_per_feature))))
         self.max_features = int(max_features)

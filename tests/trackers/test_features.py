@@ -312,18 +312,22 @@ def test_sudden_turn_survives_the_backward_check(model, opts):
     assert np.percentile(errs, 95) < 1.5
 
 
-def test_feature_budget_follows_the_lens_size_in_pixels():
-    """max_features=None: one feature per px_per_feature px^2 of the lens circle (radius r minus
-    the 4 px margin, so pi (r - 4)^2 px^2 by hand), clipped to [250, 500]; a given count is kept."""
+def test_feature_budget_is_500_by_default_and_follows_the_lens_size_when_asked():
+    """The default budget is 500 whatever the lens; max_features=None (opt-in): one feature per
+    px_per_feature px^2 of the lens circle (radius r minus the 4 px margin, so pi (r - 4)^2 px^2
+    by hand), clipped to [250, 500]; a given count is kept."""
     det = {"det_max": 100}
+    assert make_tracker(equidistant(640, 480), **det).max_features == 500
+    assert make_tracker(equidistant(720, 720, fill=0.4), **det).max_features == 500
+    lens = {"max_features": None, **det}
     # a 720x720 frame, lens radius 0.47 * 720 = 338.4 px: pi 334.4^2 / 700 = 501.8 -> 500 (cap)
-    assert make_tracker(equidistant(720, 720), **det).max_features == 500
+    assert make_tracker(equidistant(720, 720), **lens).max_features == 500
     # radius 0.4 * 720 = 288 px: pi 284^2 / 700 = 362.0
-    assert abs(make_tracker(equidistant(720, 720, fill=0.4), **det).max_features - 362) <= 2
+    assert abs(make_tracker(equidistant(720, 720, fill=0.4), **lens).max_features - 362) <= 2
     # a 640x480 frame, radius 225.6 px: pi 221.6^2 / 700 = 220.4 -> 250 (floor)
-    assert make_tracker(equidistant(640, 480), **det).max_features == 250
+    assert make_tracker(equidistant(640, 480), **lens).max_features == 250
     # twice the area per feature: radius 288 px -> 181 -> 250
-    assert make_tracker(equidistant(720, 720, fill=0.4), px_per_feature=1400.0, **det).max_features == 250
+    assert make_tracker(equidistant(720, 720, fill=0.4), px_per_feature=1400.0, **lens).max_features == 250
     assert make_tracker(equidistant(640, 480), max_features=123, **det).max_features == 123
     with pytest.raises(ConfigError):
         make_tracker(equidistant(640, 480), px_per_feature=0.0, **det)
