@@ -109,10 +109,10 @@ class FeatureTracker:
             0.875 -> 0.118, moving_crossing's 0.838 -> 0.475, mean worst-obstacle coverage 0.552
             -> 0.469, for front-end CPU per frame 25-35 % less (mono_straight at 864x486 14.4 ->
             9.5 ms); the 640x480 bench clip's whole pipeline (one pinned core, CPU) 18.5-19.1 ms
-            a frame with 500, 13.2-13.5 with None: still short of 100 fps (10 ms). Earlier measurement (7 presets
-            rendered at 864x486, the 640x480 bench clip and the 640x360 demo, 500 -> 250): mean
-            coverage 0.806 -> 0.803, id switches 18 -> 22, turning 0.998 -> 0.857 (one obstacle
-            0.95 -> 0.10). (The floor: small renders keep as many features as
+            a frame with 500, 13.2-13.5 with None: still short of 100 fps (10 ms). Earlier
+            measurement (7 presets rendered at 864x486, the 640x480 bench clip and the 640x360
+            demo, 500 -> 250): mean coverage 0.806 -> 0.803, id switches 18 -> 22, turning 0.998
+            -> 0.857 (one obstacle 0.95 -> 0.10). (The floor: small renders keep as many features as
             ``min_distance_px`` lets fit; a 384x216 lens holds ~300.)
         px_per_feature: see ``max_features`` (px^2 of lens per feature when the budget is derived,
             i.e. with max_features=None).
