@@ -207,7 +207,10 @@ class FusionSettings:
         feature_point_sigma_k: with feature_point, the range sigma is
             hypot(k sigma_r,f, floor r) of the chosen feature (sigma_r,f its first-order sigma,
             see _features_batch). Default 2.5 (per-feature errors on the tracked scenes: median
-            |z| 2 at sigma_f = 1e-3 rad).
+            |z| 2 at sigma_f = 1e-3 rad). The same k sigma_f is reused, unfitted, as the per-point
+            error of the stereo feature velocity (``_feature_velocity``): k was fitted on position
+            errors, which include a tracked corner's fixed offset from the surface point; that
+            offset cancels in a displacement, so it likely overstates the velocity noise.
         feature_point_quantile: which feature's point: the lower q-quantile by range of the inner
             ones. Default 0.5 (the lower median; 0.3 ranged the tracked stereo scenes better, 1.1 vs
             1.6 % within 3 m, but picked a near stray feature on a fresh tracking: NEES mean 1204).
@@ -653,7 +656,7 @@ class _Track:
     struct_sigma_m: float = 0.0  # features' spread about the representative ray (not filtered)
     feature_point: np.ndarray | None = None  # the median member feature's own point (W), this frame
     feature_stereo_point: np.ndarray | None = None  # the median shared feature's stereo point (W)
-    feature_stereo_fid: int | None = None  # the id of that feature (kept while both cameras see it)
+    feature_stereo_fid: int | None = None  # the id of that feature (kept while it stays an inner one)
     feature_stereo_anchor: bool = False  # the filter's position is on another point: re-anchor it
     t_ranged: float = -math.inf  # last time a range measurement (stereo, features) fed the state
     vel_ref: tuple | None = None  # (t_s, shared feature ids (sorted), their two-ray points (K, 3) W)
@@ -959,7 +962,9 @@ class ObstacleFusion:
         """The one restart path (members replaced, or ``reinit_after_gated`` gated updates in a
         row): drop a track's filter and everything tied to its old points (sightings, bounds,
         velocity reference and evidence, moving hypothesis); it keeps its id, label, gate counters
-        and sources and starts again from this frame's measurements."""
+        and sources. A member replacement (before this frame's estimates) starts it again from this
+        frame's measurements; a gated run (after this frame's update) keeps only this frame's
+        sighting and initialises again from the next frame on."""
         tr.kf = None
         tr.moving = False
         tr.vel_assumed = False
