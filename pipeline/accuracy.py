@@ -104,7 +104,9 @@ class AccuracyOptions:
     rendered again. scene_set: which scenes (see ``SCENE_SETS``): "tuned" (the default: the scenes
     the fusion and grouping settings were fitted on, plus the random scenes in bearings mode),
     "heldout" (the ``heldout_*`` presets, used to fit nothing) or "both" (each scored on its own,
-    then side by side); ``scenes`` overrides it."""
+    then side by side); ``scenes`` keeps only those scenes of the chosen set(s), in both modes (a
+    set left with none is not run); a name in no chosen set is a ConfigError listing the valid ones.
+    In pipeline mode a set's valid names are its scenes and its --quick scenes."""
 
     mode: str = "bearings"
     quick: bool = False
@@ -608,20 +610,46 @@ def _set_names(opts: AccuracyOptions) -> tuple[str, ...]:
     return (opts.scene_set,)
 
 
-def _run_bearings_set(opts: AccuracyOptions, set_name: str, rng, progress) -> tuple[list[Sample], dict]:
-    """Bearings mode on one scene set: "tuned" = the presets of ``preset_scenarios`` plus the random
-    scenes (as before scene sets existed), "heldout" = the held-out presets."""
+def _bearings_scenes(opts: AccuracyOptions, set_name: str) -> list:
+    """Bearings mode's scenes of one set, before the ``opts.scenes`` filter: "tuned" = the presets
+    of ``preset_scenarios`` plus the random scenes (as before scene sets existed), "heldout" = the
+    held-out presets."""
     if set_name == "tuned":
-        scenes = preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
-    else:
-        from pipeline.sim.scene import load_scenario
+        return preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
+    from pipeline.sim.scene import load_scenario
 
-        names = SCENE_SETS[set_name][1 if opts.quick else 0]
-        if opts.quick:  # the tiny pipeline scene is too short for bearings mode: the first three
-            names = PIPELINE_SCENES_HELDOUT[:3]
-        scenes = [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
-    if opts.scenes:
-        scenes = [s for s in scenes if s.name in opts.scenes]
+    names = SCENE_SETS[set_name][1 if opts.quick else 0]
+    if opts.quick:  # the tiny pipeline scene is too short for bearings mode: the first three
+        names = PIPELINE_SCENES_HELDOUT[:3]
+    return [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
+
+
+def _pipeline_names(opts: AccuracyOptions, set_name: str) -> tuple[str, ...]:
+    """Pipeline mode's scenes of one set: its --quick scenes or its scenes; with ``opts.scenes``
+    those of the set's scenes and --quick scenes that are named there (possibly none)."""
+    full, quick = SCENE_SETS[set_name]
+    if not opts.scenes:
+        return quick if opts.quick else full
+    return tuple(n for n in dict.fromkeys(full + quick) if n in opts.scenes)
+
+
+def _check_scenes(opts: AccuracyOptions, valid: dict[str, list[str]]) -> None:
+    """ConfigError naming each ``opts.scenes`` name that is in none of the chosen sets (``valid``:
+    set name -> its scene names in this mode), with the valid names."""
+    known = {n for names in valid.values() for n in names}
+    unknown = [n for n in dict.fromkeys(opts.scenes or ()) if n not in known]
+    if unknown:
+        from estimators.errors import ConfigError
+
+        listed = "; ".join(f"{k}: {', '.join(v)}" for k, v in valid.items())
+        raise ConfigError(
+            f"accuracy --scene: {', '.join(map(repr, unknown))} is in no chosen scene set "
+            f"(--set {opts.scene_set}, {opts.mode} mode{', --quick' if opts.quick else ''}); "
+            f"expected one of {listed}")
+
+
+def _run_bearings_set(opts: AccuracyOptions, scenes: list, rng, progress) -> tuple[list[Sample], dict]:
+    """Bearings mode on one scene set's ``scenes`` (already filtered)."""
     samples: list[Sample] = []
     per_scene = {}
     for scn in scenes:
@@ -649,15 +677,26 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
 
         raise ConfigError(f"accuracy: unknown mode {opts.mode!r}; expected 'bearings' or 'pipeline'")
     set_names = _set_names(opts)
+    # each set's scenes (bearings: Scenario objects; pipeline: preset names), then the --scene filter
+    if opts.mode == "bearings":
+        scenes_of = {k: _bearings_scenes(opts, k) for k in set_names}
+        valid = {k: [scn.name for scn in v] for k, v in scenes_of.items()}
+        if opts.scenes:
+            scenes_of = {k: [scn for scn in v if scn.name in opts.scenes] for k, v in scenes_of.items()}
+    else:
+        valid = {k: list(dict.fromkeys(SCENE_SETS[k][0] + SCENE_SETS[k][1])) for k in set_names}
+        scenes_of = {k: _pipeline_names(opts, k) for k in set_names}
+    _check_scenes(opts, valid)
     rng = np.random.default_rng(opts.seed)
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
+        if opts.scenes and not scenes_of[set_name]:
+            continue  # --scene named none of this set's scenes
         if opts.mode == "bearings":
-            samples, per_scene = _run_bearings_set(opts, set_name, rng, progress)
+            samples, per_scene = _run_bearings_set(opts, scenes_of[set_name], rng, progress)
         else:
-            names = None if set_name == "tuned" else SCENE_SETS[set_name][1 if opts.quick else 0]
-            samples, per_scene = _run_pipeline(opts, out_dir, progress, names=names)
+            samples, per_scene = _run_pipeline(opts, out_dir, progress, names=scenes_of[set_name])
         metrics = summarize(samples)
         if opts.mode == "pipeline":  # obstacle-frames the mono / stereo metric could score, ranged share
             metrics.update(pool_coverage(per_scene))
@@ -676,7 +715,7 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         per = [list(v["per_scene"].items()) for v in sets.values()]
         rows = [per[j][i] for i in range(max(map(len, per))) for j in range(len(per)) if i < len(per[j])]
         tables.append(format_scene_rows(dict(rows)))
-    first = sets[set_names[0]]
+    first = next(iter(sets.values()))
     res = {
         "metrics": first["metrics"],
         "per_scene": first["per_scene"],
@@ -800,8 +839,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     The truth is the evaluator's: the surface hit along the report's bearing, not the centre.
     Each run also keeps the front end's observations (``runs/<name>/observations.pkl``); with
     ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end.
-    names: the scenes (preset names); default PIPELINE_SCENES (PIPELINE_SCENES_QUICK with --quick);
-    ``opts.scenes`` overrides both."""
+    names: the scenes (preset names); default PIPELINE_SCENES (PIPELINE_SCENES_QUICK with --quick).
+    ``opts.scenes`` is applied by ``run_accuracy`` (``_pipeline_names``), not here."""
     import tempfile
 
     from estimators.fusion import ObstacleFusion
@@ -814,8 +853,6 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
     if names is None:
         names = PIPELINE_SCENES_QUICK if opts.quick else PIPELINE_SCENES
-    if opts.scenes:
-        names = tuple(opts.scenes)
     samples: list[Sample] = []
     per_scene: dict = {}
     for name in names:

@@ -154,7 +154,7 @@ def test_default_set_is_the_five_tuned_scenes_and_its_output_is_unchanged(monkey
     calls = []
     _canned(monkeypatch, calls)
     res = run_accuracy(AccuracyOptions(mode="pipeline"), tmp_path)
-    assert calls == [None]  # the default scene list, as before --set
+    assert calls == [TUNED]  # the default scene list, as before --set
     assert list(res["per_scene"]) == list(TUNED)
     assert "held-out" not in res["table"] and "side by side" not in res["table"]
     assert (tmp_path / "accuracy.json").is_file() and not (tmp_path / "accuracy_both.json").exists()
@@ -166,7 +166,7 @@ def test_set_both_prints_each_set_then_side_by_side_and_per_scene(monkeypatch, t
     calls = []
     _canned(monkeypatch, calls)
     res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
-    assert calls == [None, PIPELINE_SCENES_HELDOUT]
+    assert calls == [TUNED, PIPELINE_SCENES_HELDOUT]
     assert set(res["sets"]) == {"tuned", "heldout"}
     assert res["sets"]["heldout"]["metrics"]["mono_median_rel"] == pytest.approx(0.04)
     lab = "mono 3-20 m, >=10 deg off, >=1 s: median"
@@ -179,3 +179,55 @@ def test_set_both_prints_each_set_then_side_by_side_and_per_scene(monkeypatch, t
     assert per_scene_rows[:2] == ["mono_straight", "heldout_mono_straight"]
     assert per_scene_rows[-2:] == ["thesis_speed_15mps", "heldout_fast_18mps"]
     assert (tmp_path / "accuracy_both.json").is_file()
+
+
+@pytest.mark.parametrize(
+    "scene_set, scenes, runs",
+    [
+        # a tuned scene asked of the held-out set is an error, not scored under the held-out label
+        ("heldout", ("heldout_moving",), [("heldout_moving",)]),
+        ("tuned", ("stereo_hover", "mono_straight"), [("mono_straight", "stereo_hover")]),
+        # both: each name is run once, in its own set; a set left with none is not run
+        ("both", ("mono_straight", "heldout_moving"), [("mono_straight",), ("heldout_moving",)]),
+        ("both", ("heldout_moving",), [("heldout_moving",)]),
+        # a set's --quick scene may be named without --quick
+        ("tuned", ("ci_small",), [("ci_small",)]),
+    ],
+)
+def test_pipeline_scene_option_filters_within_the_chosen_sets(monkeypatch, tmp_path, scene_set, scenes,
+                                                              runs):
+    from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+    calls = []
+    _canned(monkeypatch, calls)
+    res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set=scene_set, scenes=scenes), tmp_path)
+    assert calls == runs
+    assert sorted(res["per_scene"]) == sorted(runs[0])
+    if scene_set == "both" and len(runs) == 1:
+        assert set(res["sets"]) == {"heldout"} and "side by side" not in res["table"]
+
+
+@pytest.mark.parametrize(
+    "mode, scene_set, scenes, bad",
+    [
+        ("pipeline", "heldout", ("mono_straight",), "'mono_straight'"),
+        ("pipeline", "tuned", ("heldout_moving", "mono_straight"), "'heldout_moving'"),
+        ("pipeline", "both", ("no_such_scene",), "'no_such_scene'"),
+        ("bearings", "heldout", ("mono_straight",), "'mono_straight'"),
+    ],
+)
+def test_scene_in_no_chosen_set_is_a_config_error_listing_the_valid_ones(monkeypatch, mode, scene_set,
+                                                                         scenes, bad):
+    import pipeline.accuracy as acc
+    from estimators.errors import ConfigError
+
+    _canned(monkeypatch, [])
+    monkeypatch.setattr(acc, "_run_bearings_set", lambda *a: pytest.fail("ran despite a bad --scene"))
+    with pytest.raises(ConfigError) as e:
+        acc.run_accuracy(acc.AccuracyOptions(mode=mode, scene_set=scene_set, scenes=scenes))
+    msg = str(e.value)
+    assert "--scene" in msg and bad in msg and "no chosen scene set" in msg
+    # the valid names are listed: the chosen sets' scenes
+    assert "heldout_stereo_hover" in msg if scene_set != "tuned" else "stereo_hover" in msg
+    if scene_set == "heldout":
+        assert "thesis_speed_15mps" not in msg  # a tuned scene is not offered for the held-out set

@@ -153,14 +153,14 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     opts = AccuracyOptions(mode="pipeline", scenes=("ci_small",), reuse_frontend=True)
     out = tmp_path / "out"
     msgs: list[str] = []
-    acc._run_pipeline(opts, out, msgs.append)
+    acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
     assert not any("replayed" in m for m in msgs)  # nothing recorded yet: tracked
     msgs.clear()
-    acc._run_pipeline(opts, out, msgs.append)
+    acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
     assert any("fusion replayed" in m for m in msgs), msgs
     msgs.clear()
     (sc / "ci_small.yaml").write_text((sc / "ci_small.yaml").read_text() + "\n# edited\n")
-    acc._run_pipeline(opts, out, msgs.append)
+    acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
     assert not any("fusion replayed" in m for m in msgs), msgs
     assert any("rendering" in m for m in msgs) and any("not replaying" in m for m in msgs), msgs
     rec = pickle.loads((out / "runs" / "ci_small" / "observations.pkl").read_bytes())
