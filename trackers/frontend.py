@@ -802,7 +802,7 @@ class FrontEnd:
             seen[b][k] = v
 
     def _gids_in(self, camera: str) -> set[int]:
-        """The global ids of ``camera``'s live local tracks (``_members_of`` for many ids)."""
+        """The global ids of ``camera``'s live local tracks (grouped and box tracks)."""
         tracks = list(self.groupers[camera].tracks) if camera in self.groupers else []
         if camera in self.boxers:
             tracks += list(self.boxers[camera].tracks)
@@ -810,10 +810,7 @@ class FrontEnd:
 
     def _members_of(self, gid: int, camera: str) -> bool:
         """Whether global track gid already has a live local track in ``camera``."""
-        tracks = dict(self.groupers[camera].tracks) if camera in self.groupers else {}
-        if camera in self.boxers:
-            tracks.update(self.boxers[camera].tracks)
-        return any(self._global(t) == gid for t in tracks)
+        return gid in self._gids_in(camera)
 
     def _observations(
         self,
