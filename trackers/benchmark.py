@@ -370,8 +370,10 @@ def run_benchmark(
 
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
-    distinct track ids seen on each obstacle, tracks the groupers split by motion (``track_splits``)
-    (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
+    distinct track ids seen on each obstacle, reported tracks on no obstacle per frame (the ground,
+    false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
+    (``track_splits``) (``switch_log``: frame, obstacle, old and new id, why the old one no longer
+    counts), rim features.
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
     """
@@ -399,6 +401,7 @@ def run_benchmark(
     ids_on: dict[int, set[int]] = {}  # obstacle -> every track id seen on it (due frames)
     rim_feats, rim_old = 0, 0
     n_obs = 0
+    n_off = n_gt = 0  # tracks on no obstacle, frames with ground truth
     for f in frames:
         c0 = time.process_time()
         t0 = time.perf_counter()
@@ -453,6 +456,9 @@ def run_benchmark(
                 if best is not None:
                     on.setdefault(best, set()).add(o.track_id)
                     alive_on[o.track_id].add(best)
+        # reported tracks none of whose views is on an obstacle (the ground, a false group)
+        n_off += sum(1 for obst in alive_on.values() if not obst)
+        n_gt += 1
         if ex is not None:
             ex.reported(f, alive_on)
         due_now = set()
@@ -529,6 +535,7 @@ def run_benchmark(
         "obstacles": per,
         "switch_log": switch_log,
         "observations_per_frame": n_obs / nf,
+        "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
         "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,

@@ -87,6 +87,8 @@ def test_ci_small_coverage_and_ids(ci_scene):
     assert per[1]["id_switches"] == 0 and per[2]["id_switches"] == 0
     assert res["coverage"] >= 0.8
     assert res["rim_features_per_frame"] > 0
+    # tracks on no obstacle are some of the reported ones (the pole and sphere tracks are not)
+    assert 0 <= res["off_obstacle_tracks_per_frame"] < res["observations_per_frame"]
     assert set(res["ms_per_frame"]) >= {"decode", "frontend", "detect", "track", "group", "associate"}
 
 
