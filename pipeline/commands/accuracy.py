@@ -47,7 +47,8 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         scene: Annotated[
-            list[str] | None, typer.Option("--scene", help="Only this scene (repeat); default: all.")
+            list[str] | None,
+            typer.Option("--scene", help="Only this scene of the chosen --set (repeat); default: all of it."),
         ] = None,
         scene_set: Annotated[
             str,
