@@ -199,7 +199,9 @@ class TrackerConfig(_Section):
         "max_missed (frames), extended_sectors (int, 0-8: a new piece of features surrounded in this "
         "many of 8 sectors by features moving with it is part of a large textured surface and starts no "
         "track; 0 turns the rule off), extended_frames (frames a tentative track may be judged so before "
-        "it is dropped).",
+        "it is dropped), split_frames (frames, 10: window over which step 3c compares members' motions), "
+        "split_min_px (px, 1.5; 0 turns the split by motion off), split_rel (0.1), split_step (3.0), "
+        "split_persist (frames, 3: a split must be found this many frames in a row).",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,

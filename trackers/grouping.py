@@ -194,13 +194,18 @@ class ObstacleGrouper:
             or extended_frames < 1
             or split_frames < 2
             or split_persist < 1
+            or not 0 <= split_min_px < float("inf")  # (also NaN)
+            or not 0 <= split_rel < float("inf")
+            or not 1 <= split_step < float("inf")
         ):
             raise ConfigError(
                 "ObstacleGrouper: expected link_px > 0, max_radius_px > 0, min_features >= 1, "
                 "confirm_frames >= 1, max_missed >= 0, 0 <= extended_sectors <= 8, extended_frames >= 1, "
-                "split_frames >= 2, split_persist >= 1; got "
+                "split_frames >= 2, split_persist >= 1, finite split_min_px >= 0 (0: step 3c off), "
+                "split_rel >= 0, split_step >= 1; got "
                 f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}, "
-                f"{extended_sectors}, {extended_frames}, {split_frames}, {split_persist}"
+                f"{extended_sectors}, {extended_frames}, {split_frames}, {split_persist}, {split_min_px}, "
+                f"{split_rel}, {split_step}"
             )
         self._ids = ids
         self.link_px = float(link_px)

@@ -5,7 +5,9 @@ direction), so the expected tracks follow from the construction."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from estimators.errors import ConfigError
 from tests.trackers.conftest import rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
 from trackers.grouping import ObstacleGrouper
@@ -100,3 +102,13 @@ def test_a_smooth_flow_field_does_not_split(model):
     gr, (all_ids,), held = simulate(model, [(pts, lambda x: 0.05 + 0.1 * (x - lo) / (hi - lo))], 30)
     for k in range(4, 30):
         assert all_ids in held[k], (k, held[k])
+
+
+@pytest.mark.parametrize("bad", [{"split_min_px": -1.0}, {"split_min_px": float("nan")},
+                                 {"split_rel": -0.1}, {"split_step": 0.5}])
+def test_bad_split_settings_are_config_errors(bad):
+    """A negative or NaN split_min_px used to switch step 3c off silently (review); now each bad
+    step 3c setting is a ConfigError naming what was expected."""
+    (key, value), = bad.items()
+    with pytest.raises(ConfigError, match=key):
+        ObstacleGrouper(iter(range(1, 10)), **bad)
