@@ -1621,13 +1621,11 @@ class ObstacleFusion:
         evidence ``vel_acc`` (a constant-velocity filter: P += q dt I between measurements,
         q = max_accel_mps2^2 accel_time_s, the moving filter's process noise; then the Kalman
         update with H = I). ``vel_moving`` is decided from it each frame (``_evidence_now``)."""
-        s = self.settings
-        acc = tr.vel_acc
-        if acc is None:
+        if tr.vel_acc is None:
             x, P = v, R
         else:
-            x0, P0, t0 = acc
-            P0 = P0 + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * (t_s - t0))
+            x0 = tr.vel_acc[0]
+            P0 = self._evidence_now([tr], t_s)[0][0]  # (grown to t_s)
             K = P0 @ np.linalg.inv(P0 + R)  # x = x0 + K (v - x0), P = (I - K) P0
             x = x0 + K @ (v - x0)
             P = P0 - K @ P0
@@ -1910,9 +1908,7 @@ class ObstacleFusion:
         position-velocity correlation."""
         kf = tr.kf
         if tr.vel_acc is not None:
-            v, P, t_acc = tr.vel_acc
-            s = self.settings
-            P = P + np.eye(3) * (s.max_accel_mps2**2 * s.accel_time_s * max(tr.t_kf - t_acc, 0.0))
+            v, P = tr.vel_acc[0], self._evidence_now([tr], tr.t_kf)[0][0]
         else:
             v, P = meas
         kf.x = kf.x.copy()
