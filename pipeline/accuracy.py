@@ -618,19 +618,23 @@ def _bearings_scenes(opts: AccuracyOptions, set_name: str) -> list:
         return preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
     from pipeline.sim.scene import load_scenario
 
-    names = SCENE_SETS[set_name][1 if opts.quick else 0]
-    if opts.quick:  # the tiny pipeline scene is too short for bearings mode: the first three
-        names = PIPELINE_SCENES_HELDOUT[:3]
+    # (with --quick the first three: the set's tiny pipeline scene is too short for bearings mode)
+    names = PIPELINE_SCENES_HELDOUT[:3] if opts.quick else SCENE_SETS[set_name][0]
     return [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
 
 
 def _pipeline_names(opts: AccuracyOptions, set_name: str) -> tuple[str, ...]:
     """Pipeline mode's scenes of one set: its --quick scenes or its scenes; with ``opts.scenes``
     those of the set's scenes and --quick scenes that are named there (possibly none)."""
-    full, quick = SCENE_SETS[set_name]
     if not opts.scenes:
-        return quick if opts.quick else full
-    return tuple(n for n in dict.fromkeys(full + quick) if n in opts.scenes)
+        return SCENE_SETS[set_name][1 if opts.quick else 0]
+    return tuple(n for n in _all_pipeline_names(set_name) if n in opts.scenes)
+
+
+def _all_pipeline_names(set_name: str) -> tuple[str, ...]:
+    """A set's scenes and --quick scenes, each once (the names --scene may pick in pipeline mode)."""
+    full, quick = SCENE_SETS[set_name]
+    return tuple(dict.fromkeys(full + quick))
 
 
 def _check_scenes(opts: AccuracyOptions, valid: dict[str, list[str]]) -> None:
@@ -684,16 +688,16 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         if opts.scenes:
             scenes_of = {k: [scn for scn in v if scn.name in opts.scenes] for k, v in scenes_of.items()}
     else:
-        valid = {k: list(dict.fromkeys(SCENE_SETS[k][0] + SCENE_SETS[k][1])) for k in set_names}
+        valid = {k: list(_all_pipeline_names(k)) for k in set_names}
         scenes_of = {k: _pipeline_names(opts, k) for k in set_names}
     _check_scenes(opts, valid)
-    rng = np.random.default_rng(opts.seed)
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
         if opts.scenes and not scenes_of[set_name]:
             continue  # --scene named none of this set's scenes
-        if opts.mode == "bearings":
+        if opts.mode == "bearings":  # (each set's noise from the seed: scored on its own, as alone)
+            rng = np.random.default_rng(opts.seed)
             samples, per_scene = _run_bearings_set(opts, scenes_of[set_name], rng, progress)
         else:
             samples, per_scene = _run_pipeline(opts, out_dir, progress, names=scenes_of[set_name])
@@ -829,7 +833,7 @@ SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
 
 
 def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
-                  names: tuple[str, ...] | None = None) -> tuple[list[Sample], dict]:
+                  names: tuple[str, ...]) -> tuple[list[Sample], dict]:
     """Render (or reuse) each scene, run ``pipeline.run`` (front end + this fusion), score with
     ``pipeline.evaluate.score_reports`` (truth along each report's bearing), and build Samples.
 
@@ -839,7 +843,7 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     The truth is the evaluator's: the surface hit along the report's bearing, not the centre.
     Each run also keeps the front end's observations (``runs/<name>/observations.pkl``); with
     ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end.
-    names: the scenes (preset names); default PIPELINE_SCENES (PIPELINE_SCENES_QUICK with --quick).
+    names: the scenes (preset names).
     ``opts.scenes`` is applied by ``run_accuracy`` (``_pipeline_names``), not here."""
     import tempfile
 
@@ -851,8 +855,6 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     from pipeline.sim.writer import simulate
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
-    if names is None:
-        names = PIPELINE_SCENES_QUICK if opts.quick else PIPELINE_SCENES
     samples: list[Sample] = []
     per_scene: dict = {}
     for name in names:
