@@ -142,10 +142,14 @@ class StageTimings:
             st = self.stages[stage] = RunningStats(self.reservoir, seed=len(self.stages))
         st.add(seconds)
 
-    def add_all(self, timings: Mapping[str, float] | None) -> None:
+    def add_all(self, timings: Mapping[str, float] | None) -> float:
+        """Add each finite stage time of timings (stage -> s); returns their sum (s)."""
+        total = 0.0
         for k, v in (timings or {}).items():
             if v is not None and math.isfinite(float(v)):
                 self.add(k, float(v))
+                total += float(v)
+        return total
 
     def summary(self) -> dict[str, dict[str, float | int]]:
         return {k: v.summary() for k, v in self.stages.items()}
@@ -428,13 +432,8 @@ def run(
                 # fuse), "unattributed" (time inside FrontEnd.process / ObstacleFusion.step that their own
                 # stage timings do not cover), the loop's decode, write, annotate, and "loop" (the rest:
                 # statistics, progress bar, pose look-up)
-                staged = 0.0
-                for st_t in (getattr(frontend, "timings", None), getattr(fusion, "timings", None)):
-                    if st_t:
-                        for k, v in st_t.items():
-                            if v is not None and v == v:  # not NaN
-                                add(k, v)
-                                staged += v
+                staged = (timings.add_all(getattr(frontend, "timings", None))
+                          + timings.add_all(getattr(fusion, "timings", None)))
                 add("decode", t1 - t0)
                 add("write", t3 - t2)
                 add("unattributed", max(0.0, (t2 - t1p) - staged))
