@@ -129,8 +129,9 @@ def stereo_klt(
     follow_levels: int | None = None,
 ) -> StereoKLT:
     """Find camera a's features in camera b's image by KLT, checked by the epipolar constraint and
-    (where needed) forward-backward. One forward KLT call for all rows, each starting from its own
-    guess (a match followed over frames) or from its infinite-depth projection.
+    (where needed) forward-backward. One forward KLT call per pyramid depth (rows with their own
+    guess, a match followed over frames, at ``follow_levels``; the others, from their
+    infinite-depth projection, at ``levels``).
 
     Args:
         grey_a, grey_b: (H, W) uint8 frames of cameras a and b (same time).

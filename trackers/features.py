@@ -334,12 +334,12 @@ class FeatureTracker:
     @property
     def frame_box(self) -> tuple[int, int, int, int]:
         """(x0, y0, x1, y1) px, the part of a frame the tracker reads: KLT's lens crop ``roi`` and
-        ORB's detection box around it (the whole frame for other detectors). Pixels outside it are
-        never read (the front end leaves them black when it shrinks a wide frame)."""
+        ORB's detection box around it (``_det_box``, which contains ``roi``; the whole frame for
+        other detectors). Pixels outside it are never read (the front end leaves them black when
+        it shrinks a wide frame)."""
         if not isinstance(self.detector, OrbDetector):
             return (0, 0, self.shape_hw[1], self.shape_hw[0])
-        r, d = self.roi, self._det_box
-        return (min(r[0], d[0]), min(r[1], d[1]), max(r[2], d[2]), max(r[3], d[3]))
+        return self._det_box
 
     def features(self) -> Features:
         """The live features now."""
@@ -679,7 +679,7 @@ class FeatureTracker:
         # levels see real pixels past the rim, not a reflected crop border) and describes only the
         # keypoints that can be kept; other detectors get the whole frame
         orb = isinstance(self.detector, OrbDetector)
-        x0, y0, x1, y1 = self._det_box if orb else (0, 0, self.shape_hw[1], self.shape_hw[0])
+        x0, y0, x1, y1 = self.frame_box
         m = self.mask[y0:y1, x0:x1].copy()
         r = max(1, int(round(self.min_distance_px)))
         for u, v in self.uv:  # keep new keypoints away from live features
