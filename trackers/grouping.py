@@ -68,6 +68,14 @@ def _normalise(v: np.ndarray) -> np.ndarray:
     return v / np.where(n > 0, n, 1.0)
 
 
+def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
+    normalised (ref the z axis, or x near it), e2 = rep x e1."""
+    ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    e1 = _normalise(np.cross(ref, rep))
+    return e1, np.cross(rep, e1)
+
+
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit vectors a (..., 3) and b (..., 3), stable at 0 and pi:
     ``atan2(|a x b|, a . b)``."""
@@ -687,10 +695,7 @@ class ObstacleGrouper:
                 b_then = np.einsum("nij,nj->ni", Rs[bk], b_then)
             dt = np.maximum(t_s - t_then[rows], 1e-9)
             f = (ft.b_C[rows] - b_then) / dt[:, None]  # window flow (rad/s)
-            rp = rep[:T]
-            ref = np.where(np.abs(rp[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-            e1 = _normalise(np.cross(ref, rp))
-            e2 = np.cross(rp, e1)
+            e1, e2 = _tangent_basis(rep[:T])
             xy = np.stack([np.einsum("ij,ij->i", f, e1[o]), np.einsum("ij,ij->i", f, e2[o])], 1)
             fn = np.hypot(xy[:, 0], xy[:, 1])
             # tracks whose members' window flows all lie within half the smallest link tolerance
@@ -995,9 +1000,7 @@ class ObstacleGrouper:
         ok = owner[i] != tidx[ti]
         ti, i = ti[ok], i[ok]
         # tangent basis (e1, e2) at each rep; position (x, y) and sector of each neighbour
-        ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-        e1 = _normalise(np.cross(ref, rep))
-        e2 = np.cross(rep, e1)
+        e1, e2 = _tangent_basis(rep)
         d = b[i] - rep[ti]
         x = np.einsum("ij,ij->i", d, e1[ti])
         y = np.einsum("ij,ij->i", d, e2[ti])
