@@ -191,6 +191,8 @@ class TrackReport:
     the body origin at this frame's time; ``None`` means unobservable / not available, and
     ``unobservable_reason`` then says why. ``nis`` / ``innovation`` are the last fused update's, for
     diagnostics; ``gated`` counts measurements rejected by the chi-square gate so far.
+    ``speed_sigma_mps`` is the 1-sigma of ``speed_mps`` (first order along the reported velocity,
+    sqrt(u^T P_vv u) with u = v / |v|, m/s), null when no velocity is reported.
     """
 
     id: int
@@ -204,6 +206,7 @@ class TrackReport:
     position_body_m: np.ndarray | None = None
     velocity_world_mps: np.ndarray | None = None
     speed_mps: float | None = None
+    speed_sigma_mps: float | None = None
     ttc_s: float | None = None
     source: str = ""
     label: str = "orb"
@@ -266,6 +269,7 @@ def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True)
             "position_body_m": opt_list(r.position_body_m),
             "velocity_world_mps": opt_list(r.velocity_world_mps),
             "speed_mps": v if (v := r.speed_mps) is None or type(v) is F else F(v),
+            "speed_sigma_mps": v if (v := r.speed_sigma_mps) is None or type(v) is F else F(v),
             "ttc_s": v if (v := r.ttc_s) is None or type(v) is F else F(v),
             "source": r.source,
             "label": r.label,
