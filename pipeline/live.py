@@ -55,6 +55,8 @@ __all__ = [
     "PAIR_WAIT_SLACK_S",
     "SKIP_AFTER_INTERVALS",
     "SKIPPED",
+    "DECODE_LEAD",
+    "DECODE_LEAD_SLACK_S",
     "LiveFrame",
     "frame_time",
     "Grabber",
@@ -80,6 +82,12 @@ _WAIT_POLL_S = 0.05
 #: Retrieve is skipped for a frame the run loop will not take when the loop's expected ready time is
 #: more than this many frame intervals away (1 = the next frame arrives first; the 0.1 is arrival jitter).
 SKIP_AFTER_INTERVALS = 1.1
+
+#: A paced replay starts decoding a frame this many times its longest recent decode time before the
+#: frame is due, plus :data:`DECODE_LEAD_SLACK_S` (s); see :class:`SourceReader`. The margin covers a
+#: decode slowed by the pipeline's thread on the same core (the grabber runs at ``live.grabber_nice``).
+DECODE_LEAD = 1.5
+DECODE_LEAD_SLACK_S = 0.002
 
 #: What a reader's ``read()`` returns as the image of a frame it grabbed but did not decode (see
 #: :attr:`CaptureReader.wanted`): counted as grabbed and stale, never published.
@@ -186,8 +194,15 @@ class SourceReader:
     that falls behind its schedule shows as latency, not as a later arrival. None otherwise.
 
     ``decode_s``: seconds the last frame's decode took (the inner source's next frame, without the
-    pacing wait). A replay decodes frame k while it waits for frame k's due time, like a camera
-    whose driver hands over finished frames; the decode's CPU time is still taken from the core.
+    pacing wait). A replay hands over finished frames at their due time, like a camera whose driver
+    does a frame's work during its readout: frame k+1 is decoded shortly before it is due (from
+    its predicted due time, the last interval after frame k's, minus ``DECODE_LEAD`` times the
+    longest of the last decode times and ``DECODE_LEAD_SLACK_S``), not as soon as frame k is
+    handed over. The decode's CPU time is still taken from the core, at the time a camera's
+    driver would take it; decoding right after frame k was handed over (as before) took the core
+    from the pipeline just when it started on frame k (at 1080p, 30 Hz, one core: the frame waited
+    2-8 ms to be taken and its processing lost 2-10 ms to the next frame's decode). A decode that
+    finishes late still shows as lag (the arrival is the due time).
     """
 
     ends = True
@@ -200,27 +215,42 @@ class SourceReader:
         self.decode_s: float | None = None
         self.start_s: float | None = None  # the schedule's start (clock of the PacedSource)
         self._t0: float | None = None
+        self._due: float | None = None  # the last frame's due time (clock of the PacedSource)
+        self._interval: float | None = None  # the last interval between due times (s)
+        self._decodes: deque[float] = deque(maxlen=8)  # the last decode times (s, pacing clock)
 
     def set_start(self, start_s: float) -> None:
         """Start the replay's schedule at ``start_s`` (s, the PacedSource's clock, e.g. monotonic)."""
         self.start_s = float(start_s)
 
     def read(self) -> tuple[np.ndarray | None, float | None]:
+        p = self._paced
+        if p is not None and self._interval is not None and self._decodes:
+            # decode just in time: start at the predicted due time (last due + last interval) minus
+            # the decode's lead, never before now (the previous frame was handed over already)
+            lead = DECODE_LEAD * max(self._decodes) + DECODE_LEAD_SLACK_S
+            wait = self._due + self._interval - lead - p.clock()
+            if wait > 0:
+                p.sleep(wait)
         t0 = time.perf_counter()
+        c0 = p.clock() if p is not None else 0.0
         f = next(self._it, None)
         self.decode_s = time.perf_counter() - t0 if f is not None else None
-        p = self._paced
         if p is None:
             self.arrival_s = getattr(self.source, "last_due_s", None)
             return (None, None) if f is None else (f.image, f.t_s)
         if f is None:
             p.error = p.inner.error
             return None, None
+        self._decodes.append(p.clock() - c0)  # the decode on the pacing clock
         if self.start_s is None:
             self.start_s = p.clock()
         if self._t0 is None:
             self._t0 = f.t_s
         due = self.start_s + (f.t_s - self._t0) / p.speed  # due = start + (t_k - t_0) / speed
+        if self._due is not None:
+            self._interval = due - self._due
+        self._due = due
         wait = due - p.clock()
         if wait > 0:
             p.sleep(wait)

@@ -626,3 +626,43 @@ def test_latency_log_counts_a_garbage_collection_in_the_frame_it_stopped(tmp_pat
     gc_s = [float(row.split(",")[9]) for row in log.read_text().splitlines()[1:]]
     assert gc_s[1] > 0 and gc_s[1] >= gc_s[0]
     assert r.summary["latency_parts"]["gc"]["max_s"] == pytest.approx(max(gc_s), abs=1e-6)
+
+
+def test_a_paced_replay_decodes_each_frame_just_before_it_is_due_not_right_after_the_last():
+    """Frames every 0.1 s, each decode 0.01 s (on a fake clock). From the third frame on (two due times
+    give the interval, one decode its time) frame k's decode starts at due_k - (DECODE_LEAD * 0.01 +
+    DECODE_LEAD_SLACK_S) = due_k - 0.017 s, not at due_(k-1) when frame k-1 was handed over; every
+    frame is still handed over at its due time (arrival = due)."""
+    from pipeline.live import DECODE_LEAD, DECODE_LEAD_SLACK_S, SourceReader
+    from pipeline.sources import Frame, PacedSource, Source
+
+    now = [100.0]
+    starts: list[float] = []
+
+    class Decoding(Source):
+        camera = "cam0"
+
+        def __iter__(self):
+            for k in range(5):
+                starts.append(now[0])
+                now[0] += 0.01  # the decode
+                yield Frame(k, 0.1 * k, "cam0", np.zeros((2, 2), np.uint8))
+
+    def sleep(dt):
+        now[0] += dt
+
+    rd = SourceReader(PacedSource(Decoding(), clock=lambda: now[0], sleep=sleep))
+    rd.set_start(100.05)  # the schedule starts 0.05 s after the clock's now
+    arrivals = []
+    while True:
+        img, _t = rd.read()
+        if img is None:
+            break
+        arrivals.append(rd.arrival_s)
+        assert now[0] == pytest.approx(rd.arrival_s)  # handed over at its due time, not later
+    due = [100.05 + 0.1 * k for k in range(5)]
+    assert arrivals == pytest.approx(due)
+    lead = DECODE_LEAD * 0.01 + DECODE_LEAD_SLACK_S
+    assert lead == pytest.approx(0.017)
+    assert starts[:2] == pytest.approx([100.0, 100.05])  # no interval known yet: at once
+    assert starts[2:] == pytest.approx([d - 0.017 for d in due[2:]])
