@@ -375,3 +375,73 @@ def test_followed_stereo_klt_on_fewer_levels_lands_where_the_full_search_does():
     assert np.median(np.linalg.norm(few.uv_b - expected[few.idx], axis=1)) < 0.3
     common, i, j = np.intersect1d(few.idx, full.idx, return_indices=True)
     np.testing.assert_allclose(few.uv_b[i], full.uv_b[j], atol=0.05)
+
+
+def test_track_grouped_only_by_the_second_camera_gets_a_reference_view_on_its_own_points(stereo_scene):
+    """With ``association.reverse_views`` and the reference camera's grouping switched off (its
+    features are tracked, none grouped: as when an obstacle's reference features are ungrouped or
+    in a track on another obstacle), the second camera's confirmed tracks still get a cam0 view
+    (``_derive_views``, the other way round). Expected from the renderer and the rig: the ray
+    cast along each shared id's cam1 bearing gives the physical point; its direction from cam0's
+    centre is where the cam0 bearing of that id must point (median within 1 px of angle), and
+    both views lie on the same object."""
+    from estimators.se3 import Pose, quat_to_rot
+    from pipeline.sim import World, load_scenario, raycast
+    from trackers.benchmark import open_scene
+    from trackers.frontend import FrontEnd
+
+    rig, caps, stamps, gt, specs = open_scene(stereo_scene)
+    world = World(load_scenario(stereo_scene / "scene.yaml"))
+    fe = FrontEnd(rig, association={"reverse_views": True})
+    fe.groupers["cam0"].update = lambda *a, **k: ([], [])  # cam0 groups nothing
+    c0, c1 = rig["cam0"], rig["cam1"]
+    px_rad = c0.model.max_angle_rad / c0.model.image_circle()[2]
+    two_view, err_px, same = 0, [], []
+    for f in sorted(stamps["cam0"]):
+        obs = fe.process({n: caps[n].read()[1] for n in ("cam0", "cam1")}, f, stamps["cam0"][f])
+        if f not in gt:
+            continue
+        v = gt[f]["T_W_B"]
+        T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
+        t_s = stamps["cam0"][f]
+        for o in obs:
+            views = {w.camera: w for w in o.views}
+            if len(views) < 2:
+                continue
+            two_view += 1
+            w0, w1 = views["cam0"], views["cam1"]
+            row1 = {int(i): k for k, i in enumerate(w1.feature_ids)}
+            ks = [(k0, row1[int(i)]) for k0, i in enumerate(w0.feature_ids) if int(i) in row1]
+            assert len(ks) >= 3  # the view is made of cam1's members found in cam0's image
+            b1_W = T_W_B.rotate((c1.T_C_B.R.T @ w1.feature_b_C[[k1 for _, k1 in ks]].T).T)
+            o1_W = np.repeat(T_W_B.apply(c1.centre_B)[None], len(ks), 0)
+            depth, obj = raycast(world, t_s, o1_W, b1_W)
+            ok = np.isfinite(depth)
+            p_W = o1_W[ok] + depth[ok, None] * b1_W[ok]
+            e_C0 = c0.T_C_B.apply(T_W_B.inverse().apply(p_W))
+            e_C0 /= np.linalg.norm(e_C0, axis=1, keepdims=True)
+            b0 = w0.feature_b_C[[k0 for k0, _ in ks]][ok]
+            err_px.extend(np.arccos(np.clip(np.sum(e_C0 * b0, axis=1), -1.0, 1.0)) / px_rad)
+            # the two representative rays hit the same object (or both none)
+            hit = []
+            for cam, w in (("cam0", w0), ("cam1", w1)):
+                c = rig[cam]
+                o_W, d_W = T_W_B.apply(c.centre_B)[None], T_W_B.rotate(c.T_C_B.R.T @ w.b_C)[None]
+                hit.append(int(raycast(world, t_s, o_W, d_W)[1][0]))
+            same.append(hit[0] == hit[1])
+    assert two_view >= 20, f"only {two_view} two-view reports with cam0's grouping off"
+    assert len(err_px) >= 60
+    assert np.median(err_px) < 1.0
+    assert np.mean(same) >= 0.9
+
+
+def test_reverse_views_is_a_checked_opt_in(stereo):
+    """Off by default (each camera pair searched one way, as before); a non-boolean is refused."""
+    from estimators.errors import ConfigError
+    from trackers.frontend import FrontEnd
+
+    rig = stereo[0]
+    assert FrontEnd(rig).reverse_views is False
+    assert FrontEnd(rig, association={"reverse_views": True}).reverse_views is True
+    with pytest.raises(ConfigError, match="reverse_views"):
+        FrontEnd(rig, association={"reverse_views": "yes"})
