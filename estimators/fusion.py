@@ -2013,8 +2013,9 @@ class ObstacleFusion:
         a track whose filter velocity is assumed (static hypothesis, or the prior) the velocity
         evidence's when that rejects zero (``_evidence_now``) and is small enough; the time to
         closest approach t* = -r.w / |w|^2 (w = v_W - v_drone_W, v_W the reported velocity, else the
-        filter's assumed one; none for a measured velocity too uncertain to report) when closing.
-        Without one: the first view's
+        filter's assumed one; none for a measured velocity too uncertain to report) when closing;
+        with a reported velocity its speed's sigma (``_speed_sigma``, from the covariance of the
+        velocity reported: the filter's P_vv or the evidence's). Without one: the first view's
         bearing turned into B (the camera offset is unknown without range) and the bounds.
         """
         s = self.settings
@@ -2066,13 +2067,13 @@ class ObstacleFusion:
             # with that grown P) and under the same sigma limit; otherwise a static-hypothesis
             # track's velocity is its filter's (the hypothesis its range and bounds rest on)
             ev = [j for j, tr in enumerate(trs) if tr.vel_acc is not None and not vel_ok.get(j, False)]
-            v_ev: dict[int, np.ndarray] = {}
+            v_ev: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # (velocity, its covariance)
             if ev:
                 Pe, mov = self._evidence_now([trs[j] for j in ev], t_now)
                 e_max = np.linalg.eigvalsh(Pe).max(axis=1).tolist()
-                for j, e, m in zip(ev, e_max, mov, strict=True):
+                for m_, (j, e, m) in enumerate(zip(ev, e_max, mov, strict=True)):
                     if m and math.sqrt(max(e, 0.0)) <= s.velocity_report_max_sigma_mps:
-                        v_ev[j] = trs[j].vel_acc[0].copy()
+                        v_ev[j] = (trs[j].vel_acc[0].copy(), Pe[m_])
             rng_l = rng.tolist()
             for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
@@ -2084,13 +2085,15 @@ class ObstacleFusion:
                 # report has no time to closest approach either
                 rwj, wwj = rw[j], ww[j]
                 if j in v_ev:
-                    v_W = v_ev[j]
+                    v_W, P_v = v_ev[j]
                     w_j = v_W - fc.v_drone_W
                     rwj, wwj = float(_tdot(r_W[j], w_j)), float(_tdot(w_j, w_j))
-                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
+                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)),
+                              speed_sigma_mps=_speed_sigma(v_W, P_v))
                 elif vel_ok.get(j, False):
                     v_W = X[j, 3:].copy()
-                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)))
+                    kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)),
+                              speed_sigma_mps=_speed_sigma(v_W, trs[j].kf.P[3:, 3:]))
                 elif tr.moving and not tr.vel_assumed:
                     wwj = 0.0
                 if rwj < 0 and wwj > 1e-12:
@@ -2236,6 +2239,17 @@ def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
     bounds (CONVENTIONS.md)."""
     return _SOURCE_NAMES[(mono, stereo, bounds)]
 
+
+
+def _speed_sigma(v_W: np.ndarray, P_vv: np.ndarray) -> float:
+    """1-sigma (m/s) of the speed |v| of a velocity v_W (3,) m/s with covariance P_vv (3, 3), to
+    first order: d|v| = u^T dv with u = v / |v|, so sigma_s = sqrt(u^T P_vv u); at |v| ~ 0 (no
+    direction) the largest axis sigma, sqrt(lambda_max(P_vv))."""
+    n = math.sqrt(_tdot(v_W, v_W))
+    if n < 1e-9:
+        return math.sqrt(max(float(np.linalg.eigvalsh(P_vv)[-1]), 0.0))
+    u = v_W / n
+    return math.sqrt(max(float(u @ P_vv @ u), 0.0))
 
 
 def _rotate_rows(X: np.ndarray, cam: np.ndarray, R_W_C) -> np.ndarray:
