@@ -269,13 +269,13 @@ def test_a_full_tracker_detects_half_as_often(model):
     grey = SphereScene(model).render()
 
     def detect_frames(max_features: int) -> list[int]:
-        ft = make_tracker(model, max_features=max_features, redetect_every=4)
+        ft = make_tracker(model, max_features=max_features, redetect_every=4, detect_bands=1)
         frames: list[int] = []
         orig = ft._detect
 
-        def counting(image, t_s):
+        def counting(image, t_s, band=-1):
             frames.append(round(t_s * 30))
-            return orig(image, t_s)
+            return orig(image, t_s, band=band)
 
         ft._detect = counting
         for k in range(20):
@@ -284,6 +284,91 @@ def test_a_full_tracker_detects_half_as_often(model):
 
     assert detect_frames(40) == [0, 8, 16]  # full after the first detection
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
+
+
+def test_a_full_tracker_describes_only_reacquisition_candidates():
+    """A full tracker (no room for new features) keeps no new keypoint, so a detection asks ORB for
+    descriptors of the re-acquisition candidates only: keypoints in the 3x3 cells (of the 15 px
+    re-acquisition radius) around a lost feature's predicted position, i.e. within 2 sqrt(2) 15 px
+    of one (the 10 leftmost features were lost, standing still: predicted where they were). It
+    described as many again, anywhere, before. The lost features come back with their ids."""
+    from trackers.detectors.orb import OrbDetector
+
+    model = equidistant(320, 240)
+    det = OrbDetector(max_features=400)
+    described: list[np.ndarray] = []
+    orig = det._orb.compute
+
+    class Spy:
+        def __getattr__(self, name):
+            return getattr(orig.__self__, name)
+
+        def compute(self, image, kps):
+            described.append(np.array([k.pt for k in kps], float).reshape(-1, 2))
+            return orig(image, kps)
+
+    det._orb = Spy()
+    cam = Camera("cam0", model, forward_T_C_B())
+    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_every=1)
+    grey = SphereScene(model).render()
+    ft.track(grey, 0, 0.0)
+    left = np.argsort(ft.uv[:, 0])[:10]
+    lost_uv, lost_ids = ft.uv[left].copy(), set(ft.ids[left].tolist())
+    ft._drop(left, remember=True)
+    ft.max_features = ft.n_live  # full: 150 of 150
+    n_calls = len(described)
+    for k in (1, 2):  # a full tracker detects every 2 redetect_every frames: frame 2
+        feats, _ = ft.track(grey, k, k / 30)
+    assert len(described) == n_calls + 1
+    x0, y0 = ft.frame_box[:2]
+    uv = described[-1] + [x0, y0]  # ORB's crop px -> frame px
+    d = np.sqrt(((uv[:, None, :] - lost_uv[None, :, :]) ** 2).sum(-1)).min(axis=1)
+    assert len(uv) >= 5 and np.all(d <= 2 * np.sqrt(2) * 15.0), np.sort(d)[-5:]
+    assert len(lost_ids & set(feats.ids.tolist())) >= 5
+
+
+def test_detect_bands_spread_a_full_trackers_detection(model):
+    """detect_bands=4, redetect_every=4: a full tracker's detection (period 8 frames) is made one of
+    4 bands every 2 frames, in turn, the 4 bands of a round tiling the frame's rows; ORB gets the
+    band's rows +- 32 px (less than the whole box) and keeps keypoints in the band's own rows. The
+    first frame (nothing live: coverage thin) detects the whole lens at once."""
+    from trackers.detectors.orb import OrbDetector
+
+    grey = SphereScene(model).render()
+    ft = make_tracker(model, max_features=60, redetect_every=4, detect_bands=4)
+    calls: list[tuple[int, int, tuple[int, int] | None]] = []
+    orb_calls: list[tuple[tuple[int, int] | None, int, int, np.ndarray]] = []
+    orig, orig_orb = ft._detect, OrbDetector.detect
+
+    def counting(image, t_s, band=-1):
+        calls.append((round(t_s * 30), band, ft._bands[band] if band >= 0 else None))
+        return orig(image, t_s, band=band)
+
+    def orb_spy(image, mask=None, **kw):
+        out = orig_orb(ft.detector, image, mask, **kw)
+        y0 = kw["origin"][1]
+        orb_calls.append((calls[-1][2], image.shape[0], y0, out.keypoints[:, 1] + y0))
+        return out
+
+    ft._detect = counting
+    ft.detector.detect = orb_spy
+    for k in range(17):
+        if k in (3, 9):  # something lost: the bands' detections run ORB (to re-acquire)
+            ft._drop(np.arange(0, ft.n_live, 3), remember=True)
+            ft.max_features = ft.n_live
+        ft.track(grey, k, k / 30)
+    assert calls[0][:2] == (0, -1)
+    assert [c[0] for c in calls[1:]] == [2, 4, 6, 8, 10, 12, 14, 16]
+    h, box_h = model.height, ft.frame_box[3] - ft.frame_box[1]
+    for r in (calls[1:5], calls[5:9]):
+        rows = sorted(c[2] for c in r)
+        assert rows[0][0] == 0 and rows[-1][1] == h
+        assert all(a[1] == b[0] for a, b in zip(rows[:-1], rows[1:], strict=True))
+    assert orb_calls[0][0] is None and orb_calls[0][1] == box_h
+    assert len(orb_calls) >= 4
+    for (ya, yb), crop_h, crop_y0, v in orb_calls[1:]:
+        assert crop_y0 == max(ft.frame_box[1], ya - 32) and crop_h < box_h
+        assert np.all((np.rint(v) >= ya) & (np.rint(v) < yb))
 
 
 @pytest.mark.parametrize("opts", [{}, {"fb_levels": 0, "fb_retry": True}], ids=["default", "fb0_retry"])
