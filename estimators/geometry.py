@@ -183,7 +183,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out = np.empty(a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape))
     np.subtract(a1 * b2, a2 * b1, out=out[..., 0])
     np.subtract(a2 * b0, a0 * b2, out=out[..., 1])
     np.subtract(a0 * b1, a1 * b0, out=out[..., 2])
@@ -666,8 +666,12 @@ def moving_obstacle_bounds_batch(c_a, b_a, c_b, b_b, D, origin):
     reg_ok = ~flat | (s0 >= 0)
     reg_lo = np.where(flat, -inf, np.where(k > 0, -s0 / ks, -inf))
     reg_hi = np.where(flat, inf, np.where(k > 0, inf, -s0 / ks))
-    ln_lo, ln_hi, ln_ok = _within_batch(w0 - s0[:, None] * b_a, b_b - k[:, None] * b_a, Df, tol)
-    pt_lo, pt_hi, pt_ok = _within_batch(w0, b_b, Df, tol)
+    # both constraints in one _within_batch call over 2N rows (row-wise arithmetic: the same values)
+    lo_w, hi_w, ok_w = _within_batch(np.concatenate((w0 - s0[:, None] * b_a, w0)),
+                                     np.concatenate((b_b - k[:, None] * b_a, b_b)),
+                                     np.concatenate((Df, Df)), np.concatenate((tol, tol)))
+    ln_lo, ln_hi, ln_ok = lo_w[:n], hi_w[:n], ok_w[:n]
+    pt_lo, pt_hi, pt_ok = lo_w[n:], hi_w[n:], ok_w[n:]
 
     def cut(lo, hi, ok, a, b):  # _intersect, row-wise
         lo2, hi2 = np.maximum(lo, a), np.minimum(hi, b)
