@@ -234,31 +234,62 @@ def test_largest_depth_cluster_keeps_each_groups_biggest_cluster():
     assert out.tolist() == [False, True, False, True, True, False, True, False, True, False]
 
 
-@pytest.mark.parametrize("n_box, n_wall, widened", [(6, 5, True), (8, 3, False)])
-def test_member_spread_widens_sigma_only_when_many_members_lie_at_another_depth(n_box, n_wall, widened):
-    # n_box corners of a box face at 12-13 m and n_wall features of a wall at ~30 m in one track.
-    # With the whole track as the neighbourhood (share 1) and q = 0.67, the spread is the deviation
-    # of sorted element floor(0.67 (n - 1)): a wall feature for 6 + 5 (element 6 of 11), a box one
-    # for 8 + 3 (a minority of outliers does not count).
+def _spread_case(ranges, cos_to_report, r_rep, var0, sigma_i=0.1):
+    """_member_spread of one static track whose member points have ranges (n,) m and directions
+    at the given cosines to the reported direction (each turned about z), reported range r_rep,
+    variance so far var0 m^2, every member's range sigma sigma_i m."""
+    from estimators.fusion import FusionSettings, ObstacleFusion, _Track
+
+    fus = ObstacleFusion.__new__(ObstacleFusion)
+    fus.settings = FusionSettings()
+    tr = _Track(4, "box")
+    fus._gidx = {4: 0}
+    ang = np.arccos(np.asarray(cos_to_report, dtype=float))
+    dirs = np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], axis=1)
+    n = len(ranges)
+    fus._members_ls = (np.zeros(n, dtype=np.int64), np.asarray(ranges, dtype=float), dirs,
+                       np.full(n, sigma_i))
+    fus._members_st = None
+    return float(fus._member_spread([tr], np.array([r_rep]), np.array([[1.0, 0.0, 0.0]]),
+                                    np.array([var0]))[0])
+
+
+def test_member_disagreement_closed_form():
+    # seven members, the reported point at 10 m (variance 0.01 m^2), every member sigma 0.1 m; the
+    # six nearest the reported direction (cosines 1 ... 0.995; the 0.9 one is left out):
+    # 10, 10.2, 9.9, 20, 20.5, 21 -> median (10.2 + 20) / 2 = 15.1, d = 5.1,
+    # extra^2 = 5.1^2 - 0.01 - (pi / 2) 0.1^2 / 6 = 26.01 - 0.01 - 0.0026180 = 25.9973820
+    ranges = [10.0, 10.2, 9.9, 20.0, 20.5, 21.0, 10.1]
+    cos = [1.0, 0.999, 0.998, 0.997, 0.996, 0.995, 0.9]
+    assert _spread_case(ranges, cos, 10.0, 0.01) == pytest.approx(math.sqrt(25.9973820), rel=1e-6)
+    # members that agree: 10, 10.2, 9.9, 10.1, 10.05, 9.95 -> median 10.025, d^2 = 0.000625, below
+    # the noise 0.01 + 0.0026: nothing added
+    assert _spread_case([10.0, 10.2, 9.9, 10.1, 10.05, 9.95], cos[:6], 10.0, 0.01) == 0.0
+    # the far members beyond the six nearest do not count: 10, 10.2, 9.9, 10.1, 10.05, 9.95 nearest,
+    # 30 and 31 farther
+    assert _spread_case([10.0, 10.2, 9.9, 10.1, 10.05, 9.95, 30.0, 31.0], cos[:6] + [0.9, 0.8],
+                        10.0, 0.01) == 0.0
+
+
+@pytest.mark.parametrize("n_box, n_wall", [(6, 5), (8, 3)])
+def test_members_at_another_depth_away_from_the_reported_point_do_not_widen_it(n_box, n_wall):
+    # n_box corners of a box face at 12-13 m and n_wall features of a wall at ~30 m in one track
+    # (the wall ~14 degrees away from the box as seen at the end). The report is a box corner and
+    # its nearest members are box corners: they agree on its depth, so its sigma is the one
+    # without the disagreement term (member_spread_weight 0).
     from estimators.fusion import FusionSettings
 
     box = np.array([[12.0, 4.0, 0.4], [12.3, 4.2, -0.3], [12.6, 3.7, 0.1], [12.9, 4.4, 0.3],
                     [13.2, 3.9, -0.2], [12.4, 3.8, 0.5], [12.8, 4.1, -0.4], [12.2, 4.3, 0.0]])[:n_box]
     wall = np.array([[30.0, 9.0, 0.5], [30.0, 10.0, -0.5], [30.0, 11.0, 0.2], [30.0, 9.5, -1.0],
                      [30.0, 10.5, 1.0]])[:n_wall]
-    s = FusionSettings(feature_inner_half=False, member_spread_share=1.0)
-    r_off, T_W_B = _features_run(FusionSettings(feature_inner_half=False, member_spread_weight=0.0),
-                                 np.vstack([box, wall]), np.array([11.0, 4.05, 0.05]))
-    r, _ = _features_run(s, np.vstack([box, wall]), np.array([11.0, 4.05, 0.05]))
+    r_off, _ = _features_run(FusionSettings(feature_inner_half=False, member_spread_weight=0.0),
+                             np.vstack([box, wall]), np.array([11.0, 4.05, 0.05]))
+    r, _ = _features_run(FusionSettings(feature_inner_half=False), np.vstack([box, wall]),
+                         np.array([11.0, 4.05, 0.05]))
     assert r.range_m == pytest.approx(r_off.range_m)  # the same point: the box's
     assert r.range_m < 14.0
-    if widened:  # extra = w max(1.4826 d - t r, 0), d = min(|r_wall - r|, r) (wall ranges from truth)
-        d = min(float(np.min(np.linalg.norm(wall - T_W_B.t, axis=1))) - r.range_m, r.range_m)
-        lo = s.member_spread_weight * (1.4826 * d - s.member_spread_tol_frac * r.range_m)
-        assert r.range_sigma_m >= 0.9 * lo
-        assert r.range_sigma_m > 10 * r_off.range_sigma_m
-    else:
-        assert r.range_sigma_m == pytest.approx(r_off.range_sigma_m, rel=0.05)
+    assert r.range_sigma_m == pytest.approx(r_off.range_sigma_m, rel=0.05)
 
 
 def test_stereo_velocity_from_the_shared_features_own_displacements():
