@@ -147,7 +147,10 @@ class _Explainer:
     features are all younger than the grouper's ``min_age`` + ``flow_frames``), ``ungrouped`` (old
     enough but in no seen track), ``coasting`` (a track that covered it last frame is unseen now),
     ``in_track_elsewhere`` (its features are members of a seen track whose representative bearing
-    lies on another obstacle: ``merged_other``, or on none: ``rep_off``).
+    lies on another obstacle: ``merged_other``, or on none: ``rep_off``). ``merged_by_depth`` splits
+    the ``merged_other`` gaps by the obstacles' ground-truth surface ranges: ``lined_up`` when the
+    other obstacle's range differs from this one's by ``DEPTH_RATIO`` (1.5) or more (one behind the
+    other: a depth cue could part them), else ``side_by_side``; each such event has ``range_ratio``.
 
     Per id switch: ``moved_to_other_obstacle`` (the old track now lies on another obstacle), else
     the old track is ``coasting`` (unseen but alive), ``absorbed`` (merged into another camera's
@@ -155,9 +158,12 @@ class _Explainer:
     one was still reported (a split: two tracks on one obstacle) or ``new_after_gap`` otherwise.
     """
 
+    DEPTH_RATIO = 1.5  # merged obstacles whose ranges differ by this factor are "lined up"
+
     def __init__(self, fe) -> None:
         self.fe = fe
         self.gaps: dict[str, int] = {}
+        self.merged_depth: dict[str, int] = {}  # merged_other gaps: lined_up | side_by_side
         self.gap_by_obstacle: dict[int, dict[str, int]] = {}
         self.switches: dict[str, int] = {}
         self.events: list[dict] = []
@@ -263,6 +269,20 @@ class _Explainer:
             ev = {"frame": f, "obstacle": oid, "gap": cause, "features_on": int(np.sum(mine))}
             if cause.startswith("in_track"):
                 # the tracks holding its features: where they lie and what their members are on
+                rng = {int(x["id"]): x.get("surface_range_m") for x in line["obstacles"]}
+                if cause.endswith("merged_other") and rng.get(oid):
+                    # merged with an obstacle at a clearly other depth (lined up along the line of
+                    # sight) or at about the same depth (side by side): what a depth cue could part
+                    ratios = [
+                        rng[k] / rng[oid] for g in gs for k in alive_on.get(g, ()) if k != oid and rng.get(k)
+                    ]
+                    kind = (
+                        "lined_up"
+                        if ratios and max(max(r, 1 / r) for r in ratios) >= self.DEPTH_RATIO
+                        else "side_by_side"
+                    )
+                    self.merged_depth[kind] = self.merged_depth.get(kind, 0) + 1
+                    ev["range_ratio"] = [round(r, 3) for r in ratios]
                 ev["tracks"] = {
                     int(g): {
                         "on": sorted(alive_on.get(g, ())),
@@ -309,6 +329,7 @@ class _Explainer:
         return {
             "gap_causes": dict(sorted(self.gaps.items(), key=lambda kv: -kv[1])),
             "gap_causes_by_obstacle": {k: self.gap_by_obstacle[k] for k in sorted(self.gap_by_obstacle)},
+            "merged_by_depth": self.merged_depth,
             "switch_causes": dict(sorted(self.switches.items(), key=lambda kv: -kv[1])),
             "events": self.events,
         }
@@ -372,8 +393,8 @@ def run_benchmark(
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
     distinct track ids seen on each obstacle, reported tracks on no obstacle per frame (the ground,
     false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
-    (``track_splits``) (``switch_log``: frame, obstacle, old and new id, why the old one no longer
-    counts), rim features.
+    (``track_splits``, step 3c) and by depth (``depth_splits``, step 3d) (``switch_log``: frame,
+    obstacle, old and new id, why the old one no longer counts), rim features.
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
     """
@@ -537,6 +558,7 @@ def run_benchmark(
         "observations_per_frame": n_obs / nf,
         "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
         "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
+        "depth_splits": sum(getattr(g, "depth_splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
         **({"explain": ex.summary()} if ex is not None else {}),

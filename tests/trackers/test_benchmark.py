@@ -103,6 +103,11 @@ def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
     assert gaps > 0 and sum(ex["gap_causes"].values()) == gaps
     assert sum(ex["switch_causes"].values()) == res["id_switches"]
     assert len([e for e in ex["events"] if "gap" in e]) == gaps
+    # every merged_other gap is either lined up in depth or side by side, none twice
+    merged = [e for e in ex["events"] if e.get("gap") == "in_track_elsewhere/merged_other"]
+    assert sum(ex["merged_by_depth"].values()) == len(merged)
+    for e in merged:  # lined up: some other obstacle's range differs by DEPTH_RATIO (1.5) or more
+        assert all(r > 0 for r in e["range_ratio"])
     # distinct ids on an obstacle: at least one per switch more than the first; none if never covered
     for p in res["obstacles"].values():
         if p["coverage"] > 0:
