@@ -94,6 +94,83 @@ def match_features(
     return np.stack([i, j[i]], axis=1)
 
 
+def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1) px of an image of ``shape`` (H, W, ...) holding every point of ``pts`` (K, 2)
+    px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
+    levels sample the image's own grid), clipped to the image."""
+    lo = np.floor(pts.min(axis=0) - margin)
+    hi = np.ceil(pts.max(axis=0) + margin) + 1
+    x0 = max(int(lo[0]) // align * align, 0)
+    y0 = max(int(lo[1]) // align * align, 0)
+    return x0, y0, min(int(hi[0]), shape[1]), min(int(hi[1]), shape[0])
+
+
+def _lk_part(
+    grey_prev: np.ndarray,
+    grey_next: np.ndarray,
+    p_prev: np.ndarray,
+    p_next: np.ndarray,
+    win_px: int,
+    level: int,
+    crit: tuple,
+    reach_px: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``cv2.calcOpticalFlowPyrLK`` from ``p_prev`` (K, 1, 2) float32 in grey_prev, starting at
+    ``p_next`` (K, 1, 2) float32 in grey_next, on the parts of the two images the search can read.
+
+    LK's cost per call is mostly building both images' pyramids (and the previous image's
+    derivatives), so it runs on the box of the points instead of the whole image: the previous
+    image's box holds every window at every level with the reach of the pyramid's 5-tap filter
+    (``(win_px // 2 + 6) 2^level`` px around the points), the next image's box that plus
+    ``reach_px`` around the starts (how far a point may travel); LK runs on their union in both
+    images (its two images have one size), its origin on a multiple of ``2^level`` px, so each
+    level samples the full image's own grid: inside the box every pixel LK reads equals the whole
+    image's. A point that would travel farther than ``reach_px`` may be lost (status 0).
+
+    Returns:
+        (p_next (K, 1, 2) float32 result in grey_next, status (K,) uint8).
+    """
+    import cv2
+
+    if grey_prev.shape != grey_next.shape:  # LK takes two images of one size
+        return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit)
+    m = (win_px // 2 + 6) * 2.0**level
+    al = 2**level
+    a = _lk_box(p_prev.reshape(-1, 2), m, grey_prev.shape, al)
+    b = _lk_box(p_next.reshape(-1, 2), m + reach_px, grey_next.shape, al)
+    # one box for both (LK's two images have one size): the union
+    x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
+    o = np.array([x0, y0], np.float32)
+    q, st, _ = cv2.calcOpticalFlowPyrLK(
+        grey_prev[y0:y1, x0:x1],
+        grey_next[y0:y1, x0:x1],
+        p_prev - o,
+        p_next - o,
+        winSize=(win_px, win_px),
+        maxLevel=level,
+        criteria=crit,
+        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    return q + o, st.reshape(-1)
+
+
+def _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit):
+    """``_lk_part`` on the whole images (the reference it must agree with)."""
+    import cv2
+
+    q, st, _ = cv2.calcOpticalFlowPyrLK(
+        grey_prev,
+        grey_next,
+        p_prev,
+        p_next.copy(),
+        winSize=(win_px, win_px),
+        maxLevel=level,
+        criteria=crit,
+        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    return q, st.reshape(-1)
+
+
 class StereoKLT(NamedTuple):
     """Result of ``stereo_klt``: the rows found and where.
 
@@ -127,6 +204,8 @@ def stereo_klt(
     check: np.ndarray | None = None,
     recheck_px: float = 1.0,
     follow_levels: int | None = None,
+    crop: bool = True,
+    moved: str = "check",
 ) -> StereoKLT:
     """Find camera a's features in camera b's image by KLT, checked by the epipolar constraint and
     (where needed) forward-backward. One forward KLT call per pyramid depth (rows with their own
@@ -150,6 +229,12 @@ def stereo_klt(
             n searches n + 1 pyramid levels; a followed match starts within a pixel or two of its
             answer, so it needs no coarse levels); the other rows use ``levels`` (also a maxLevel).
             None: ``levels`` for all rows (one call).
+        moved: what happens to a row with a finite guess that lands more than ``recheck_px``
+            from it: "check" (the backward check) or "drop" (not found this call: no backward
+            pass at all unless ``check`` asks for one).
+        crop: run each KLT call on the parts of the two images its search reads (``_lk_part``:
+            the same answers for any point that travels less than the coarsest window's reach,
+            for a fraction of the pyramid-building cost); False: on the whole images.
     Returns:
         ``StereoKLT`` (idx, uv_b, b_b, checked).
     """
@@ -184,31 +269,33 @@ def stereo_klt(
     for rows, lv in ((np.flatnonzero(near), follow_levels), (np.flatnonzero(~near), levels)):
         if not len(rows):
             continue
-        q, s_q, _ = cv2.calcOpticalFlowPyrLK(
-            grey_a,
-            grey_b,
-            p0[rows],
-            p1[rows],
-            winSize=(win_px, win_px),
-            maxLevel=lv,
-            criteria=crit,
-            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+        # on the parts of the images the search reads (_lk_part); reach: a followed row starts
+        # within a pixel or two of its answer, a new one anywhere along its epipolar curve within
+        # what the coarsest level's window covers
+        reach = (win_px // 2) * 2.0 ** (lv + 1)
+        q, s_q = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit, reach) if crop else (
+            _lk_whole(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit)
         )
         p1[rows] = q
-        st[rows] = s_q.reshape(-1)
+        st[rows] = s_q
     good = st == 1
     uv_b = p1.reshape(-1, 2).astype(float) + ob
     # the backward check: rows asked for, and followed rows that did not land where expected
     chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()
     chk |= ~own[idx]
-    moved = own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
-    chk |= moved
+    far = own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
+    if moved == "drop":
+        good &= ~far
+    else:
+        chk |= far
     ci = np.flatnonzero(chk & good)
     if len(ci):
-        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
-            grey_b, grey_a, p1[ci], None, winSize=(win_px, win_px), maxLevel=levels, criteria=crit
+        # backward: from the forward result in b, starting at the same pixel in a
+        reach = (win_px // 2) * 2.0 ** (levels + 1)
+        p0r, st2 = _lk_part(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach) if crop else (
+            _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         )
-        good[ci] &= (st2.reshape(-1) == 1) & (
+        good[ci] &= (st2 == 1) & (
             np.linalg.norm((p0r - p0[ci]).reshape(-1, 2), axis=1) <= fb_max_px
         )
     bb, okb = model_b.pixel_to_bearing(uv_b)

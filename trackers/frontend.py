@@ -171,9 +171,11 @@ class FrontEnd:
         self.follow_levels = None if fl is None else int(fl)
         # views the other way round (_derive_views): another camera's confirmed track with no
         # reference-camera track gets a reference view from its members found there by stereo KLT
-        # every frame. Opt-in: it costs ~3 ms of CPU per 720p stereo frame (one more stereo KLT
-        # pair) and, measured on the accuracy scenes, raised the tuned set's range NEES 3.08 -> 3.14
-        # while it raised the held-out stereo obstacle-frame coverage 70.0 -> 73.2 %
+        # (a full search every `every` frames, last frame's matches followed in between).
+        # Opt-in: measured, it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 ->
+        # 8.1 ms) and, on the accuracy scenes, raised held-out stereo <= 8 m obstacle-frame
+        # coverage 70.0 -> 73.8 % (stereo <= 3 m 0.89 -> 0.86 % tuned, 1.12 -> 1.00 % held-out),
+        # but the tuned range NEES went 3.08 -> 3.11: the lead decides
         rv = a.get("reverse_views", False)
         if not isinstance(rv, bool):
             raise ConfigError(f"FrontEnd association: reverse_views expected true or false, got {rv!r}")
@@ -247,6 +249,10 @@ class FrontEnd:
         self._stereo_cache: dict[tuple[str, str], tuple] = {}
         # last frame's stereo KLT matches per camera pair (_remember_stereo), where this frame's start
         self._stereo_mem: dict[tuple[str, str], tuple] = {}
+        # camera pairs whose stereo KLT this frame only follows last frame's matches (at
+        # follow_levels, no backward check; a match that lands off its guess is dropped): the
+        # reverse views' pairs between their retries (_derive_views)
+        self._follow_only: set[tuple[str, str]] = set()
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
         # feature id -> the id it is reported under (the reference camera's matched feature, or a
@@ -455,9 +461,8 @@ class FrontEnd:
         tried, uvb, bb, chk = c
         rows = np.asarray(rows, np.intp)
         todo = np.unique(rows[~tried[rows]])
+        follow_only = (a, b) in self._follow_only
         if len(todo):
-            (ca, oa), (cb, ob) = fa.crop, fb.crop
-            T = self._T_b_a[(a, b)]
             guess = np.full((len(todo), 2), np.nan)
             last = np.full(len(todo), -1, np.int64)
             m = self._stereo_mem.get((a, b))
@@ -470,6 +475,13 @@ class FrontEnd:
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
                 guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
                 last[hit] = m[4][kk]
+            if follow_only:  # only last frame's matches, followed (see _follow_only)
+                tried[todo] = True
+                keep = np.flatnonzero(last >= 0)
+                todo, guess, last = todo[keep], guess[keep], last[keep]
+        if len(todo):
+            (ca, oa), (cb, ob) = fa.crop, fb.crop
+            T = self._T_b_a[(a, b)]
             r = stereo_klt(
                 ca,
                 cb,
@@ -482,9 +494,12 @@ class FrontEnd:
                 off_a=oa,
                 off_b=ob,
                 guess_b=guess,
-                check=(last < 0) | (self._n - last >= self.recheck_every),
+                check=np.zeros(len(todo), bool)
+                if follow_only
+                else (last < 0) | (self._n - last >= self.recheck_every),
                 recheck_px=self.recheck_px,
                 follow_levels=self.follow_levels,
+                moved="drop" if follow_only else "check",
             )
             tried[todo] = True
             found = todo[r.idx]
@@ -518,6 +533,9 @@ class FrontEnd:
         no prebuilt pyramids), so one call per pair and frame instead of up to three."""
         ref = self.rig.cameras[0].name
         names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
+        # reverse views: a full search (a retry) on association frames, else last frame's matches
+        # followed only (_follow_only)
+        self._follow_only = set() if assoc_now else {(n, ref) for n in self.cams if n != ref}
         for a, b in itertools.permutations(names, 2):
             a_first = names.index(a) < names.index(b)
             trs = []
@@ -697,7 +715,10 @@ class FrontEnd:
         With ``association.reverse_views`` (opt-in), the other way round: another camera's confirmed
         track whose global id has no reference track this frame (``_unviewed_in_ref``) gets a
         reference view from its members found in the reference image alike (members under their
-        physical-point ids, ``_pid``).
+        physical-point ids, ``_pid``). That search is a retry every ``association.every`` frames
+        (new and re-checked matches, forward-backward); in between only last frame's matches are
+        followed (``_follow_only``: 2 pyramid levels, no backward pass, a match that lands off its
+        start is dropped until the next retry), so the extra KLT pair costs little per frame.
         """
         ref = self.rig.cameras[0].name
         out: dict[str, list[ObstacleTrack]] = {}

@@ -445,3 +445,55 @@ def test_reverse_views_is_a_checked_opt_in(stereo):
     assert FrontEnd(rig, association={"reverse_views": True}).reverse_views is True
     with pytest.raises(ConfigError, match="reverse_views"):
         FrontEnd(rig, association={"reverse_views": "yes"})
+
+
+def test_stereo_klt_on_the_parts_it_reads_equals_the_whole_images():
+    """stereo_klt's KLT calls run on the box of their points (``crop=True``, the default: origins on
+    multiples of 2^level, margins for the window, the pyramid filter and the search's reach): on a
+    camera turned 3 degrees about y over a world at infinity, every match sits where the model
+    projects R b_a (0.3 px), and all, near (one cluster) or spread, followed or new, are the same
+    rows at the same pixels as on the whole images."""
+    import cv2
+
+    from trackers.association import stereo_klt
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    cv2.setNumThreads(1)
+    uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
+    expected, _ = model.bearing_to_pixel(b_a @ R_b_a.T)
+    guess = np.full((len(b_a), 2), np.nan)
+    guess[::2] = expected[::2] + 0.7  # half the rows followed from a guess 1 px off
+    cluster = np.flatnonzero(np.linalg.norm(uv_a - uv_a[0], axis=1) < 60)
+    cases = [(slice(None), {}), (slice(None), {"guess_b": guess, "follow_levels": 1}),
+             (cluster, {}), (cluster, {"guess_b": guess[cluster], "follow_levels": 1})]
+    for rows, kw in cases:
+        whole = stereo_klt(img_a, img_b, b_a[rows], uv_a[rows], model, R_b_a, t, crop=False, **kw)
+        part = stereo_klt(img_a, img_b, b_a[rows], uv_a[rows], model, R_b_a, t, **kw)
+        assert len(part.idx) >= 0.9 * len(b_a[rows])
+        np.testing.assert_array_equal(whole.idx, part.idx)
+        np.testing.assert_allclose(whole.uv_b, part.uv_b, atol=1e-3)
+        np.testing.assert_array_equal(whole.checked, part.checked)
+        err = np.linalg.norm(part.uv_b - expected[rows][part.idx], axis=1)
+        assert np.median(err) < 0.3
+
+
+def test_stereo_klt_drops_a_followed_match_that_lands_off_its_guess_when_told():
+    """moved="drop": a followed row whose forward result lands more than recheck_px from its guess
+    is not found (no backward pass), one that lands on it is kept unchecked. Pure rotation as
+    above: the true match of each row is the projection of R b_a."""
+    from trackers.association import stereo_klt
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    uv_a, b_a, t = ft.uv.astype(float), ft.b_C, np.zeros(3)
+    expected, _ = model.bearing_to_pixel(b_a @ R_b_a.T)
+    guess = expected.copy()
+    guess[1::2] += 3.0  # odd rows start 4.2 px off their true match: KLT lands > 1 px from the guess
+    none = np.zeros(len(b_a), bool)
+    kept = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=none,
+                      follow_levels=1, moved="drop")
+    checked = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=none,
+                         follow_levels=1)
+    assert len(kept.idx) >= 0.4 * len(b_a)
+    assert np.all(kept.idx % 2 == 0) and not kept.checked.any()
+    assert np.sum(checked.idx % 2 == 1) >= 0.4 * len(b_a) / 2  # checked instead, and most pass
+    assert np.all(checked.checked[checked.idx % 2 == 1])
