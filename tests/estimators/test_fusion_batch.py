@@ -331,3 +331,12 @@ def test_stereo_velocity_from_the_shared_features_own_displacements():
     assert abs(np.linalg.norm(ve) - np.linalg.norm(v)) <= 0.1 * np.linalg.norm(v)
     ang = math.degrees(math.acos(float(ve @ v) / (np.linalg.norm(ve) * np.linalg.norm(v))))
     assert ang <= 10.0
+
+
+def test_posterior_sigma_closed_form():
+    from estimators.fusion import _posterior_sigma
+
+    # k = 2.5: chi 1 and 6.25 (sqrt 2.5 = k) keep the sigma; chi 25 (sqrt 5 = 2 k) doubles it;
+    # chi 0 (rays that meet exactly) keeps it (never below the typical k)
+    out = _posterior_sigma(np.array([0.1, 0.1, 0.1, 0.3]), np.array([1.0, 6.25, 25.0, 0.0]), 2.5)
+    np.testing.assert_allclose(out, [0.1, 0.1, 0.2, 0.3], rtol=1e-12)
