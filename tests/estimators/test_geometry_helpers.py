@@ -1,0 +1,42 @@
+"""geometry's small-array helpers (_cross, _norm, _norm_rows) are bit-identical to numpy's np.cross and
+np.linalg.norm, which they replace in the hot path: the triangulations and bounds must not change by one
+ulp (tracks.jsonl is compared byte for byte across speed changes)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators.geometry import _cross, _norm, _norm_rows
+
+SHAPES = [((3,), (3,)), ((7, 3), (7, 3)), ((1, 3), (9, 3)), ((3,), (5, 3))]
+
+
+@pytest.mark.parametrize("shape_a, shape_b", SHAPES)
+def test_cross_is_bit_identical_to_numpy(shape_a, shape_b):
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        a = rng.normal(size=shape_a) * 10.0 ** rng.uniform(-9, 9)
+        b = rng.normal(size=shape_b) * 10.0 ** rng.uniform(-9, 9)
+        want = np.cross(a, b)
+        got = _cross(a, b)
+        assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def test_cross_of_parallel_and_axis_vectors():
+    x, y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    assert _cross(x, y).tolist() == [0.0, 0.0, 1.0]  # x cross y = z
+    assert _cross(x, 2.0 * x).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_norms_are_bit_identical_to_numpy():
+    rng = np.random.default_rng(4)
+    for n in (1, 3, 4, 50):
+        for _ in range(50):
+            v = rng.normal(size=n) * 10.0 ** rng.uniform(-9, 9)
+            assert _norm(v) == np.linalg.norm(v)
+            for k in (3, 4):  # rows of bearings, and the (M, 4) Jacobians of the range sigma
+                m = rng.normal(size=(n, k)) * 10.0 ** rng.uniform(-9, 9)
+                assert np.array_equal(_norm_rows(m), np.linalg.norm(m, axis=1))
+                assert np.array_equal(_norm_rows(m, keepdims=True), np.linalg.norm(m, axis=1, keepdims=True))
+    assert _norm(np.array([3.0, 4.0, 0.0])) == 5.0
