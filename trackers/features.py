@@ -132,8 +132,9 @@ class FeatureTracker:
             choose new features among its own cells only, not the lens's). Not the default: the
             bands' re-acquisitions differ, and trackers.benchmark moved (worst obstacle
             stereo_flying 0.660 -> 0.642, wide_angle_beyond90 0.587 -> 0.547, turning 0.971 ->
-            1.000); the 1280x720 bench clip's detect + track CPU per frame p99 17.8 -> 14.2 ms
-            but mean 8.6 -> 9.4 ms (each band pays ORB's fixed costs and 64 rows of margin).
+            1.000); the 1280x720 bench clip's detect + track CPU per frame p99 16.6 -> 14.2 ms
+            but mean 8.3 -> 9.2 ms (each band pays ORB's fixed costs and 64 rows of margin; k = 2:
+            p99 15.8, mean 8.9, stereo_flying 0.623, turning 1.000, the others unchanged).
             Other detectors than ORB always detect the whole frame.
         win_px, levels: KLT window (px) and pyramid levels.
         fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
