@@ -1049,6 +1049,13 @@ class ObstacleGrouper:
                     t = int(o[g + 1])
                     a0, k, a1 = start[t], g + 1, start[t] + n[t]
                     lo_rows, hi_rows = rows[a0:k], rows[k:a1]
+                    # a step, not a gradient: the jump in log rate beats either side's own spread
+                    # (a surface whose depth changes across it, sampled sparsely, has gaps as
+                    # wide as its sides)
+                    if s[a0] > 0 and np.log(s[k] / s[k - 1]) < max(
+                        np.log(s[k - 1] / s[a0]), np.log(s[a1 - 1] / s[k])
+                    ):
+                        continue
                     d_lo = float(_normalise(ft.b_C[lo_rows].mean(0)) @ rep[t])
                     d_hi = float(_normalise(ft.b_C[hi_rows].mean(0)) @ rep[t])
                     move = lo_rows if d_lo < d_hi else hi_rows

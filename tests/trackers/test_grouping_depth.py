@@ -165,6 +165,21 @@ def test_a_slanted_surface_does_not_split(model):
         assert ids in held[k], (k, held[k])
 
 
+def test_a_sparsely_sampled_depth_gradient_does_not_split(model):
+    """Five columns of 4 points whose inverse depths fall by 1.6x from column to column (0.8,
+    0.5, 0.31, 0.2, 0.12 /m): every gap between neighbouring columns passes the ratio (1.6 >=
+    1.5), but wherever the track would be cut one side spans at least as large a ratio itself
+    (1.6^k, k >= 1): a gradient, not a step, so it stays one track (without that rule, the
+    ratio and the noise gate alone split it: checked against the previous version)."""
+    rad_px = model.max_angle_rad / model.image_circle()[2]
+    step = 3.0 * rad_px
+    pts = wall(5, 4, -2 * step, step, lambda i: 1.25 * 1.6**i)
+    gr, (ids,), held = simulate(model, [pts], 1.0)
+    assert gr.depth_splits == 0
+    for k in range(6, 30):
+        assert ids in held[k], (k, held[k])
+
+
 def test_step_3d_is_off_by_default():
     """Opt-in: the default depth_ratio is 1 (step 3d off)."""
     assert ObstacleGrouper(iter(range(1, 10))).depth_ratio == 1.0
