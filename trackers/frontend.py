@@ -172,10 +172,11 @@ class FrontEnd:
         # views the other way round (_derive_views): another camera's confirmed track with no
         # reference-camera track gets a reference view from its members found there by stereo KLT
         # (a full search every `every` frames, last frame's matches followed in between).
-        # Opt-in: measured, it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 ->
-        # 8.1 ms) and, on the accuracy scenes, raised held-out stereo <= 8 m obstacle-frame
-        # coverage 70.0 -> 73.8 % (stereo <= 3 m 0.89 -> 0.86 % tuned, 1.12 -> 1.00 % held-out),
-        # but the tuned range NEES went 3.08 -> 3.11: the lead decides
+        # Opt-in: it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 -> 8.1 ms,
+        # against the 30 fps stereo target). On the accuracy scenes (f2ad7ba, tuned | held-out):
+        # stereo <= 3 m 0.89 -> 0.86 | 1.12 -> 1.00 %, <= 8 m 1.27 -> 1.17 | 1.14 -> 1.19 %,
+        # range NEES 1.85 -> 1.76 | 2.07 -> 1.99, stereo <= 8 m obstacle-frame coverage
+        # 75.9 -> 75.9 | 70.0 -> 73.8 %
         rv = a.get("reverse_views", False)
         if not isinstance(rv, bool):
             raise ConfigError(f"FrontEnd association: reverse_views expected true or false, got {rv!r}")
@@ -535,7 +536,8 @@ class FrontEnd:
         names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
         # reverse views: a full search (a retry) on association frames, else last frame's matches
         # followed only (_follow_only)
-        self._follow_only = set() if assoc_now else {(n, ref) for n in self.cams if n != ref}
+        rev = self.reverse_views and not assoc_now
+        self._follow_only = {(n, ref) for n in self.cams if n != ref} if rev else set()
         for a, b in itertools.permutations(names, 2):
             a_first = names.index(a) < names.index(b)
             trs = []
