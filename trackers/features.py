@@ -120,8 +120,17 @@ class FeatureTracker:
             features triggers re-detection.
         min_per_cell: see ``grid``.
         redetect_every: re-detect every this many frames (1 = every frame); a full tracker
-            (``max_features`` live) every twice this many. Each part of the lens is detected at
-            that rate; see ``detect_bands`` for how the work is spread over the frames.
+            (``max_features`` live) every ``full_redetect_factor`` times this many. Each part of
+            the lens is detected at that rate; see ``detect_bands`` for how the work is spread over
+            the frames.
+        full_redetect_factor: see ``redetect_every`` (default 2; 0: a full tracker does not
+            detect, so lost features are re-acquired only while there is room). A full tracker's
+            detection can only re-acquire lost features (about 0.7 per detection on the 640x480
+            and 1280x720 bench clips). Measured with 0 (same run against 2): trackers.benchmark
+            coverage of every obstacle unchanged on the six presets, id switches 11 -> 12
+            (stereo_flying 1 -> 2); the 1280x720 bench clip's detect + track CPU per frame mean
+            8.5-9.2 -> 7.4-7.7 ms, p99 15.9-19.3 -> 12.5-12.9 ms. Not the default: it gives up
+            re-acquisition whenever the tracker is full (at 640x480 and 1280x720 most of the time).
         detect_bands: opt-in (default 1: off). A full tracker's periodic detection (it can only
             re-acquire lost features) is split into up to this many horizontal bands of the
             coverage grid's rows: with its period of p = 2 ``redetect_every`` frames, k bands, k the
@@ -184,6 +193,7 @@ class FeatureTracker:
         grid: tuple[int, int] = (16, 9),
         min_per_cell: int = 1,
         redetect_every: int = 4,
+        full_redetect_factor: int = 2,
         detect_bands: int = 1,
         win_px: int = 11,
         levels: int = 2,
@@ -204,15 +214,17 @@ class FeatureTracker:
             or not px_per_feature > 0
             or history < 2
             or redetect_every < 1
+            or full_redetect_factor < 0
             or detect_bands < 1
             or fb_max_px <= 0
             or fb_levels < 0
         ):
             raise ConfigError(
                 "FeatureTracker: expected max_features >= 1 (or None), px_per_feature > 0, "
-                "history >= 2, redetect_every >= 1, detect_bands >= 1, fb_max_px > 0, fb_levels >= 0; "
-                f"got {max_features}, {px_per_feature}, {history}, {redetect_every}, {detect_bands}, "
-                f"{fb_max_px}, {fb_levels}"
+                "history >= 2, redetect_every >= 1, full_redetect_factor >= 0, detect_bands >= 1, "
+                "fb_max_px > 0, fb_levels >= 0; got "
+                f"{max_features}, {px_per_feature}, {history}, {redetect_every}, {full_redetect_factor}, "
+                f"{detect_bands}, {fb_max_px}, {fb_levels}"
             )
         self.camera = camera
         self.name = camera.name
@@ -223,6 +235,7 @@ class FeatureTracker:
         self.grid = (int(grid[0]), int(grid[1]))
         self.min_per_cell = int(min_per_cell)
         self.redetect_every = int(redetect_every)
+        self.full_redetect_factor = int(full_redetect_factor)
         self.win = (int(win_px), int(win_px))
         self.levels = int(levels)
         self.fb_max_px = float(fb_max_px)
@@ -728,10 +741,12 @@ class FeatureTracker:
                 self._band_round = []  # the whole lens now: the next periodic band starts a round
                 return -1
         # full (no room for new features): a detection can only re-acquire lost features (0.7 per
-        # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so half as often;
+        # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so more rarely;
         # each band every period frames: one of k bands every period / k frames
         full = len(self.ids) >= self.max_features
-        period = self.redetect_every * (2 if full else 1)
+        if full and self.full_redetect_factor == 0:
+            return None
+        period = self.redetect_every * (self.full_redetect_factor if full else 1)
         # bands only when full: a band then only re-acquires (as a whole detection would); with
         # room, a band's new features would be chosen among its own cells only, not the lens's
         # (measured with bands also with room, each given its cells' share of the free capacity:

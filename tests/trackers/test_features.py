@@ -157,7 +157,15 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
 
 @pytest.mark.parametrize(
     "kw",
-    [{"max_features": 0}, {"history": 1}, {"redetect_every": 0}, {"fb_max_px": 0.0}, {"fb_levels": -1}],
+    [
+        {"max_features": 0},
+        {"history": 1},
+        {"redetect_every": 0},
+        {"full_redetect_factor": -1},
+        {"detect_bands": 0},
+        {"fb_max_px": 0.0},
+        {"fb_levels": -1},
+    ],
 )
 def test_bad_tracker_options(model, kw):
     with pytest.raises(ConfigError):
@@ -284,6 +292,25 @@ def test_a_full_tracker_detects_half_as_often(model):
 
     assert detect_frames(40) == [0, 8, 16]  # full after the first detection
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
+
+
+@pytest.mark.parametrize(("factor", "frames"), [(3, [0, 12]), (0, [0])])
+def test_full_redetect_factor_sets_how_often_a_full_tracker_detects(model, factor, frames):
+    """A static scene, full after the first detection: it detects every full_redetect_factor x
+    redetect_every (3 x 4 = 12) frames, and never again with a factor of 0 (counted over 20)."""
+    grey = SphereScene(model).render()
+    ft = make_tracker(model, max_features=40, redetect_every=4, full_redetect_factor=factor)
+    seen: list[int] = []
+    orig = ft._detect
+
+    def counting(image, t_s, band=-1):
+        seen.append(round(t_s * 30))
+        return orig(image, t_s, band=band)
+
+    ft._detect = counting
+    for k in range(20):
+        ft.track(grey, k, k / 30)
+    assert seen == frames
 
 
 def test_a_full_tracker_describes_only_reacquisition_candidates():
