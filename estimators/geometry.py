@@ -457,26 +457,33 @@ def triangulate_batch(
 
 
 def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> np.ndarray:
-    """Vectorised ``_range_sigma`` for (M, 3) inputs -> (M,)."""
+    """Vectorised ``_range_sigma`` for (M, 3) inputs -> (M,).
+
+    The 8 perturbed ray pairs of every row (+-h about each of the two tangent directions of ray a,
+    then of ray b) are stacked into one (8M, 3) batch for a single ``_closest_depths`` call; the
+    arithmetic is row-wise, so each row's value is the one a separate call would give.
+    """
     h = 1e-6
     m = c_a.shape[0]
-    J = np.zeros((m, 4))
-    for k, which in enumerate(("a", "a", "b", "b")):
+    rows_ba, rows_bb = [], []
+    for which in ("a", "b"):
         b = b_a if which == "a" else b_b
         e = np.zeros_like(b)
         e[np.arange(m), np.argmin(np.abs(b), axis=1)] = 1.0
         u1 = _cross(b, e)
         u1 /= _norm_rows(u1, keepdims=True)
-        u = u1 if k % 2 == 0 else _cross(b, u1)
-        r = []
-        for sgn in (1.0, -1.0):
-            v = b + sgn * h * u
-            v /= _norm_rows(v, keepdims=True)
-            ba, bb = (v, b_b) if which == "a" else (b_a, v)
-            s, t = _closest_depths(c_a, ba, c_b, bb)
-            P = 0.5 * ((c_a + s[:, None] * ba) + (c_b + t[:, None] * bb))
-            r.append(_norm_rows(P - origin))
-        J[:, k] = (r[0] - r[1]) / (2 * h)
+        for u in (u1, _cross(b, u1)):  # the two tangent directions of this ray
+            for sgn in (1.0, -1.0):
+                v = b + sgn * h * u
+                v /= _norm_rows(v, keepdims=True)
+                rows_ba.append(v if which == "a" else b_a)
+                rows_bb.append(b_b if which == "a" else v)
+    BA, BB = np.concatenate(rows_ba), np.concatenate(rows_bb)  # (8M, 3), block j = perturbation j
+    CA, CB, O = np.tile(c_a, (8, 1)), np.tile(c_b, (8, 1)), np.tile(origin, (8, 1))
+    s, t = _closest_depths(CA, BA, CB, BB)
+    P = 0.5 * ((CA + s[:, None] * BA) + (CB + t[:, None] * BB))
+    r = _norm_rows(P - O).reshape(8, m)
+    J = np.ascontiguousarray(((r[0::2] - r[1::2]) / (2 * h)).T)  # (M, 4): d range / d phi, central
     return sigma_rad * _norm_rows(J)
 
 
