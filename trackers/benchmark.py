@@ -1,7 +1,11 @@
 """Benchmark of the front end on a simulated scene: frame rate (with decoding), per-stage timings,
 coverage of the visible obstacles, id switches, features tracked beyond 90 degrees off-axis.
 
-    python -m trackers.benchmark SCENE_DIR [--detector orb] [--threads 1] [--frames N]
+    python -m trackers.benchmark SCENE_DIR [--detector orb] [--threads 1] [--frames N] [--no-poses]
+
+The front end gets the scene's true body poses (``T_W_B`` in ``gt.jsonl``) for its rotation
+compensation, as the pipeline gets the trajectory's: ``--no-poses`` (``use_poses=False``) measures
+it without them. ``poses`` in the result says whether any frame had one.
 
 ``SCENE_DIR`` is the output of ``fisheye-des simulate`` (``<cam>.mkv``, ``<cam>.timestamps.txt``,
 ``camchain.yaml``, ``gt.jsonl``, ``scene.yaml``). Reads files only; imports nothing from ``pipeline``.
@@ -379,7 +383,7 @@ def run_benchmark(
     threads: int = 1,
     max_frames: int | None = None,
     margin_px: float = 2.0,
-    use_poses: bool = False,
+    use_poses: bool = True,
     explain: bool = False,
     **frontend_options: Any,
 ) -> dict[str, Any]:
@@ -395,6 +399,8 @@ def run_benchmark(
     false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
     (``track_splits``, step 3c) and by depth (``depth_splits``, step 3d) (``switch_log``: frame,
     obstacle, old and new id, why the old one no longer counts), rim features.
+    ``use_poses``: pass the scene's true ``T_W_B`` per frame (when ``gt.jsonl`` has it) to the
+    front end, as the pipeline passes its trajectory's poses; False: none (no rotation compensation).
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
     """
@@ -423,6 +429,7 @@ def run_benchmark(
     rim_feats, rim_old = 0, 0
     n_obs = 0
     n_off = n_gt = 0  # tracks on no obstacle, frames with ground truth
+    posed = False  # some frame was given its pose
     for f in frames:
         c0 = time.process_time()
         t0 = time.perf_counter()
@@ -441,6 +448,7 @@ def run_benchmark(
             v = line["T_W_B"]
             T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
         obs = fe.process(imgs, f, t_s, T_W_B=T_W_B if use_poses else None)
+        posed |= use_poses and T_W_B is not None
         t2 = time.perf_counter()
         c2 = time.process_time()
         c_decode += c1 - c0
@@ -532,6 +540,7 @@ def run_benchmark(
         "cameras": len(names),
         "detector": detector,
         "threads": threads,
+        "poses": posed,
         "frames": nf,
         "fps": nf / (t_decode + t_front),
         "fps_frontend": nf / t_front,
@@ -572,7 +581,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--detector", default="orb")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--frames", type=int, default=None)
-    ap.add_argument("--poses", action="store_true", help="pass the true T_W_B (rotation compensation)")
+    ap.add_argument(
+        "--poses",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="pass the scene's true T_W_B (rotation compensation), as the pipeline does (default); "
+        "--no-poses: without",
+    )
     ap.add_argument("--explain", action="store_true", help="the cause of every coverage gap and id switch")
     ap.add_argument(
         "--set",

@@ -154,3 +154,20 @@ def test_presets_full(tmp_path, name, cov, cov_min, sw):
     assert res["switches_per_obstacle_minute"] <= sw
     if name == "wide_angle_beyond90":
         assert res["rim_features_age10_per_frame"] >= 30  # features > 90 deg off-axis, tracked >= 10 frames
+
+
+def test_poses_are_passed_by_default_as_the_pipeline_does(ci_scene):
+    """The benchmark measures what the pipeline runs: the front end gets the scene's true poses
+    (gt.jsonl has T_W_B on every frame) unless told not to; the result says which it was."""
+    with_poses = run_benchmark(ci_scene, max_frames=3)
+    without = run_benchmark(ci_scene, max_frames=3, use_poses=False)
+    assert with_poses["poses"] is True and without["poses"] is False
+
+
+def test_cli_no_poses_flag(ci_scene, capsys):
+    """``--no-poses`` turns them off; the default and ``--poses`` pass them."""
+    from trackers.benchmark import main
+
+    for argv, expect in (([], True), (["--poses"], True), (["--no-poses"], False)):
+        main([str(ci_scene), "--frames", "3", *argv])
+        assert json.loads(capsys.readouterr().out)["poses"] is expect
