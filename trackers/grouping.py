@@ -313,7 +313,8 @@ class ObstacleGrouper:
         self.depth_gate = float(depth_gate)
         self.depth_persist = int(depth_persist)
         self.depth_frames = int(depth_frames)
-        self._R1_hist: deque[np.ndarray] = deque(maxlen=self.depth_frames)  # see _remember_rotation
+        # the frame-to-frame rotations, as far back as step 3c's and step 3d's windows reach
+        self._R1_hist: deque[np.ndarray] = deque(maxlen=max(self.depth_frames, self.split_frames))
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
         self._last_t_s: float | None = None
@@ -737,7 +738,8 @@ class ObstacleGrouper:
 
         Per existing track (``tracks``, indices < T), each member tracked over at least half the
         window gets a window flow ``(b_now - R_C_Cprev[k] b_k_ago) / dt`` (rad/s, k <=
-        split_frames frames back; rotation-compensated when that rotation is given), expressed
+        split_frames frames back; rotation-compensated when that rotation is given, with
+        ``_window_rotations`` over the whole window), expressed
         in the tangent plane at the track's representative bearing ``rep`` (TK,3) (there a camera
         rotation's flow field is the same to second order in the track's size). The members are
         re-linked: two members within ``link_rad`` link when their window flows differ by less
@@ -757,7 +759,10 @@ class ObstacleGrouper:
         Returns (rows (K_i,) into the live features per split-off part, (source track index,
         target track index or -1 for a new track) per part)."""
         T = len(tracks)
-        L = self.split_frames
+        # the camera's rotation over the whole window (chained past the front end's few frames);
+        # with rotations, the window reaches only as far back as they are known
+        R = self._window_rotations(R, self.split_frames)
+        L = min(self.split_frames, max(R)) if R else self.split_frames
         out_rows: list[np.ndarray] = []
         out_tgt: list[tuple[int, int]] = []
         back = np.minimum(ft.age - 1, L)  # samples back in the window (a feature has one per frame)
@@ -922,21 +927,24 @@ class ObstacleGrouper:
 
     def _remember_rotation(self, R1: np.ndarray | None) -> None:
         """Keep this frame's R_C_Cprev[1] (3,3) (the rotation from the previous frame's camera
-        frame into this one's) for step 3d's window; a frame without it breaks the chain."""
+        frame into this one's) for step 3c's and step 3d's windows; a frame without it breaks
+        the chain."""
         if R1 is None:
             self._R1_hist.clear()
         else:
             self._R1_hist.appendleft(np.asarray(R1, float))
 
-    def _window_rotations(self, R: dict[int, np.ndarray] | None) -> dict[int, np.ndarray]:
-        """{k: R_C_Cprev[k]} for k = 1..depth_frames as far as known: the given ones, and beyond
-        them the product of the remembered frame-to-frame rotations,
-        ``R_C(t)_C(t-k) = R_C(t)_C(t-1) R_C(t-1)_C(t-2) ... R_C(t-k+1)_C(t-k)``."""
+    def _window_rotations(self, R: dict[int, np.ndarray] | None, frames: int) -> dict[int, np.ndarray]:
+        """{k: R_C_Cprev[k]} (3,3) for k = 1..frames as far as known: the given ones (the front
+        end's, a few frames back), and beyond them the product of the remembered frame-to-frame
+        rotations, ``R_C(t)_C(t-k) = R_C(t)_C(t-1) R_C(t-1)_C(t-2) ... R_C(t-k+1)_C(t-k)``.
+        Used by step 3c and step 3d: a window sample older than the rotation known is not
+        derotated by the identity (it would read the camera's turn as the member's motion)."""
         if not R or not self._R1_hist:
             return {}
-        out = {k: v for k, v in R.items() if 0 < k <= self.depth_frames}
+        out = {k: v for k, v in R.items() if 0 < k <= frames}
         acc = np.eye(3)
-        for k, R1 in enumerate(list(self._R1_hist)[: self.depth_frames], start=1):
+        for k, R1 in enumerate(list(self._R1_hist)[:frames], start=1):
             acc = acc @ R1
             out.setdefault(k, acc)
         return out
@@ -995,7 +1003,7 @@ class ObstacleGrouper:
         out_rows: list[np.ndarray] = []
         out_tgt: list[tuple[int, int]] = []
         found = np.zeros(T, bool)
-        R = self._window_rotations(R)
+        R = self._window_rotations(R, self.depth_frames)
         if not R:  # without the camera's rotation the flows are not proportional to 1/depth
             for t in range(T):
                 tracks[t].depth_n = 0
