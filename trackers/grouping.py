@@ -189,10 +189,11 @@ class ObstacleGrouper:
             before the track splits: evidence over several frames, not one.
         depth_ratio: step 3d splits a track where its members' parallax rates (inverse depths)
             jump by this factor (1.5: an obstacle at 10 m in front of one at 15 m); 1 (the
-            default) turns it off. Opt-in: 1.5 was measured (2026-11-22, accuracy --set both)
-            to lower range NEES 3.08 -> 2.42 (tuned) and 3.28 -> 2.66 (held-out) and held-out
-            mono p90 4.30 -> 3.43 %, but held-out mono coverage fell 94.7 -> 93.9 % and
-            noisy_1080p's drone 0.708 -> 0.604 (trackers.benchmark --poses): a trade for the lead.
+            default) turns it off. Opt-in: 1.5 was measured (2026-11-22, same-base A/B of
+            accuracy --set both, tuned | held-out) to lower range NEES 1.95 -> 1.85 | 2.15 -> 2.03
+            and raise mono obstacle-frame coverage on the tuned set 91.8 -> 95.4 %, but held-out
+            mono coverage fell 94.7 -> 92.5 % (a split-off part starts a track with no range yet)
+            and trackers.benchmark's id switches rose 17 -> 20 on the eleven scenes: not the default.
         depth_sigma_px: KLT's position noise (px) in step 3d's noise model: a window flow's sigma
             is ``sqrt(2) depth_sigma_px rad_px / dt``.
         depth_gate: ... and by this many sigmas of the two members' rates (not noise).
