@@ -129,8 +129,12 @@ class FeatureTracker:
             and 1280x720 bench clips). Measured with 0 (same run against 2): trackers.benchmark
             coverage of every obstacle unchanged on the six presets, id switches 11 -> 12
             (stereo_flying 1 -> 2); the 1280x720 bench clip's detect + track CPU per frame mean
-            8.5-9.2 -> 7.4-7.7 ms, p99 15.9-19.3 -> 12.5-12.9 ms. Not the default: it gives up
-            re-acquisition whenever the tracker is full (at 640x480 and 1280x720 most of the time).
+            8.5-9.2 -> 7.4-7.7 ms, p99 15.9-19.3 -> 12.5-12.9 ms; accuracy --mode pipeline --set
+            both: mono identical, range NEES 1.85 -> 1.79 (tuned) | 2.07 -> 2.01 (held-out), but
+            held-out stereo heading 8.4 -> 12.7 deg (19 -> 25 moving reports: over the 10 deg
+            target) and stereo <= 8 m obstacle-frames ranged 75.9 -> 74.6 % (tuned). Not the
+            default: it gives up re-acquisition whenever the tracker is full (at 640x480 and
+            1280x720 most of the time), and those stereo numbers move.
         detect_bands: opt-in (default 1: off). A full tracker's periodic detection (it can only
             re-acquire lost features) is split into up to this many horizontal bands of the
             coverage grid's rows: with its period of p = 2 ``redetect_every`` frames, k bands, k the
