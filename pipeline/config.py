@@ -217,7 +217,9 @@ class TrackerConfig(_Section):
         "a followed stereo match's forward-backward re-check), recheck_px (px, 1.0), follow_levels (int, 1: "
         "OpenCV maxLevel of the stereo KLT for a match followed from the last frame, i.e. 1 searches 2 "
         "pyramid levels (full size and half) and 0 only the full-size image; new matches use maxLevel 4, "
-        "5 levels; null: maxLevel 4 for all).",
+        "5 levels; null: maxLevel 4 for all), reverse_views (bool, true: a second camera's confirmed "
+        "track with no reference-camera track gets a reference view from its members found there by "
+        "stereo KLT).",
     )
     max_width: int | None = Field(
         None,

@@ -172,12 +172,13 @@ class FrontEnd:
         # views the other way round (_derive_views): another camera's confirmed track with no
         # reference-camera track gets a reference view from its members found there by stereo KLT
         # (a full search every `every` frames, last frame's matches followed in between).
-        # Opt-in: it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 -> 8.1 ms,
-        # against the 30 fps stereo target). On the accuracy scenes (f2ad7ba, tuned | held-out):
+        # On by default: it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 -> 8.1
+        # ms, against the 30 fps stereo target), for these gains on the accuracy scenes (f2ad7ba,
+        # tuned | held-out):
         # stereo <= 3 m 0.89 -> 0.86 | 1.12 -> 1.00 %, <= 8 m 1.27 -> 1.17 | 1.14 -> 1.19 %,
         # range NEES 1.85 -> 1.76 | 2.07 -> 1.99, stereo <= 8 m obstacle-frame coverage
         # 75.9 -> 75.9 | 70.0 -> 73.8 %
-        rv = a.get("reverse_views", False)
+        rv = a.get("reverse_views", True)
         if not isinstance(rv, bool):
             raise ConfigError(f"FrontEnd association: reverse_views expected true or false, got {rv!r}")
         self.reverse_views = rv
@@ -714,7 +715,7 @@ class FrontEnd:
         grouper's track is not changed), so close obstacles, whose two cameras' independently
         detected corners rarely coincide, still have physical-point ids in both views.
 
-        With ``association.reverse_views`` (opt-in), the other way round: another camera's confirmed
+        With ``association.reverse_views`` (on by default), the other way round: another camera's confirmed
         track whose global id has no reference track this frame (``_unviewed_in_ref``) gets a
         reference view from its members found in the reference image alike (members under their
         physical-point ids, ``_pid``). That search is a retry every ``association.every`` frames

@@ -435,14 +435,15 @@ def test_track_grouped_only_by_the_second_camera_gets_a_reference_view_on_its_ow
     assert np.mean(same) >= 0.9
 
 
-def test_reverse_views_is_a_checked_opt_in(stereo):
-    """Off by default (each camera pair searched one way, as before); a non-boolean is refused."""
+def test_reverse_views_is_a_checked_option_on_by_default(stereo):
+    """On by default (the measured trade in FrontEnd.__init__); false turns it off; a non-boolean
+    is refused."""
     from estimators.errors import ConfigError
     from trackers.frontend import FrontEnd
 
     rig = stereo[0]
-    assert FrontEnd(rig).reverse_views is False
-    assert FrontEnd(rig, association={"reverse_views": True}).reverse_views is True
+    assert FrontEnd(rig).reverse_views is True
+    assert FrontEnd(rig, association={"reverse_views": False}).reverse_views is False
     with pytest.raises(ConfigError, match="reverse_views"):
         FrontEnd(rig, association={"reverse_views": "yes"})
 
