@@ -607,28 +607,29 @@ def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = 
     cnt = np.diff(np.append(start, M))
     if todo is None:
         todo = np.ones(len(start), dtype=bool)
-    small = todo & (cnt <= 3)
-    for k in np.flatnonzero(small).tolist():
-        out[start[k]:start[k] + cnt[k]] = True
-    big = np.flatnonzero(todo & (cnt > 3))
-    if not len(big):
+    out[np.repeat(todo & (cnt <= 3), cnt)] = True
+    big = todo & (cnt > 3)
+    if not big.any():
         return out
-    vid = np.repeat(np.arange(len(start)), cnt)
-    m = np.add.reduceat(b_W, start, axis=0)
+    idx = np.flatnonzero(np.repeat(big, cnt))  # the rows of the views to test
+    nb = cnt[big]
+    sb = np.cumsum(nb) - nb  # their views' starts in idx
+    B = b_W[idx]
+    m = np.add.reduceat(B, sb, axis=0)
     m /= np.sqrt(_dot_rows(m, m))[:, None]
     e = np.zeros_like(m)  # the axis least along m, crossed with m: e1 and e2 = m x e1
     e[np.arange(len(m)), np.argmin(np.abs(m), axis=1)] = 1.0
     e1 = _cross_rows(m, e)
     e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
     e2 = _cross_rows(m, e1)
-    den = np.maximum(_dot_rows(b_W, m[vid]), 1e-9)
-    P = np.stack([_dot_rows(b_W, e1[vid]), _dot_rows(b_W, e2[vid])], axis=1) / den[:, None]
+    vid = np.repeat(np.arange(len(m)), nb)
+    den = np.maximum(_dot_rows(B, m[vid]), 1e-9)
+    P = np.stack([_dot_rows(B, e1[vid]), _dot_rows(B, e2[vid])], axis=1) / den[:, None]
     P = P.astype(np.float32)  # (cv2.convexHull takes 32-bit points)
     hull = cv2.convexHull
-    hits = []
-    for a, n in zip(start[big].tolist(), cnt[big].tolist(), strict=True):
-        hits.append(hull(P[a:a + n], returnPoints=False).ravel() + a)
-    out[np.concatenate(hits)] = True
+    hits = [hull(P[a:a + n], returnPoints=False) for a, n in zip(sb.tolist(), nb.tolist(), strict=True)]
+    lens = [len(h) for h in hits]
+    out[idx[np.concatenate(hits).ravel() + np.repeat(sb, lens)]] = True
     return out
 
 
