@@ -137,7 +137,8 @@ class FeatureTracker:
             1280x720 most of the time), and those stereo numbers move.
         detect_bands: opt-in (default 1: off). A full tracker's periodic detection (it can only
             re-acquire lost features) is split into up to this many horizontal bands of the
-            coverage grid's rows: with its period of p = 2 ``redetect_every`` frames, k bands, k the
+            coverage grid's rows: with its period of p = ``full_redetect_factor`` x ``redetect_every``
+            frames (default 2 x), k bands, k the
             largest divisor of p up to ``detect_bands``, one band every p / k frames, in turn, so
             such a frame pays about 1/k of a detection instead of every p-th frame paying all of
             it (the live-latency tail), and every part of the lens is still searched every p
