@@ -15,6 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from estimators.errors import InputError
+
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
     """Sine of the angle of b1 out of the epipolar plane of b0.
@@ -240,6 +242,8 @@ def stereo_klt(
     """
     import cv2
 
+    if moved not in ("check", "drop"):
+        raise InputError(f"stereo_klt: moved expected 'check' or 'drop', got {moved!r}")
     n = len(b_a)
     empty = StereoKLT(np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0, bool))
     if not n:

@@ -498,3 +498,13 @@ def test_stereo_klt_drops_a_followed_match_that_lands_off_its_guess_when_told():
     assert np.all(kept.idx % 2 == 0) and not kept.checked.any()
     assert np.sum(checked.idx % 2 == 1) >= 0.4 * len(b_a) / 2  # checked instead, and most pass
     assert np.all(checked.checked[checked.idx % 2 == 1])
+
+
+def test_stereo_klt_refuses_an_unknown_moved_rule():
+    """moved is "check" or "drop"; anything else is an InputError naming it (it used to act as "check")."""
+    from estimators.errors import InputError
+    from trackers.association import stereo_klt
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    with pytest.raises(InputError, match="moved"):
+        stereo_klt(img_a, img_b, ft.b_C, ft.uv.astype(float), model, R_b_a, np.zeros(3), moved="dorp")
