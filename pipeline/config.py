@@ -189,8 +189,7 @@ class TrackerConfig(_Section):
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
         "fb_retry (bool, a level-0 failure is checked again one level up), "
         "min_distance_px (px), history (frames), full_redetect_factor (int, 2: a full tracker detects every "
-        "this many x redetect_every frames; 0: not while full), detect_bands (int, 1 = off: a full tracker's "
-        "detection is spread over this many row bands on successive frames, for live tail latency).",
+        "this many x redetect_every frames; 0: not while full).",
     )
     grouping: dict[str, Any] = Field(
         default_factory=dict,

@@ -120,9 +120,7 @@ class FeatureTracker:
             features triggers re-detection.
         min_per_cell: see ``grid``.
         redetect_every: re-detect every this many frames (1 = every frame); a full tracker
-            (``max_features`` live) every ``full_redetect_factor`` times this many. Each part of
-            the lens is detected at that rate; see ``detect_bands`` for how the work is spread over
-            the frames.
+            (``max_features`` live) every ``full_redetect_factor`` times this many.
         full_redetect_factor: see ``redetect_every`` (default 2; 0: a full tracker does not
             detect, so lost features are re-acquired only while there is room). A full tracker's
             detection can only re-acquire lost features (about 0.7 per detection on the 640x480
@@ -135,21 +133,6 @@ class FeatureTracker:
             target) and stereo <= 8 m obstacle-frames ranged 75.9 -> 74.6 % (tuned). Not the
             default: it gives up re-acquisition whenever the tracker is full (at 640x480 and
             1280x720 most of the time), and those stereo numbers move.
-        detect_bands: opt-in (default 1: off). A full tracker's periodic detection (it can only
-            re-acquire lost features) is split into up to this many horizontal bands of the
-            coverage grid's rows: with its period of p = ``full_redetect_factor`` x ``redetect_every``
-            frames (default 2 x), k bands, k the
-            largest divisor of p up to ``detect_bands``, one band every p / k frames, in turn, so
-            such a frame pays about 1/k of a detection instead of every p-th frame paying all of
-            it (the live-latency tail), and every part of the lens is still searched every p
-            frames. With room for new features the whole lens is detected at once (a band would
-            choose new features among its own cells only, not the lens's). Not the default: the
-            bands' re-acquisitions differ, and trackers.benchmark moved (worst obstacle
-            stereo_flying 0.660 -> 0.642, wide_angle_beyond90 0.587 -> 0.547, turning 0.971 ->
-            1.000); the 1280x720 bench clip's detect + track CPU per frame p99 16.6 -> 14.2 ms
-            but mean 8.3 -> 9.2 ms (each band pays ORB's fixed costs and 64 rows of margin; k = 2:
-            p99 15.8, mean 8.9, stereo_flying 0.623, turning 1.000, the others unchanged).
-            Other detectors than ORB always detect the whole frame.
         win_px, levels: KLT window (px) and pyramid levels.
         fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
             backward misses its start by more than this (px).
@@ -199,7 +182,6 @@ class FeatureTracker:
         min_per_cell: int = 1,
         redetect_every: int = 4,
         full_redetect_factor: int = 2,
-        detect_bands: int = 1,
         win_px: int = 11,
         levels: int = 2,
         fb_max_px: float = 1.0,
@@ -220,16 +202,15 @@ class FeatureTracker:
             or history < 2
             or redetect_every < 1
             or full_redetect_factor < 0
-            or detect_bands < 1
             or fb_max_px <= 0
             or fb_levels < 0
         ):
             raise ConfigError(
                 "FeatureTracker: expected max_features >= 1 (or None), px_per_feature > 0, "
-                "history >= 2, redetect_every >= 1, full_redetect_factor >= 0, detect_bands >= 1, "
+                "history >= 2, redetect_every >= 1, full_redetect_factor >= 0, "
                 "fb_max_px > 0, fb_levels >= 0; got "
                 f"{max_features}, {px_per_feature}, {history}, {redetect_every}, {full_redetect_factor}, "
-                f"{detect_bands}, {fb_max_px}, {fb_levels}"
+                f"{fb_max_px}, {fb_levels}"
             )
         self.camera = camera
         self.name = camera.name
@@ -286,11 +267,6 @@ class FeatureTracker:
         h, w = self.shape_hw
         cell_frac = cv2.resize((self.mask > 0).astype(np.float32), (gx, gy), interpolation=cv2.INTER_AREA)
         self._live_cells = (cell_frac > 0.5).reshape(-1)
-        self.detect_bands = int(detect_bands) if isinstance(detector, OrbDetector) else 1
-        self._bands = self._make_bands(1)  # this round's bands
-        self._band_round: list[int] = []  # the bands not yet detected in this round, in order
-        self._round_k = 0
-        self._n_rounds = 0
         self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
         # live features
         self.ids = np.zeros(0, np.int64)
@@ -355,9 +331,8 @@ class FeatureTracker:
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
         self._frames_since_detect += 1
-        due = self._due()
-        if due is not None:
-            self._detect(image if image is not None else grey, float(t_s), band=due)
+        if self._need_detection():
+            self._detect(image if image is not None else grey, float(t_s))
             self._frames_since_detect = 0
         t2 = time.perf_counter()
         self._bearings_and_history(frame, t_s)
@@ -702,106 +677,38 @@ class FeatureTracker:
         cy = np.clip((self.uv[:, 1] * gy / h).astype(np.intp), 0, gy - 1)
         return np.bincount(cy * gx + cx, minlength=gx * gy)
 
-    def _make_bands(self, k: int) -> list[tuple[int, int]]:
-        """The detection bands: (y0, y1) frame rows of each, top to bottom; k contiguous groups of
-        the grid's rows that hold live cells, the first reaching up to row 0 and the last down to
-        the frame's bottom. The groups hold about equal shares of the work, weighted per row: its
-        live features (ORB's work grows with the corners, which the features follow; at 720p the
-        middle third of the rows held 80 % of them) plus half the mean per row (work per pixel)."""
-        gx, gy = self.grid
-        h = self.shape_hw[0]
-        per_row = self._live_cells.reshape(gy, gx).sum(axis=1)
-        rows = np.flatnonzero(per_row)
-        k = max(1, min(int(k), len(rows)))
-        if k == 1:
-            return [(0, h)]
-        n_row = np.bincount(
-            np.clip((self.uv[:, 1] * gy / h).astype(np.intp), 0, gy - 1), minlength=gy
-        ).astype(float)[rows]
-        w = n_row + 0.5 * max(n_row.mean(), 1.0)
-        # row i starts a new group when the weight before it first reaches j / k of the total
-        before = np.concatenate([[0.0], np.cumsum(w)[:-1]]) / w.sum()
-        starts = [0]
-        for j in range(1, k):
-            i = max(starts[-1] + 1, int(np.searchsorted(before, j / k)))
-            if i > len(rows) - (k - j):
-                i = len(rows) - (k - j)
-            starts.append(i)
-        starts.append(len(rows))
-        out = []
-        for j in range(k):
-            g = rows[starts[j] : starts[j + 1]]
-            ya = 0 if j == 0 else round(int(g[0]) * h / gy)
-            yb = h if j == k - 1 else round(int(rows[starts[j + 1]]) * h / gy)
-            out.append((ya, yb))
-        return out
-
-    def _due(self) -> int | None:
-        """What to detect this frame: -1 the whole lens (coverage thins: fewer than 60 % of the
-        budget live and a live cell below ``min_per_cell``), a band's index (periodic, the bands
-        in turn), or None."""
+    def _need_detection(self) -> bool:
+        """Whether to detect this frame: coverage thins (fewer than 60 % of the budget live and a
+        live cell below ``min_per_cell``), or periodically (every ``redetect_every`` frames; a full
+        tracker every ``full_redetect_factor`` times that, never with 0)."""
         if len(self.ids) < 0.6 * self.max_features:
             counts = self._cell_counts()
             if np.any(counts[self._live_cells] < self.min_per_cell):
-                self._band_round = []  # the whole lens now: the next periodic band starts a round
-                return -1
+                return True
         # full (no room for new features): a detection can only re-acquire lost features (0.7 per
-        # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so more rarely;
-        # each band every period frames: one of k bands every period / k frames
+        # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so more rarely
         full = len(self.ids) >= self.max_features
         if full and self.full_redetect_factor == 0:
-            return None
+            return False
         period = self.redetect_every * (self.full_redetect_factor if full else 1)
-        # bands only when full: a band then only re-acquires (as a whole detection would); with
-        # room, a band's new features would be chosen among its own cells only, not the lens's
-        # (measured with bands also with room, each given its cells' share of the free capacity:
-        # trackers.benchmark noisy_1080p's drone 0.708 -> 0.208, mono_straight's worst obstacle
-        # 1.000 -> 0.846)
-        nb = self.detect_bands if full else 1
-        k = max(d for d in range(1, min(nb, period) + 1) if period % d == 0)
-        if self._frames_since_detect * k < period:
-            return None
-        if not self._band_round or self._round_k != k:
-            # a new round (also when the period changed k), one band further down than the last;
-            # its bands follow where the features are now
-            self._round_k = k
-            self._bands = self._make_bands(k)
-            k = len(self._bands)
-            self._band_round = [(self._n_rounds + j) % k for j in range(k)]
-            self._n_rounds += 1
-        return self._band_round[0]
+        return self._frames_since_detect >= period
 
-    def _detect(self, image: np.ndarray, t_s: float, band: int = -1) -> None:
-        """Detect new features (and re-acquire lost ones) in ``band`` (an index into the bands,
-        or -1: the whole lens)."""
+    def _detect(self, image: np.ndarray, t_s: float) -> None:
+        """Detect new features (and re-acquire lost ones) in the lens."""
         free = self.max_features - len(self.ids)
-        if band in self._band_round:
-            self._band_round.remove(band)
         if free <= 0 and not len(self.lost_ids):
             return
         # ORB runs on the lens's bounding box (``_det_box``: roi + 32 px, so that its coarse
-        # levels see real pixels past the rim, not a reflected crop border), or on a band of it
-        # (its rows +- 32 px, keypoints kept in the band's own rows), and describes only the
+        # levels see real pixels past the rim, not a reflected crop border), and describes only the
         # keypoints that can be kept; other detectors get the whole frame
         orb = isinstance(self.detector, OrbDetector)
         x0, y0, x1, y1 = self.frame_box
-        ya, yb = (y0, y1) if band < 0 else self._bands[band]
-        if orb and band >= 0:
-            y0, y1 = max(y0, ya - 32), min(y1, yb + 32)
         m = self.mask[y0:y1, x0:x1].copy()
         r = max(1, int(round(self.min_distance_px)))
-        uv_live = self.uv
-        if band >= 0:  # only live features whose circle reaches the crop
-            uv_live = uv_live[(uv_live[:, 1] >= y0 - r - 1) & (uv_live[:, 1] < y1 + r + 1)]
         # keep new keypoints away from live features (int32 truncates as int() does; a list of
         # Python ints: the loop over numpy rows cost as much again as cv2.circle itself)
-        for u, v in (uv_live.astype(np.int32) - np.array([x0, y0], np.int32)).tolist():
+        for u, v in (self.uv.astype(np.int32) - np.array([x0, y0], np.int32)).tolist():
             cv2.circle(m, (u, v), r, 0, -1)
-        lens = None  # (a band: ORB's second, masked detection is decided on the crop's own mask)
-        if ya > y0 or yb < y1:
-            lens = m.copy()
-            m[: max(0, ya - y0)] = 0
-            m[max(0, yb - y0) :] = 0
         if orb:
             det = self.detector.detect(
                 image[y0:y1, x0:x1],
@@ -809,7 +716,6 @@ class FeatureTracker:
                 origin=(x0, y0),
                 frame_hw=self.shape_hw,
                 select=lambda uv, _sc: self._worth_describing(uv, free, t_s),
-                lens=lens,
             )
             if len(det):
                 det = replace(det, keypoints=det.keypoints + np.array([x0, y0], np.float32))

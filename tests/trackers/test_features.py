@@ -162,7 +162,6 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
         {"history": 1},
         {"redetect_every": 0},
         {"full_redetect_factor": -1},
-        {"detect_bands": 0},
         {"fb_max_px": 0.0},
         {"fb_levels": -1},
     ],
@@ -277,13 +276,13 @@ def test_a_full_tracker_detects_half_as_often(model):
     grey = SphereScene(model).render()
 
     def detect_frames(max_features: int) -> list[int]:
-        ft = make_tracker(model, max_features=max_features, redetect_every=4, detect_bands=1)
+        ft = make_tracker(model, max_features=max_features, redetect_every=4)
         frames: list[int] = []
         orig = ft._detect
 
-        def counting(image, t_s, band=-1):
+        def counting(image, t_s):
             frames.append(round(t_s * 30))
-            return orig(image, t_s, band=band)
+            return orig(image, t_s)
 
         ft._detect = counting
         for k in range(20):
@@ -303,9 +302,9 @@ def test_full_redetect_factor_sets_how_often_a_full_tracker_detects(model, facto
     seen: list[int] = []
     orig = ft._detect
 
-    def counting(image, t_s, band=-1):
+    def counting(image, t_s):
         seen.append(round(t_s * 30))
-        return orig(image, t_s, band=band)
+        return orig(image, t_s)
 
     ft._detect = counting
     for k in range(20):
@@ -352,50 +351,6 @@ def test_a_full_tracker_describes_only_reacquisition_candidates():
     d = np.sqrt(((uv[:, None, :] - lost_uv[None, :, :]) ** 2).sum(-1)).min(axis=1)
     assert len(uv) >= 5 and np.all(d <= 2 * np.sqrt(2) * 15.0), np.sort(d)[-5:]
     assert len(lost_ids & set(feats.ids.tolist())) >= 5
-
-
-def test_detect_bands_spread_a_full_trackers_detection(model):
-    """detect_bands=4, redetect_every=4: a full tracker's detection (period 8 frames) is made one of
-    4 bands every 2 frames, in turn, the 4 bands of a round tiling the frame's rows; ORB gets the
-    band's rows +- 32 px (less than the whole box) and keeps keypoints in the band's own rows. The
-    first frame (nothing live: coverage thin) detects the whole lens at once."""
-    from trackers.detectors.orb import OrbDetector
-
-    grey = SphereScene(model).render()
-    ft = make_tracker(model, max_features=60, redetect_every=4, detect_bands=4)
-    calls: list[tuple[int, int, tuple[int, int] | None]] = []
-    orb_calls: list[tuple[tuple[int, int] | None, int, int, np.ndarray]] = []
-    orig, orig_orb = ft._detect, OrbDetector.detect
-
-    def counting(image, t_s, band=-1):
-        calls.append((round(t_s * 30), band, ft._bands[band] if band >= 0 else None))
-        return orig(image, t_s, band=band)
-
-    def orb_spy(image, mask=None, **kw):
-        out = orig_orb(ft.detector, image, mask, **kw)
-        y0 = kw["origin"][1]
-        orb_calls.append((calls[-1][2], image.shape[0], y0, out.keypoints[:, 1] + y0))
-        return out
-
-    ft._detect = counting
-    ft.detector.detect = orb_spy
-    for k in range(17):
-        if k in (3, 9):  # something lost: the bands' detections run ORB (to re-acquire)
-            ft._drop(np.arange(0, ft.n_live, 3), remember=True)
-            ft.max_features = ft.n_live
-        ft.track(grey, k, k / 30)
-    assert calls[0][:2] == (0, -1)
-    assert [c[0] for c in calls[1:]] == [2, 4, 6, 8, 10, 12, 14, 16]
-    h, box_h = model.height, ft.frame_box[3] - ft.frame_box[1]
-    for r in (calls[1:5], calls[5:9]):
-        rows = sorted(c[2] for c in r)
-        assert rows[0][0] == 0 and rows[-1][1] == h
-        assert all(a[1] == b[0] for a, b in zip(rows[:-1], rows[1:], strict=True))
-    assert orb_calls[0][0] is None and orb_calls[0][1] == box_h
-    assert len(orb_calls) >= 4
-    for (ya, yb), crop_h, crop_y0, v in orb_calls[1:]:
-        assert crop_y0 == max(ft.frame_box[1], ya - 32) and crop_h < box_h
-        assert np.all((np.rint(v) >= ya) & (np.rint(v) < yb))
 
 
 @pytest.mark.parametrize("opts", [{}, {"fb_levels": 0, "fb_retry": True}], ids=["default", "fb0_retry"])

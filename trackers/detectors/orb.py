@@ -93,7 +93,6 @@ class OrbDetector(Detector):
         origin: tuple[int, int] = (0, 0),
         frame_hw: tuple[int, int] | None = None,
         select: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-        lens: np.ndarray | None = None,
     ) -> Detections:
         """See Detector.detect; keypoints carry ORB descriptors (N, 32) uint8.
 
@@ -107,13 +106,6 @@ class OrbDetector(Detector):
             select: optional ``select(uv (K, 2) frame px, scores (K,)) -> indices`` called with the
                 bucketed keypoints (round-robin order); only the selected ones get descriptors and
                 are returned (descriptors cost ~1.5 us per keypoint plus the blurred pyramid).
-            lens: optional (H, W) uint8 of ``image``'s size, > 0 where the image has content (the
-                lens circle), default ``mask``: when ORB's budget is used up and under 70 % of its
-                corners lie in it (e.g. sensor noise outside the lens), ORB detects again inside
-                ``mask``. A caller whose ``mask`` also excludes corners for other reasons (near
-                live features, outside a band) passes the lens here, so those do not trigger a
-                second detection (at 1920x1080 tracked at 1280 px, the live features' holes
-                triggered it on almost every detection: ORB 3.9 -> 7.9 ms).
         """
         grey = to_grey(image)
         if mask is not None and np.shape(mask)[:2] != grey.shape[:2]:
@@ -126,13 +118,9 @@ class OrbDetector(Detector):
         uv = cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32)
         sc = np.array([k.response for k in kps], dtype=np.float32)
         if mask is not None and len(kps) >= 0.9 * self._orb.getMaxFeatures():
-            # ORB's budget was used up: when much of it went to corners outside the lens (e.g.
+            # ORB's budget was used up: when much of it went to corners outside the mask (e.g.
             # sensor noise outside the lens circle), detect again inside the mask (the slow path)
-            m = np.asarray(mask if lens is None else lens)
-            if m.shape[:2] != grey.shape[:2]:
-                raise InputError(
-                    f"orb: lens of shape {m.shape} for a {grey.shape[:2]} image; expected the same size"
-                )
+            m = np.asarray(mask)
             ui = np.clip(np.rint(uv[:, 0]).astype(np.intp), 0, m.shape[1] - 1)
             vi = np.clip(np.rint(uv[:, 1]).astype(np.intp), 0, m.shape[0] - 1)
             if np.count_nonzero(m[vi, ui]) < 0.7 * len(kps):
