@@ -114,6 +114,7 @@ from estimators import geometry
 from estimators.egomotion import EgoMotion
 from estimators.errors import ConfigError, InputError
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
+from estimators.geometry import _cross  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
 from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
 from estimators.se3 import Pose
@@ -370,11 +371,6 @@ class FusionSettings:
             )
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for two (3,) vectors (np.cross costs ~10x more on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
     """``tangent_basis`` of a unit 3-tuple: the columns (e1, e2) as 3-tuples of floats."""
     a0, a1, a2 = abs(u[0]), abs(u[1]), abs(u[2])
@@ -392,6 +388,7 @@ for _z in _ZEROS.values():
 
 def tangent_basis(u: np.ndarray) -> np.ndarray:
     """Orthonormal basis E (3, 2) of the plane orthogonal to the unit vector ``u`` (3,)."""
+    u = np.asarray(u, dtype=float)
     e = np.zeros(3)
     e[int(np.argmin(np.abs(u)))] = 1.0
     e1 = _cross(u, e)
@@ -619,9 +616,9 @@ def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = 
     m /= np.sqrt(_dot_rows(m, m))[:, None]
     e = np.zeros_like(m)  # the axis least along m, crossed with m: e1 and e2 = m x e1
     e[np.arange(len(m)), np.argmin(np.abs(m), axis=1)] = 1.0
-    e1 = _cross_rows(m, e)
+    e1 = _cross(m, e)
     e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
-    e2 = _cross_rows(m, e1)
+    e2 = _cross(m, e1)
     vid = np.repeat(np.arange(len(m)), nb)
     den = np.maximum(_dot_rows(B, m[vid]), 1e-9)
     P = np.stack([_dot_rows(B, e1[vid]), _dot_rows(B, e2[vid])], axis=1) / den[:, None]
@@ -2436,18 +2433,9 @@ def _tdot(a, b) -> float:
 def _rotate_about_batch(b: np.ndarray, n: np.ndarray, ca: np.ndarray, sa: np.ndarray) -> np.ndarray:
     """Rodrigues rotation of the rows of b (K, 3) about the unit axes n (K, 3) by the angles whose
     cosines / sines are ca, sa (K,):  b cos + (n x b) sin + n (n.b)(1 - cos)."""
-    nxb = _cross_rows(n, b)
+    nxb = _cross(n, b)
     k = _dot_rows(n, b) * (1.0 - ca)
     return b * ca[:, None] + nxb * sa[:, None] + n * k[:, None]
-
-
-def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise a x b of (K, 3) arrays (np.cross costs more on small arrays)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -2465,11 +2453,11 @@ def _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta):
     +-delta, plus ray a itself when ray b is within delta of it; just the two rays when there is
     no plane, delta is 0 or ray a lies along the normal.
     """
-    n = _cross_rows(c_b - c_a, b_b)  # epipolar plane normal
+    n = _cross(c_b - c_a, b_b)  # epipolar plane normal
     nn = np.sqrt(_dot_rows(n, n))
     zero_base = nn < 1e-9
     if zero_base.any():  # zero baseline: the plane of the two bearings
-        n[zero_base] = _cross_rows(b_a[zero_base], b_b[zero_base])
+        n[zero_base] = _cross(b_a[zero_base], b_b[zero_base])
         nn = np.sqrt(_dot_rows(n, n))
     plane = (delta > 0) & (nn >= 1e-12)
     n = n / np.where(plane, nn, 1.0)[:, None]
@@ -2478,7 +2466,7 @@ def _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta):
     na = np.sqrt(_dot_rows(b_in, b_in))
     plane &= na >= 1e-9  # ray a along the normal: nothing to project
     b_in = b_in / np.where(plane, na, 1.0)[:, None]
-    to_a = np.arctan2(_dot_rows(n, _cross_rows(b_b, b_in)), _dot_rows(b_b, b_in))  # signed, about n
+    to_a = np.arctan2(_dot_rows(n, _cross(b_b, b_in)), _dot_rows(b_b, b_in))  # signed, about n
     ca, sa = np.cos(delta), np.sin(delta)
     p = np.flatnonzero(plane)
     q = np.flatnonzero(~plane)
