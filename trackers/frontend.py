@@ -172,12 +172,12 @@ class FrontEnd:
         # views the other way round (_derive_views): another camera's confirmed track with no
         # reference-camera track gets a reference view from its members found there by stereo KLT
         # (a full search every `every` frames, last frame's matches followed in between).
-        # On by default: it costs ~2 ms of CPU per 720p stereo frame (associate median 6.0 -> 8.1
-        # ms, against the 30 fps stereo target), for these gains on the accuracy scenes (f2ad7ba,
-        # tuned | held-out):
-        # stereo <= 3 m 0.89 -> 0.86 | 1.12 -> 1.00 %, <= 8 m 1.27 -> 1.17 | 1.14 -> 1.19 %,
-        # range NEES 1.85 -> 1.76 | 2.07 -> 1.99, stereo <= 8 m obstacle-frame coverage
-        # 75.9 -> 75.9 | 70.0 -> 73.8 %
+        # On by default: it costs ~2 ms of CPU per 720p stereo frame (associate median 5.4 -> 7.3
+        # ms, one pinned core, against the 30 fps stereo target), for these gains on the accuracy
+        # scenes (accuracy --mode pipeline --set both at 9edeb56, false -> true, tuned | held-out):
+        # range NEES 1.104 -> 1.006 | 2.034 -> 1.954, stereo <= 3 m 0.80 -> 0.80 | 0.71 -> 0.67 %,
+        # <= 8 m 1.09 -> 1.04 | 0.97 -> 1.00 %, stereo <= 8 m obstacle-frame coverage
+        # 76.1 -> 76.1 | 70.2 -> 74.0 %; mono, bounds and speed identical
         rv = a.get("reverse_views", True)
         if not isinstance(rv, bool):
             raise ConfigError(f"FrontEnd association: reverse_views expected true or false, got {rv!r}")
