@@ -346,8 +346,14 @@ class FusionSettings:
                         f"FusionSettings.stereo_update: expected 'bearings' or 'point', got {v!r}"
                     )
                 continue
-            if not isinstance(v, int | float) or not math.isfinite(v):
+            if f.type == "bool":  # (2.5 or 1 is no switch: refuse, do not read it as truthy)
+                if not isinstance(v, bool | np.bool_):
+                    raise ConfigError(f"FusionSettings.{f.name}: expected true or false, got {v!r}")
+                continue
+            if isinstance(v, bool | np.bool_) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise ConfigError(f"FusionSettings.{f.name}: expected a finite number, got {v!r}")
+            if f.type == "int" and int(v) != v:
+                raise ConfigError(f"FusionSettings.{f.name}: expected an integer, got {v!r}")
             if v < 0:
                 raise ConfigError(f"FusionSettings.{f.name}: expected a value >= 0, got {v!r}")
         if not 0.0 < self.gate_probability < 1.0:

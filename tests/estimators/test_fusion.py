@@ -454,6 +454,22 @@ def test_settings_validation(kw):
         FusionSettings(**kw)
 
 
+@pytest.mark.parametrize(
+    "kw, expected",
+    [({"feature_point": 2.5}, "feature_point: expected true or false"),
+     ({"feature_ranging": 1}, "feature_ranging: expected true or false"),
+     ({"feature_avoid_outline": "yes"}, "feature_avoid_outline: expected true or false"),
+     ({"feature_min_count": 2.5}, "feature_min_count: expected an integer"),
+     ({"max_accel_mps2": True}, "max_accel_mps2: expected a finite number")],
+)
+def test_settings_refuse_wrong_types(kw, expected):
+    # a switch is true or false, a count an integer: 2.5 read as truthy (or int(2.5) = 2) would
+    # run another configuration than the one asked for, silently
+    with pytest.raises(ConfigError, match=expected):
+        FusionSettings(**kw)
+    assert FusionSettings(feature_point=False, feature_min_count=3.0).feature_min_count == 3
+
+
 # ----------------------------------------------------------------------------- chi-square helpers
 @pytest.mark.parametrize(
     "p, k, x",  # textbook table values (Abramowitz & Stegun 26.8; any chi-square table)
