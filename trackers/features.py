@@ -93,6 +93,14 @@ def lens_mask(model, margin_px: float = 3.0) -> np.ndarray:
     return m
 
 
+def _check_int(name: str, value) -> None:
+    """Raise ConfigError unless ``value`` is an integer (int or numpy integer, not a bool)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
+        raise ConfigError(
+            f"FeatureTracker: {name} must be an integer; got {value!r} ({type(value).__name__})"
+        )
+
+
 class FeatureTracker:
     """KLT + ORB feature tracker of one camera (see the module docstring).
 
@@ -196,6 +204,26 @@ class FeatureTracker:
         texture_k: float = 0.4,
         margin_px: float = 4.0,
     ) -> None:
+        # integer options: an int (or numpy integer); a float such as 1.5 or a bool (True) is refused
+        # rather than truncated by int()
+        for opt, val in (
+            ("max_features", max_features),
+            ("min_per_cell", min_per_cell),
+            ("redetect_every", redetect_every),
+            ("full_redetect_factor", full_redetect_factor),
+            ("win_px", win_px),
+            ("levels", levels),
+            ("fb_levels", fb_levels),
+            ("reacquire_frames", reacquire_frames),
+            ("reacquire_max_hamming", reacquire_max_hamming),
+            ("history", history),
+        ):
+            if not (val is None and opt == "max_features"):
+                _check_int(opt, val)
+        if not (isinstance(grid, tuple | list) and len(grid) == 2):
+            raise ConfigError(f"FeatureTracker: grid: expected (cols, rows), two integers; got {grid!r}")
+        _check_int("grid[0]", grid[0])
+        _check_int("grid[1]", grid[1])
         if (
             (max_features is not None and max_features < 1)
             or not px_per_feature > 0

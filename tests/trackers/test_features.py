@@ -171,6 +171,39 @@ def test_bad_tracker_options(model, kw):
         make_tracker(model, **kw)
 
 
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("max_features", 1.5),
+        ("max_features", True),
+        ("history", 8.0),
+        ("redetect_every", True),
+        ("win_px", 11.5),
+        ("levels", "2"),
+        ("fb_levels", False),
+        ("min_per_cell", 1.5),
+        ("reacquire_frames", 2.5),
+        ("reacquire_max_hamming", np.float64(40.0)),
+        ("full_redetect_factor", np.True_),
+        ("grid", (16.5, 9)),
+        ("grid", (16, True)),
+        ("grid", (16,)),
+    ],
+)
+def test_integer_options_refuse_non_integers(model, name, value):
+    """An integer option given a float or a bool is refused (int() would truncate 1.5 to 1 and take
+    True as 1), and the message names the option and says an integer was expected."""
+    with pytest.raises(ConfigError, match=name.split("[")[0]) as e:
+        make_tracker(model, **{name: value})
+    assert "integer" in str(e.value)
+
+
+def test_integer_options_take_numpy_integers(model):
+    ft = make_tracker(model, max_features=np.int64(120), history=np.int32(8), grid=[8, 6])
+    assert (ft.max_features, ft.H, ft.grid) == (120, 8, (8, 6))
+    assert type(ft.max_features) is int and type(ft.H) is int
+
+
 def test_texture_is_the_window_mean_absolute_deviation(model):
     """A 0/200 checkerboard deviates 100 grey levels from its mean everywhere (worked by hand); a
     flat patch 0: the texture term of the residual bound (issue 4)."""
