@@ -421,14 +421,13 @@ class FeatureTracker:
         """
         n = self._h_n[self.slot]
         back = np.minimum(n - 1, k)
-        idx = (n - 1 - back) % self.H
-        return self._h_bC[self.slot, idx], self._h_t[self.slot, idx], back > 0
+        fi = self.slot * self.H + (n - 1 - back) % self.H  # flat (slot, ring position) index
+        return self._h_bC.reshape(-1, 3)[fi], self._h_t.reshape(-1)[fi], back > 0
 
     def previous_bearing(self) -> tuple[np.ndarray, np.ndarray]:
         """(b_C (N,3) one frame back, valid (N,)) for the live features (the sample before the latest)."""
         n = self._h_n[self.slot]
-        idx = (n - 2) % self.H
-        return self._h_bC[self.slot, idx], n >= 2
+        return self._h_bC.reshape(-1, 3)[self.slot * self.H + (n - 2) % self.H], n >= 2
 
     def describe(self, grey: np.ndarray, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """ORB descriptors of live features at their current positions.
@@ -565,14 +564,7 @@ class FeatureTracker:
             rows = np.arange(n0, len(self.ids))
             b, valid = self.model.pixel_to_bearing(self.uv[rows].astype(np.float64))
             self.b_C[rows] = b
-            s = self.slot[rows]
-            pos = self._h_n[s] % self.H
-            self._h_uv[s, pos] = self.uv[rows]
-            self._h_bC[s, pos] = b
-            self._h_bB[s, pos] = b @ self.R_C_B
-            self._h_t[s, pos] = t_s
-            self._h_frame[s, pos] = frame
-            self._h_n[s] += 1
+            self._write_history(self.slot[rows], self.uv[rows], b, frame, t_s)
             if not np.all(valid):
                 self._drop(rows[~valid], remember=False)
         return added
@@ -589,12 +581,14 @@ class FeatureTracker:
         """Track the live features from ``prev`` to ``cur`` (both cropped to ``roi``), ``dt_s``
         seconds apart (a dropped frame doubles it; <= 0: no motion prediction, velocities kept)."""
         off = self._off
-        p0 = (self.uv - off).reshape(-1, 1, 2)
+        q0 = self.uv - off  # (N, 2) float32 crop px
+        p0 = q0.reshape(-1, 1, 2)
         moving = bool(np.isfinite(dt_s) and dt_s > 0)
         # constant-velocity prediction (px): v (px/s) * dt (s)
         step = (self.vel * np.float32(dt_s)) if moving else np.zeros_like(self.vel)
-        # forward, starting from the constant-velocity prediction p0 + v dt
-        guess = (self.uv - off + step).reshape(-1, 1, 2).astype(np.float32)
+        # forward, starting from the constant-velocity prediction p0 + v dt (a new float32 array:
+        # LK writes its result into it)
+        guess = (q0 + step).reshape(-1, 1, 2)
         p1, st, err = cv2.calcOpticalFlowPyrLK(
             prev,
             cur,
@@ -607,7 +601,7 @@ class FeatureTracker:
         )
         # backward: track p1 back into the previous frame, starting from p1 - v dt (the prediction
         # reversed, not p0 itself); a good track lands within fb_max_px of where it started
-        back_guess = (p1.reshape(-1, 2) - step).reshape(-1, 1, 2).astype(np.float32)
+        back_guess = (p1.reshape(-1, 2) - step).reshape(-1, 1, 2)
         p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
             cur,
             prev,
@@ -620,7 +614,10 @@ class FeatureTracker:
         )
         p0r = p0r.reshape(-1, 2)
         st2 = st2.reshape(-1)
-        fb = np.linalg.norm(p0r + off - self.uv, axis=1)
+        # |p0r + off - uv| written out (the same float32 values as np.linalg.norm(.., axis=1), whose
+        # call costs more than the arithmetic for a few hundred rows)
+        d = p0r + off - self.uv
+        fb = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
         if self.fb_retry and self.fb_levels < self.levels:
             # second chance: a backward pass on the full-resolution level alone converges only
             # within about half a window of its start, so a good track whose motion prediction was
@@ -974,11 +971,16 @@ class FeatureTracker:
             self._drop(np.flatnonzero(~valid), remember=False)
             b = b[valid]
         self.b_C = b
-        s = self.slot
-        pos = self._h_n[s] % self.H
-        self._h_uv[s, pos] = self.uv
-        self._h_bC[s, pos] = b
-        self._h_bB[s, pos] = b @ self.R_C_B  # b_B = R_C_B^T b_C
-        self._h_t[s, pos] = t_s
-        self._h_frame[s, pos] = frame
+        self._write_history(self.slot, self.uv, b, frame, t_s)
+
+    def _write_history(self, s: np.ndarray, uv: np.ndarray, b: np.ndarray, frame: int, t_s: float) -> None:
+        """Append one sample to the ring buffers of slots ``s`` (K,): pixels uv (K, 2), bearings b (K, 3)
+        in C (and in B), time t_s (s), frame index."""
+        H = self.H
+        fi = s * H + self._h_n[s] % H  # flat (slot, ring position) index: one index array, not two
+        self._h_uv.reshape(-1, 2)[fi] = uv
+        self._h_bC.reshape(-1, 3)[fi] = b
+        self._h_bB.reshape(-1, 3)[fi] = b @ self.R_C_B  # b_B = R_C_B^T b_C
+        self._h_t.reshape(-1)[fi] = t_s
+        self._h_frame.reshape(-1)[fi] = frame
         self._h_n[s] += 1

@@ -105,6 +105,15 @@ def _shrink_box(
     return (x0 * qx // px, y0 * qy // py, x1 * qx // px, y1 * qy // py, x0, y0, x1, y1)
 
 
+def _sample_index(mask: np.ndarray) -> np.ndarray:
+    """(K,) flat indices into an (H, W) frame of the pixels of every 8th row and column where
+    ``mask`` (H, W) is > 0, row by row: ``np.take(grey, idx)`` equals
+    ``grey[::8, ::8][mask[::8, ::8] > 0]``."""
+    w = mask.shape[1]
+    ys, xs = np.nonzero(mask[::8, ::8] > 0)
+    return (ys * 8 * w + xs * 8).astype(np.intp)
+
+
 class FrontEnd:
     """Detectors, feature tracking and obstacle grouping for every camera of a rig.
 
@@ -208,6 +217,9 @@ class FrontEnd:
         self.masks = {
             c.name: lens_mask(c.model) for c in self.cams.values()
         }  # InputError if the circle does not fit
+        # _has_texture's sample (every 8th pixel of every 8th row, inside the lens) as flat indices
+        # into the frame, in the order boolean indexing gives them
+        self._texture_idx = {n: _sample_index(m) for n, m in self.masks.items()}
         self.trackers: dict[str, FeatureTracker] = {}
         self.groupers: dict[str, ObstacleGrouper] = {}
         self.boxers: dict[str, BoxTracker] = {}
@@ -324,7 +336,7 @@ class FrontEnd:
         for name, cam in self.cams.items():
             img = checked.get(name)
             grey = None if img is None else to_grey(img)
-            usable = grey is not None and self._has_texture(grey, self.masks[name])
+            usable = grey is not None and self._has_texture(grey, self.masks[name], self._texture_idx[name])
             s: list[ObstacleTrack] = []
             if name in self.trackers:
                 ft = self.trackers[name]
@@ -398,11 +410,12 @@ class FrontEnd:
 
     # ------------------------------------------------------------------------------ helpers
     @staticmethod
-    def _has_texture(grey: np.ndarray, mask: np.ndarray) -> bool:
+    def _has_texture(grey: np.ndarray, mask: np.ndarray, sample: np.ndarray | None = None) -> bool:
         """False for black, saturated or flat frames: the std of the lens area (sampled every 8 px)
         below 2 grey levels and, at full resolution, no two pixels 24 grey levels apart (so a
-        small obstacle against a flat sky still counts)."""
-        sub = grey[::8, ::8][mask[::8, ::8] > 0]
+        small obstacle against a flat sky still counts). ``sample``: ``_sample_index(mask)``
+        (flat indices of that sample; computed from ``mask`` when None)."""
+        sub = np.take(grey, _sample_index(mask) if sample is None else sample)
         if sub.size <= 16:
             return False
         if float(sub.std()) >= 2.0:

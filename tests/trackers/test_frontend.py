@@ -146,3 +146,20 @@ def test_wide_frames_are_tracked_downscaled_with_consistent_bearings_and_pixels(
     np.testing.assert_allclose(uv, np.array([v.uv for v in views]), atol=1.0)
     with pytest.raises(ConfigError, match="max_width"):
         FrontEnd(rig, max_width=10)
+
+
+def test_texture_sample_index_is_the_strided_masked_sample():
+    """_has_texture's precomputed flat indices pick the same pixels, in the same order, as numpy's
+    strided boolean indexing grey[::8, ::8][mask[::8, ::8] > 0] (also for sizes not a multiple of 8)."""
+    from trackers.features import lens_mask
+    from trackers.frontend import _sample_index
+
+    rng = np.random.default_rng(3)
+    for w, h in ((640, 480), (1277, 719)):
+        m = Equidistant(fx=w / 4, fy=w / 4, cx=(w - 1) / 2, cy=(h - 1) / 2, width=w, height=h)
+        mask = lens_mask(m)
+        grey = rng.integers(0, 256, (h, w), dtype=np.uint8)
+        want = grey[::8, ::8][mask[::8, ::8] > 0]
+        got = np.take(grey, _sample_index(mask))
+        assert len(want) > 100
+        np.testing.assert_array_equal(got, want)
