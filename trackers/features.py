@@ -640,13 +640,16 @@ class FeatureTracker:
                 st2[again] = st3.reshape(-1)
                 fb[again] = np.linalg.norm(p0r[again] + off - self.uv[again], axis=1)
         p1 = p1.reshape(-1, 2) + off
-        lk_ok = (st.reshape(-1) == 1) & (st2 == 1)
-        ok = lk_ok & np.isfinite(fb) & (fb <= self.fb_max_px)
-        n_fb = int(ok.sum())
+        u1, v1 = p1[:, 0], p1[:, 1]
+        st1 = st.reshape(-1) == 1
+        lk_ok = st1 & (st2 == 1)
+        fb_ok = fb <= self.fb_max_px  # (False for a NaN distance, as for an infinite one)
+        ok = lk_ok & fb_ok
+        n_fb = int(np.count_nonzero(ok))
         # appearance: LK's residual (mean absolute grey difference over the window) must be ordinary
         # for this frame, which tolerates global exposure changes but not a patch that changed
         err = err.reshape(-1)
-        if np.any(ok):
+        if n_fb:
             # a textured patch has a larger residual for the same (sub-pixel, noise, shading) mismatch:
             # the bound also scales with the patch's own contrast (texture_k x its mean absolute
             # deviation in the previous frame), so good features on textured obstacles are kept:
@@ -657,29 +660,34 @@ class FeatureTracker:
             if len(over):
                 tex = self._texture(prev, p0[over]) if self.texture_k > 0 else np.zeros(len(over))
                 ok[over] = err[over] <= self.texture_k * tex
-        n_res = int(ok.sum())
-        ok &= np.all(np.isfinite(p1), axis=1)
+        n_res = int(np.count_nonzero(ok))
         h, w = self.shape_hw
-        ui = np.clip(np.round(p1[:, 0]).astype(np.intp), 0, w - 1)
-        vi = np.clip(np.round(p1[:, 1]).astype(np.intp), 0, h - 1)
+        # inside the frame (a NaN position compares false, so this also asks for finite ones) and
+        # inside the lens mask
+        ok &= (u1 >= 0) & (u1 <= w - 1) & (v1 >= 0) & (v1 <= h - 1)
+        ui = np.clip(np.round(u1).astype(np.intp), 0, w - 1)
+        vi = np.clip(np.round(v1).astype(np.intp), 0, h - 1)
         ok &= self.mask[vi, ui] > 0
-        ok &= (p1[:, 0] >= 0) & (p1[:, 0] <= w - 1) & (p1[:, 1] >= 0) & (p1[:, 1] <= h - 1)
+        n_ok = int(np.count_nonzero(ok))
+        n_lk = int(np.count_nonzero(lk_ok))
         # why features were dropped this frame (counts): LK lost them (status 0 either way), the
         # forward-backward check, the residual check, or they left the lens mask
         self.last_stats = {
             "klt_in": float(len(ok)),
-            "klt_ok": float(ok.sum()),
-            "lk_lost": float(len(ok) - lk_ok.sum()),
-            "fb_rejected": float(((st.reshape(-1) == 1) & ~(fb <= self.fb_max_px)).sum()),
-            "fb_rejected_lk_ok": float(lk_ok.sum() - n_fb),
+            "klt_ok": float(n_ok),
+            "lk_lost": float(len(ok) - n_lk),
+            "fb_rejected": float(np.count_nonzero(st1 & ~fb_ok)),
+            "fb_rejected_lk_ok": float(n_lk - n_fb),
             "residual_rejected": float(n_fb - n_res),
-            "left_mask": float(n_res - ok.sum()),
+            "left_mask": float(n_res - n_ok),
         }
+        kept = np.flatnonzero(ok)
         if moving:  # v <- (v + (p1 - p0) / dt) / 2, px/s
-            self.vel[ok] = 0.5 * self.vel[ok] + 0.5 * (p1[ok] - self.uv[ok]) / np.float32(dt_s)
-        self.uv[ok] = p1[ok]
-        self.age[ok] += 1
-        self._drop(np.flatnonzero(~ok), remember=True)
+            self.vel[kept] = 0.5 * self.vel[kept] + 0.5 * (p1[kept] - self.uv[kept]) / np.float32(dt_s)
+        self.uv[kept] = p1[kept]
+        self.age[kept] += 1
+        if n_ok < len(ok):
+            self._drop(np.flatnonzero(~ok), remember=True)
 
     def _texture(self, image: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mean absolute deviation of the grey values (N,) over the KLT window centred on each of the
