@@ -183,10 +183,13 @@ class FusionSettings:
         feature_small_n_inflate: k in the (1 + k / n) widening of the feature range sigma from n
             inner features (a median of few features is far less sure than its MAD says). Default 1
             (k = 2: NEES mean 8.8 but 1-sigma share 74 %, bulk under-confident).
-        feature_static_chi: largest median normalised ray residual (chi, ~1 for static points)
+        feature_static_chi: largest median normalised ray residual (chi, ~1 for static points:
+            each ray's miss over sigma_f times that ray's own depth, see _features_batch)
             for which the features are taken as static; above it the feature range is not used
             (a moving obstacle). Default 9.
-        feature_max_chi: with feature_point, the largest chi of one feature (a stereo id mismatch
+        feature_max_chi: with feature_point, the largest chi of one feature, its rays' mean squared
+            miss over 2 (sigma_f d)^2 with d its CURRENT depth (the statistic it was chosen with;
+            the static-point test above uses each ray's own depth instead) (a stereo id mismatch
             or a corner sliding along an edge fits no static point; stereo_hover track 23: a
             feature at 0.35 m with chi 34 ranged a pole at 1.3 m). Default 36 (the per-feature sigma
             is ~3x small, so good features reach chi ~9; tracked scenes: mono p90 4.9 / 4.7 / 5.5 %
@@ -456,6 +459,8 @@ class _FeatureRays:
         self.b0 = np.zeros((capacity, 3))  # first bearing (parallax reference)
         self.last_t = np.zeros(capacity)
         self.cc = np.zeros(capacity)  # sum_i c_i^T (I - b_i b_i^T) c_i, for the residual
+        self.bc = np.zeros((capacity, 3))  # sum_i b_i (b_i . c_i), for the rays' depths
+        self.bcc = np.zeros(capacity)  # sum_i (b_i . c_i)^2
         self.n = np.zeros(capacity)  # rays so far
 
     def _grow(self, need: int) -> None:
@@ -463,7 +468,7 @@ class _FeatureRays:
         if need <= cap:
             return
         new = max(need, 2 * cap)
-        for name in ("A", "y", "b0", "last_t", "cc", "n"):
+        for name in ("A", "y", "b0", "last_t", "cc", "bc", "bcc", "n"):
             a = getattr(self, name)
             b = np.zeros((new,) + a.shape[1:])
             b[: self.size] = a[: self.size]
@@ -491,6 +496,8 @@ class _FeatureRays:
             self.A[r_new] = 0.0  # (rows past size may hold compacted-away data)
             self.y[r_new] = 0.0
             self.cc[r_new] = 0.0
+            self.bc[r_new] = 0.0
+            self.bcc[r_new] = 0.0
             self.n[r_new] = 0.0
             self.size += len(uniq)
             rows[new] = r_new[inv.reshape(-1)]
@@ -514,19 +521,27 @@ class _FeatureRays:
             self.A[rows] *= f[:, None, None]
             self.y[rows] *= f[:, None]
             self.cc[rows] *= f
+            self.bc[rows] *= f[:, None]
+            self.bcc[rows] *= f
             self.n[rows] *= f
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
         Pc = np.einsum("kij,kj->ki", Pm, c_W)
         cPc = np.sum(Pc * c_W, axis=1)
+        bdc = np.sum(b_W * c_W, axis=1)  # b_i . c_i
+        bbc = b_W * bdc[:, None]
         if unique:
             self.A[rows] += Pm
             self.y[rows] += Pc
             self.cc[rows] += cPc
+            self.bc[rows] += bbc
+            self.bcc[rows] += bdc * bdc
             self.n[rows] += 1.0
         else:
             np.add.at(self.A, rows, Pm)
             np.add.at(self.y, rows, Pc)
             np.add.at(self.cc, rows, cPc)
+            np.add.at(self.bc, rows, bbc)
+            np.add.at(self.bcc, rows, bdc * bdc)
             np.add.at(self.n, rows, 1.0)
         self.last_t[rows] = t_s
 
@@ -541,7 +556,7 @@ class _FeatureRays:
         alive = r >= 0
         self.ids, self.id_rows = self.ids[alive], r[alive]
         m = int(keep.sum())
-        for name in ("A", "y", "b0", "last_t", "cc", "n"):
+        for name in ("A", "y", "b0", "last_t", "cc", "bc", "bcc", "n"):
             a = getattr(self, name)
             a[:m] = a[: self.size][keep]
         self.size = m
@@ -552,6 +567,16 @@ class _FeatureRays:
         A, y = self.A[rows], self.y[rows]
         cost = np.einsum("ki,kij,kj->k", p, A, p) - 2.0 * np.sum(p * y, axis=1) + self.cc[rows]
         return np.maximum(cost, 0.0) / np.maximum(self.n[rows], 1.0)
+
+    def depth2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Mean squared depth (m^2) of each feature's point p (K, 3) along its own rays, with the
+        rays' (forgetting) weights w_i: sum_i w_i (b_i . (p - c_i))^2 / sum_i w_i, from the running
+        sums as (p^T B p - 2 p . e + f) / n with B = sum_i w_i b_i b_i^T = n I - A,
+        e = sum_i w_i b_i (b_i . c_i) and f = sum_i w_i (b_i . c_i)^2."""
+        n = self.n[rows]
+        pAp = np.einsum("ki,kij,kj->k", p, self.A[rows], p)
+        s = n * np.sum(p * p, axis=1) - pAp - 2.0 * np.sum(p * self.bc[rows], axis=1) + self.bcc[rows]
+        return np.maximum(s, 0.0) / np.maximum(n, 1e-12)
 
 
 def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac: float) -> np.ndarray:
@@ -1347,8 +1372,9 @@ class ObstacleFusion:
         p_f (see _FeatureRays) counts when the angle between its first and current bearing
         (parallax) is >= min_parallax_rad, p_f lies in front of the camera, and its relative range
         sigma is at most mono_init_max_rel_sigma. That sigma is first order in the normal equations:
-        each ray misses p_f by ~ sigma_f d (d the depth), so Cov(p_f) ~ (sigma_f d)^2 A_f^-1 and
-            sigma_r,f = sigma_f d sqrt(u^T A_f^-1 u),   u = (p_f - o) / |p_f - o|
+        each ray i misses p_f by ~ sigma_f d_i (d_i its own depth), so Cov(p_f) ~ sigma_f^2 D2 A_f^-1 and
+            sigma_r,f = sigma_f sqrt(D2) sqrt(u^T A_f^-1 u),   u = (p_f - o) / |p_f - o|
+        (D2 = mean_i d_i^2, ``_FeatureRays.depth2``: flown at, the older rays are the farther ones)
         (two rays at parallax theta: sqrt(2) sigma_f d / (2 sin(theta / 2)) ~ sqrt(2) sigma_f d / theta).
         With >= feature_min_count of them and the features fitting static points (median chi):
             z = median_f |p_f - o_W|  (over the half angularly nearest the representative ray),
@@ -1424,30 +1450,44 @@ class ObstacleFusion:
         d_vec = p - c_now
         depth = np.sum(d_vec * b_now, axis=1)
         u = r_vec / np.maximum(r, 1e-9)[:, None]
-        sig_r = s.feature_sigma_rad * np.abs(depth) * np.sqrt(
+        # each ray i misses p_f by ~ sigma_f d_i (d_i its own depth, not the current one: flying at
+        # an obstacle, the rays of the last 0.5 s were taken from up to twice as far; 15 m/s at
+        # 6 m, mean d_i^2 ~ 5 d_now^2), so Cov(p_f) ~ sigma_f^2 mean_i(d_i^2) A_f^-1 (the d_i^2
+        # weighted alike; ``_FeatureRays.depth2``)
+        d2 = fs.depth2(rows, p)
+        sig_r = s.feature_sigma_rad * np.sqrt(d2) * np.sqrt(
             np.maximum(np.einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
         # one place only (hovering) all meet at the camera centre, a point of no range
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep])
-        # static-point test: each ray misses its feature's point by ~ sigma_f * depth per axis, so
-        # chi = residual^2 / (2 (sigma_f d)^2) ~ 1 for a static point; a moving obstacle's features
-        # (crossing motion) fit no static point and their range would be wrong
-        chi = fs.residual2(rows, p) / (2.0 * (s.feature_sigma_rad * depth) ** 2)
-        fit = chi <= s.feature_max_chi
+        g, rows, b_now, p, r, depth, sig_r, d2 = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], d2[keep])
+        # static-point test: each ray misses its feature's point by ~ sigma_f d_i per axis, so
+        #   chi = mean_i miss_i^2 / (2 sigma_f^2 mean_i d_i^2)  ~ 1 for a static point
+        # (E = (2n - 3) / 2n, n rays); a moving obstacle's features (crossing motion) fit no static
+        # point and their range would be wrong. (Normalised by the current depth instead, a clean
+        # track flown at, thesis_speed_15mps at 15 m/s, had median chi 6-10 and failed the test at
+        # 40-50 deg of parallax: 6 of its 126 mono obstacle-frames uncovered.)
+        res2 = fs.residual2(rows, p)
+        chi = res2 / (2.0 * s.feature_sigma_rad ** 2 * np.maximum(d2, 1e-12))
+        # the per-feature cut (feature_max_chi) keeps the statistic it was chosen with, the miss
+        # over the current depth: stricter for a feature whose older rays were taken from afar
+        # (with chi above instead it admitted a corner sliding on mono_straight, 5 % short)
+        chi_cut = res2 / (2.0 * (s.feature_sigma_rad * depth) ** 2)
+        fit = chi_cut <= s.feature_max_chi
         # every track's static member points: range, direction from the body origin, range sigma
         self._members_ls = (g[fit], r[fit], (p[fit] - o) / r[fit][:, None], sig_r[fit])
         keep = np.bincount(g, minlength=G)[g] >= n_min
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r, chi = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep])
+        g, rows, b_now, p, r, depth, sig_r, chi, chi_cut = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep],
+            chi_cut[keep])
         chi_med = _group_median(g, chi, G)
         if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
-            fit = chi <= s.feature_max_chi  # a corner sliding along an edge: not this point)
+            fit = chi_cut <= s.feature_max_chi  # a corner sliding along an edge: not this point)
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
             g, rows, b_now, p, r, depth, sig_r = (
                 g[fit], rows[fit], b_now[fit], p[fit], r[fit], depth[fit],
