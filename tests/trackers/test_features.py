@@ -449,3 +449,21 @@ def test_describe_on_the_lens_crop_equals_cv2_on_the_whole_frame():
     kps, ref = cv2.ORB_create(edgeThreshold=15, patchSize=15).compute(grey, kps)
     np.testing.assert_array_equal(rows, [k.class_id for k in kps])
     np.testing.assert_array_equal(des, ref)
+
+
+def test_append_without_enough_free_slots_keeps_the_first_rows(model):
+    """Four new keypoints with two free ring-buffer slots: the first two rows are added, with the
+    next two ids and the slots in pop order; the other two rows use up their ids (as one row at a
+    time did) and are not added."""
+    ft = make_tracker(model, max_features=50)
+    ft._free = [7, 3]  # pop order: 3, then 7
+    ft._h_n[[3, 7]] = 5
+    start = next(ft._ids)
+    uv = np.array([[300.0, 200.0], [310.0, 200.0], [320.0, 200.0], [330.0, 200.0]], np.float32)
+    added = ft._append(uv, None, np.full(4, -1, np.intp))
+    assert added == 2
+    assert ft.ids.tolist() == [start + 1, start + 2]
+    assert ft.slot.tolist() == [3, 7]
+    assert ft._h_n[[3, 7]].tolist() == [0, 0]
+    np.testing.assert_array_equal(ft.uv, uv[:2])
+    assert next(ft._ids) == start + 5 and ft._free == []
