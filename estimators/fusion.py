@@ -1477,21 +1477,24 @@ class ObstacleFusion:
         # (with chi above instead it admitted a corner sliding on mono_straight, 5 % short)
         chi_cut = res2 / (2.0 * (s.feature_sigma_rad * depth) ** 2)
         fit = chi_cut <= s.feature_max_chi
+        # each point's range sigma scaled as the reports' are (``_posterior_sigma``: k sigma_r,f, or
+        # its own fit's a-posteriori factor): the members are compared with a report in those units
+        sig_post = _posterior_sigma(sig_r, chi, fs.n[rows], s.feature_point_sigma_k)
         # every track's static member points: range, direction from the body origin, range sigma
-        self._members_ls = (g[fit], r[fit], (p[fit] - o) / r[fit][:, None], sig_r[fit])
+        self._members_ls = (g[fit], r[fit], (p[fit] - o) / r[fit][:, None],
+                            s.feature_point_sigma_k * sig_post[fit])
         keep = np.bincount(g, minlength=G)[g] >= n_min
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r, chi, chi_cut = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep],
-            chi_cut[keep])
+        g, rows, b_now, p, r, depth, chi, chi_cut, sig_post = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], chi[keep], chi_cut[keep],
+            sig_post[keep])
         chi_med = _group_median(g, chi, G)
         if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
             fit = chi_cut <= s.feature_max_chi  # a corner sliding along an edge: not this point)
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
             g, rows, b_now, p, r, depth, sig_r = (
-                g[fit], rows[fit], b_now[fit], p[fit], r[fit], depth[fit],
-                _posterior_sigma(sig_r[fit], chi[fit], s.feature_point_sigma_k))
+                g[fit], rows[fit], b_now[fit], p[fit], r[fit], depth[fit], sig_post[fit])
         b_rep = feats[5]  # (G, 3) first views' bearings
         ang = np.arccos(np.clip(np.sum(b_now * b_rep[g], axis=1), -1.0, 1.0))
         inner = ang <= _group_median(g, ang, G)[g]
@@ -1642,7 +1645,8 @@ class ObstacleFusion:
         on_edge = (edge[ia] | edge[ib])[ok]  # on the track's outline in either view
         gg, r, sr, b = gg[ok], r[ok], sr[ok], b_a[ok]
         b_2 = b_b[ok]
-        self._members_st = (gg, r, (p_mid - o) / r[:, None], sr)  # the shared features' two-ray points
+        # the shared features' two-ray points, their sigmas in the reports' units (k sigma_r,f)
+        self._members_st = (gg, r, (p_mid - o) / r[:, None], s.feature_point_sigma_k * sr)
         if s.feature_velocity_lag_s > 0:  # (across the ray: each ray misses by sigma_f d, and
             # the midpoint averages the two independent misses: sigma_f d / sqrt(2))
             # (along: from the two cameras' midpoint, the axis of the two-ray point's error)
@@ -2276,7 +2280,10 @@ class ObstacleFusion:
         ranged by feature stereo: the shared features' two-ray points; a track whose velocity
         evidence rejects zero never uses static points: none without a feature stereo fix), the
         k = min(member_spread_min_n, n) whose directions from the body origin are nearest the
-        reported one (ranges r_i, sigmas s_i) give a second estimate of the depth there, their
+        reported one (ranges r_i, sigmas s_i in the reports' units: k sigma_r,f, scaled as a
+        feature-ranged report's is, ``_posterior_sigma``; with the unscaled sigma_r,f the
+        disagreement term switched on within the members' own noise) give a second estimate of
+        the depth there, their
         median m, variance ~ (pi / 2) median(s_i^2) / k (a median of k normal values). Both
         estimate one depth when the members agree; when they disagree beyond that noise,
             d^2 = (m - r)^2 > var0 + (pi / 2) median(s_i^2) / k,
@@ -2394,14 +2401,19 @@ def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
 
 
 
-def _posterior_sigma(sig_r: np.ndarray, chi: np.ndarray, k: float) -> np.ndarray:
+def _posterior_sigma(sig_r: np.ndarray, chi: np.ndarray, n: np.ndarray, k: float) -> np.ndarray:
     """First-order range sigmas sig_r (K,) m of features' least-squares points, scaled so that
-    k sig_r becomes max(k, sqrt(chi)) sig_r: chi (K,) is each feature's mean squared ray miss over
-    its expected value at sigma_f (~1 for rays at the assumed noise), the a-posteriori variance
-    factor of its own fit; k the tracked features' typical error over sigma_f. A feature whose
-    rays miss more than that (a corner sliding along an edge, a T-junction) is less sure than the
-    typical one: sig_r max(1, sqrt(chi) / k)."""
-    return sig_r * np.maximum(1.0, np.sqrt(np.maximum(chi, 0.0)) / max(k, 1e-12))
+    k sig_r becomes max(k, sqrt(s2)) sig_r: chi (K,) is each feature's mean squared ray miss over
+    2 sigma_f^2 d^2 (``_features_batch``), from n (K,) rays (forgetting weights summed); the fitted
+    point took 3 of the 2n residual dof, so E[chi] = (2n - 3) / 2n at the assumed noise and the
+    a-posteriori variance factor of its own fit is
+        s2 = chi 2n / (2n - 3)      (2n - 3 floored at 1)
+    k is the tracked features' typical error over sigma_f. A feature whose rays miss more than that
+    (a corner sliding along an edge, a T-junction) is less sure than the typical one:
+    sig_r max(1, sqrt(s2) / k)."""
+    n2 = 2.0 * np.asarray(n, dtype=float)
+    s2 = np.maximum(chi, 0.0) * n2 / np.maximum(n2 - 3.0, 1.0)
+    return sig_r * np.maximum(1.0, np.sqrt(s2) / max(k, 1e-12))
 
 
 def _speed_sigma(v_W: np.ndarray, P_vv: np.ndarray) -> float:

@@ -336,7 +336,13 @@ def test_stereo_velocity_from_the_shared_features_own_displacements():
 def test_posterior_sigma_closed_form():
     from estimators.fusion import _posterior_sigma
 
-    # k = 2.5: chi 1 and 6.25 (sqrt 2.5 = k) keep the sigma; chi 25 (sqrt 5 = 2 k) doubles it;
-    # chi 0 (rays that meet exactly) keeps it (never below the typical k)
-    out = _posterior_sigma(np.array([0.1, 0.1, 0.1, 0.3]), np.array([1.0, 6.25, 25.0, 0.0]), 2.5)
-    np.testing.assert_allclose(out, [0.1, 0.1, 0.2, 0.3], rtol=1e-12)
+    # k = 2.5, many rays (2n / (2n - 3) = 1 to 1e-6): chi 1 and 6.25 (sqrt 2.5 = k) keep the
+    # sigma; chi 25 (sqrt 5 = 2 k) doubles it; chi 0 (rays that meet exactly) keeps it (never below
+    # the typical k)
+    many = np.full(4, 1.5e6)
+    out = _posterior_sigma(np.array([0.1, 0.1, 0.1, 0.3]), np.array([1.0, 6.25, 25.0, 0.0]), many, 2.5)
+    np.testing.assert_allclose(out, [0.1, 0.1, 0.2, 0.3], rtol=1e-5)
+    # the fitted point's 3 dof: n = 3 rays leave 2n - 3 = 3 of 6 residual dof, so chi 12.5 is a
+    # variance factor of 12.5 * 6 / 3 = 25 (sqrt 5 = 2 k: doubled); n = 1 floors 2n - 3 at 1
+    out = _posterior_sigma(np.array([0.1, 0.1]), np.array([12.5, 12.5]), np.array([3.0, 1.0]), 2.5)
+    np.testing.assert_allclose(out, [0.2, 0.1 * math.sqrt(12.5 * 2.0) / 2.5], rtol=1e-12)
