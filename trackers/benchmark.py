@@ -141,6 +141,25 @@ def shapes_for_frame(specs: dict[int, dict], gt_obstacles: list[dict]) -> dict[i
     return out
 
 
+def merged_depth_kind(
+    range_m: float, other_ranges_m: list[float], ratio: float = 1.5
+) -> tuple[str, list[float]]:
+    """How an obstacle merged into a track lying on other obstacles sits against them in depth.
+
+    Args:
+        range_m: the obstacle's surface range (m, ground truth) from the camera.
+        other_ranges_m: the surface ranges (m) of the obstacles the holding track lies on.
+        ratio: the depth factor that makes two obstacles "lined up" (1.5: 10 m and 15 m).
+    Returns:
+        (``lined_up`` when some other range differs from ``range_m`` by ``ratio`` or more either
+        way, ``other / range_m >= ratio`` or ``<= 1 / ratio`` (one behind the other: a depth cue
+        could part them), else ``side_by_side``; the ratios ``other / range_m``).
+    """
+    ratios = [float(r) / float(range_m) for r in other_ranges_m]
+    lined = any(max(q, 1.0 / q) >= ratio for q in ratios if q > 0)
+    return ("lined_up" if lined else "side_by_side"), ratios
+
+
 class _Explainer:
     """What every coverage gap and id switch of a benchmark run is (``run_benchmark(explain=True)``).
 
@@ -277,14 +296,8 @@ class _Explainer:
                 if cause.endswith("merged_other") and rng.get(oid):
                     # merged with an obstacle at a clearly other depth (lined up along the line of
                     # sight) or at about the same depth (side by side): what a depth cue could part
-                    ratios = [
-                        rng[k] / rng[oid] for g in gs for k in alive_on.get(g, ()) if k != oid and rng.get(k)
-                    ]
-                    kind = (
-                        "lined_up"
-                        if ratios and max(max(r, 1 / r) for r in ratios) >= self.DEPTH_RATIO
-                        else "side_by_side"
-                    )
+                    others = [rng[k] for g in gs for k in alive_on.get(g, ()) if k != oid and rng.get(k)]
+                    kind, ratios = merged_depth_kind(rng[oid], others, self.DEPTH_RATIO)
                     self.merged_depth[kind] = self.merged_depth.get(kind, 0) + 1
                     ev["range_ratio"] = [round(r, 3) for r in ratios]
                 ev["tracks"] = {
@@ -397,7 +410,8 @@ def run_benchmark(
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
     distinct track ids seen on each obstacle, reported tracks on no obstacle per frame (the ground,
     false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
-    (``track_splits``, step 3c) and by depth (``depth_splits``, step 3d) (``switch_log``: frame,
+    (``track_splits``, step 3c), by depth (``depth_splits``, step 3d) and at a gap between two
+    clusters (``gap_splits``, step 3e) (``switch_log``: frame,
     obstacle, old and new id, why the old one no longer counts), rim features.
     ``use_poses``: pass the scene's true ``T_W_B`` per frame (when ``gt.jsonl`` has it) to the
     front end, as the pipeline passes its trajectory's poses; False: none (no rotation compensation).
@@ -568,6 +582,7 @@ def run_benchmark(
         "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
         "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
         "depth_splits": sum(getattr(g, "depth_splits", 0) for g in fe.groupers.values()),
+        "gap_splits": sum(getattr(g, "gap_splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
         **({"explain": ex.summary()} if ex is not None else {}),

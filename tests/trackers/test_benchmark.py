@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trackers.benchmark import Shape, ray_hit_distance, ray_hits, run_benchmark
+from trackers.benchmark import Shape, merged_depth_kind, ray_hit_distance, ray_hits, run_benchmark
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "configs" / "scenarios"
@@ -171,3 +171,23 @@ def test_cli_no_poses_flag(ci_scene, capsys):
     for argv, expect in (([], True), (["--poses"], True), (["--no-poses"], False)):
         main([str(ci_scene), "--frames", "3", *argv])
         assert json.loads(capsys.readouterr().out)["poses"] is expect
+
+
+@pytest.mark.parametrize(
+    "range_m, others, kind",
+    [
+        (10.0, [14.0], "side_by_side"),  # 1.4 < 1.5
+        (10.0, [15.0], "lined_up"),  # 1.5: the boundary counts as lined up
+        (10.0, [7.0], "side_by_side"),  # 10 / 7 = 1.43 in front
+        (10.0, [6.0], "lined_up"),  # 10 / 6 = 1.67 in front
+        (10.0, [11.0, 20.0], "lined_up"),  # one of them behind
+        (10.0, [9.0, 11.0], "side_by_side"),
+        (10.0, [], "side_by_side"),  # no other obstacle's range known
+    ],
+)
+def test_merged_by_depth_classification(range_m, others, kind):
+    """An obstacle merged with others: lined up when another's range differs by 1.5x either way
+    (ratios worked by hand), else side by side; the ratios are other / own."""
+    got, ratios = merged_depth_kind(range_m, others, 1.5)
+    assert got == kind
+    assert ratios == pytest.approx([o / range_m for o in others])
