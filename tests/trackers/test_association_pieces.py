@@ -149,3 +149,106 @@ def test_a_piece_needs_three_agreeing_members_and_a_majority():
     uv_p, d_p, s_p = _triangulated([3.0, 3.0, 3.0, 4.0, 4.0], np.arange(5, 30, 5))
     assert piece_agrees(uv_p, d_p, s_p, uv_t, d_t, s_t)
 
+
+@pytest.fixture(scope="module")
+def flying_640(tmp_path_factory):
+    """The stereo_flying preset rendered at 640x360 for 12 frames by the simulator."""
+    from pipeline.config import scenarios_dir
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.writer import simulate
+
+    out = tmp_path_factory.mktemp("stereo_flying_640")
+    simulate(load_scenario(scenarios_dir() / "stereo_flying.yaml"), out, frames=12, resolution=(640, 360))
+    return out
+
+
+def test_a_split_off_piece_joins_its_two_camera_track_on_its_own_physical_points(flying_640):
+    """On the association frame 10 the largest confirmed cam0 track is cut in two by image column
+    (as a grouper split would), and the half on the right is kept from getting a cam1 view of its
+    own: it joins the other half's two-camera track (same global id, its members in that id's
+    cam0 view, found ones in its cam1 view) on that frame and the next, and is never reported
+    under its own id. Expected from the renderer: the ray cast from cam0 along each of its
+    members' cam0 bearings gives the physical point, whose direction from cam1's centre is where
+    the cam1 bearing of that id must point (median within 1 px of angle)."""
+    from estimators.se3 import Pose, quat_to_rot
+    from pipeline.sim import World, load_scenario, raycast
+    from trackers.benchmark import open_scene
+    from trackers.frontend import FrontEnd
+    from trackers.grouping import ObstacleTrack
+
+    rig, caps, stamps, gt, specs = open_scene(flying_640)
+    world = World(load_scenario(flying_640 / "scene.yaml"))
+    fe = FrontEnd(rig, association={"attach_pieces": True})
+    g0, ft0 = fe.groupers["cam0"], fe.trackers["cam0"]
+    update, derive = g0.update, fe._derive_views
+    cut: dict = {}
+
+    def split_update(*a, **k):
+        s1, l1 = update(*a, **k)
+        if fe._n == 10:
+            big = max((t for t in s1 if t.status == "confirmed"), key=lambda t: len(t.members))
+            rows, which = fe._rows(ft0, big.members)
+            o = np.argsort(ft0.uv[rows, 0], kind="stable")
+            keep, move = which[o[: len(o) // 2]], which[o[len(o) // 2 :]]
+            piece = ObstacleTrack(next(fe._track_ids), "cam0", big.members[move].copy(), big.b_C.copy(),
+                                  uv=big.uv.copy(), sigma_rad=big.sigma_rad, status="confirmed",
+                                  hits=big.hits, member_b_C=big.member_b_C[move].copy())
+            big.members, big.member_b_C = big.members[keep].copy(), big.member_b_C[keep].copy()
+            g0.tracks[piece.id] = piece
+            s1.append(piece)
+            cut.update(big=big, piece=piece)
+        return s1, l1
+
+    def no_own_view(seen, greys):
+        out = derive(seen, greys)
+        p = cut.get("piece")
+        return {n: [v for v in vs if p is None or v.id != p.id] for n, vs in out.items()}
+
+    g0.update = split_update
+    fe._derive_views = no_own_view
+    c0, c1 = rig["cam0"], rig["cam1"]
+    px_rad = c1.model.max_angle_rad / c1.model.image_circle()[2]
+    checked = 0
+    for f in sorted(stamps["cam0"]):
+        v = gt[f]["T_W_B"]
+        T_W_B = Pose(quat_to_rot(np.asarray(v[3:7])), np.asarray(v[:3]))
+        t_s = stamps["cam0"][f]
+        obs = fe.process({n: caps[n].read()[1] for n in ("cam0", "cam1")}, f, t_s, T_W_B=T_W_B)
+        if "piece" not in cut:
+            continue
+        big, piece = cut["big"], cut["piece"]
+        g = fe._global(big.id)
+        assert fe._global(piece.id) == g and piece.id in fe._pieces
+        assert all(o.track_id != piece.id for o in obs)
+        (o,) = [o for o in obs if o.track_id == g]
+        views = {w.camera: w for w in o.views}
+        own = set(piece.members.tolist())
+        assert own <= set(views["cam0"].feature_ids.tolist())
+        k1 = [k for k, i in enumerate(views["cam1"].feature_ids.tolist()) if i in own]
+        assert len(k1) >= 3
+        # the cam1 bearings of the piece's ids point at the physical points of their cam0 bearings
+        row0 = {int(i): k for k, i in enumerate(views["cam0"].feature_ids)}
+        b0 = views["cam0"].feature_b_C[[row0[int(views["cam1"].feature_ids[k])] for k in k1]]
+        b0_W = T_W_B.rotate((c0.T_C_B.R.T @ b0.T).T)
+        o0_W = np.repeat(T_W_B.apply(c0.centre_B)[None], len(b0), 0)
+        depth, _ = raycast(world, t_s, o0_W, b0_W)
+        ok = np.isfinite(depth)
+        p_C1 = c1.T_C_B.apply(T_W_B.inverse().apply(o0_W[ok] + depth[ok, None] * b0_W[ok]))
+        e1 = p_C1 / np.linalg.norm(p_C1, axis=1, keepdims=True)
+        b1 = views["cam1"].feature_b_C[k1][ok]
+        assert np.median(np.arccos(np.clip(np.sum(e1 * b1, axis=1), -1, 1)) / px_rad) < 1.0
+        checked += 1
+    assert checked == 2  # frames 10 (attached) and 11 (kept attached)
+
+
+def test_attach_pieces_is_a_checked_option_off_by_default():
+    from estimators.errors import ConfigError
+    from estimators.rig import stereo_forward_rig
+    from tests.trackers.conftest import equidistant
+    from trackers.frontend import FrontEnd
+
+    rig = stereo_forward_rig(equidistant(), baseline_m=0.3)
+    assert FrontEnd(rig).attach_pieces is False
+    assert FrontEnd(rig, association={"attach_pieces": True}).attach_pieces is True
+    with pytest.raises(ConfigError, match="attach_pieces"):
+        FrontEnd(rig, association={"attach_pieces": 1})
