@@ -19,7 +19,8 @@ FPS = 30.0
 # frame to frame (what step 3d is there to undo); step 3c is off to test step 3d alone
 # (and the numbers below are for a 5-frame window, the flow's own, unless a test says otherwise)
 # (step 3d is opt-in: depth_ratio 1.5 turns it on)
-OPTS = {"flow_abs_rad_s": 0.3, "split_min_px": 0.0, "depth_frames": 5, "depth_ratio": 1.5}
+# (step 3e is off too: the walls drift apart, and a gap that opens between them is its to cut)
+OPTS = {"flow_abs_rad_s": 0.3, "split_min_px": 0.0, "depth_frames": 5, "depth_ratio": 1.5, "gap_factor": 0.0}
 
 
 def wall(nx: int, ny: int, x0: float, step: float, depth_m) -> list[np.ndarray]:
