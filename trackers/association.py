@@ -592,7 +592,7 @@ def _search_pieces(fe, seen: dict, x: str, y: str) -> list:
     """Camera x's confirmed one-camera tracks attached this frame to a two-camera track of x and y
     (see the section's comment): changes ``fe._gid`` and ``fe._pieces``, stores the pieces'
     matches found in y in the frame's stereo cache (followed from next frame on), and returns the
-    attached tracks (taken out of ``seen[x]``)."""
+    attached tracks (taken out of ``seen[x]``), each with the global id it had before."""
     grouper, ft = fe.groupers[x], fe.trackers[x]
     g_y = {fe._global(t.id) for t in seen.get(y, [])}
     g_other = set()
@@ -666,11 +666,11 @@ def _search_pieces(fe, seen: dict, x: str, y: str) -> list:
             continue
         dp, sp, _ = ray_depths(ft.b_C[got], bbc[got], T.R, T.t, sig)
         if piece_agrees(ft.uv[got].astype(float), dp, sp, uv_ref[sel], d_ref[sel], s_ref[sel]):
+            out.append((pc, fe._global(pc.id)))
             fe._gid[pc.id] = fe._global(pairs[k].id)
             fe._pieces.add(pc.id)
-            out.append(pc)
     if out:
-        ids = {id(t) for t in out}
+        ids = {id(t) for t, _ in out}
         seen[x] = [t for t in seen[x] if id(t) not in ids]
     return out
 
@@ -698,9 +698,9 @@ def attach_pieces(fe, seen: dict, greys: dict, aside: list, search: bool) -> lis
             for y in fe.groupers:
                 if x == y or x not in greys or y not in greys or x not in fe.trackers or y not in fe.trackers:
                     continue
-                for t in _search_pieces(fe, seen, x, y):
+                for t, g_old in _search_pieces(fe, seen, x, y):
                     pieces.append((x, t))
-                    absorbed.append(t.id)  # a piece is its own global id until attached
+                    absorbed.append(g_old)
     absorbed = [g for g in absorbed if g in fe._reported]
     for x, pc in pieces:
         g = fe._global(pc.id)
