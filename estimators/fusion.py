@@ -1994,7 +1994,21 @@ class ObstacleFusion:
         tr.point_fid = None
         if len(vb.feature_ids):
             d = tri.p - vb.c_W
-            tr.point_fid = int(vb.feature_ids[int(np.argmax(vb.feature_b_W @ (d / np.linalg.norm(d))))])
+            cos_f = vb.feature_b_W @ (d / np.linalg.norm(d))
+            j = int(np.argmax(cos_f))
+            tr.point_fid = int(vb.feature_ids[j])
+            # the representative rays are centroids of members that come and go: when even the
+            # nearest member's ray misses their point by more than the bearing gate of a feature
+            # ray (sqrt(gate) k sigma_f, the support update's own test), no tracked point is at
+            # that range and the support update would only gate (mono_straight track 40: ranged
+            # 10.9 m with its one member 4 deg away, the obstacle on that bearing at 6.5 m)
+            s = self.settings
+            ang = math.acos(min(max(float(cos_f[j]), -1.0), 1.0))
+            if ang > math.sqrt(self._gate2) * s.feature_point_sigma_k * s.feature_sigma_rad:
+                tr.kf = None
+                tr.point_fid = None
+                tr.reason = "no member feature on the representative rays' triangulated point"
+                return
         tr.t_kf = past.t_s
         tr.moving = False
         tr.gated_run = 0

@@ -31,10 +31,10 @@ def _bearing(cam, T_W_B, p_W, sigma, rng):
     return b / np.linalg.norm(b)
 
 
-def _run(later_ids, frames=40, switch=30, sigma=5e-4, rep_sigma=0.03, seed=11):
+def _run(later_ids, frames=40, switch=30, sigma=5e-4, rep_sigma=0.03, seed=11, rep_W=REP_W):
     """All five corners are members for ``switch`` frames, then only ``later_ids``. The
     representative bearing has the front end's sigma of a spread track (rep_sigma rad, ~1.7 deg).
-    Returns [(report, T_W_B)] per frame."""
+    rep_W: the representative point (default REP_W). Returns [(report, T_W_B)] per frame."""
     model = Equidistant.from_deg_per_px(0.15, 1280, 1280)
     rig = mono_forward_rig(model)
     ego = ConstantVelocity(5.0)
@@ -46,7 +46,7 @@ def _run(later_ids, frames=40, switch=30, sigma=5e-4, rep_sigma=0.03, seed=11):
         t = k / 30.0
         T_W_B = ego.pose_at(t)
         ids = np.arange(len(FEATS_W)) if k < switch else np.asarray(later_ids)
-        view = CameraView(cam.name, _bearing(cam, T_W_B, REP_W, sigma, rng), [0, 0], rep_sigma,
+        view = CameraView(cam.name, _bearing(cam, T_W_B, rep_W, sigma, rng), [0, 0], rep_sigma,
                           feature_ids=ids,
                           feature_b_C=np.array([_bearing(cam, T_W_B, FEATS_W[i], sigma, rng) for i in ids]))
         (r,) = fus.step([ObstacleObservation(3, k, t, "confirmed", (view,))], k, t)
@@ -95,3 +95,22 @@ def test_state_is_dropped_when_the_feature_it_stands_for_leaves_the_track():
     r, _ = run[30]
     assert "no longer tracked" in r.unobservable_reason
     assert r.range_min_m is not None  # the bounds are still reported
+
+
+def test_representative_rays_triangulation_needs_a_member_on_its_point():
+    # one member only (fewer than feature_min_count: no feature range), 3 degrees from the
+    # representative point: the representative rays triangulate that point well (their sigma is
+    # small here), but no member feature lies on it, so nothing the track tracks is at that range
+    # (a centroid of members that come and go: mono_straight track 40 was ranged 10.9 m, 4 degrees
+    # from its only member, where the obstacle on that bearing was 6.5 m away). No range, bounds.
+    run = _run(later_ids=[0], switch=0, rep_sigma=5e-4)
+    for r, _ in run[5:]:
+        assert r.range_m is None
+        assert "no member feature on" in r.unobservable_reason
+        assert r.range_min_m is not None
+    # the same flight with the member on the representative point is ranged from those rays
+    run = _run(later_ids=[0], switch=0, rep_sigma=5e-4, rep_W=FEATS_W[0])
+    r, T_W_B = run[-1]
+    assert r.range_m is not None, r.unobservable_reason
+    r_true = float(np.linalg.norm(FEATS_W[0] - T_W_B.t))
+    assert abs(r.range_m - r_true) / r_true < 0.03
