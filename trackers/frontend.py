@@ -24,14 +24,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import (
-    attach_pieces,
-    consistent_pairs,
-    klt_links,
-    match_features,
-    pieces_aside,
-    stereo_klt,
-)
+from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -160,7 +153,7 @@ class FrontEnd:
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
         known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px", "recheck_every",
-                 "recheck_px", "follow_levels", "reverse_views", "attach_pieces"}
+                 "recheck_px", "follow_levels", "reverse_views"}
         bad = sorted(set(a) - known)
         if bad:
             raise ConfigError(f"FrontEnd association: unknown options {bad}")
@@ -198,15 +191,6 @@ class FrontEnd:
         if not isinstance(rv, bool):
             raise ConfigError(f"FrontEnd association: reverse_views expected true or false, got {rv!r}")
         self.reverse_views = rv
-        # opt-in: a camera's one-camera track beside a two-camera track whose members triangulate
-        # at that track's depth joins it (trackers/association.py attach_pieces). Off by default:
-        # on the stereo accuracy scenes it attaches ~3 pieces per scene and moves no metric, for
-        # ~0.3 ms CPU per 720p stereo frame (measured in its commit message)
-        ap = a.get("attach_pieces", False)
-        if not isinstance(ap, bool):
-            raise ConfigError(f"FrontEnd association: attach_pieces expected true or false, got {ap!r}")
-        self.attach_pieces = ap
-        self._pieces: set[int] = set()  # local track ids attached to another track's global id
         if self.recheck_every < 1 or not self.recheck_px >= 0:
             raise ConfigError(
                 "FrontEnd association: recheck_every expected an integer >= 1 and recheck_px a "
@@ -413,11 +397,8 @@ class FrontEnd:
         if assoc_now:
             absorbed = self._associate(seen, greys)
         if len(self.cams) > 1:
-            aside = pieces_aside(self, seen)
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
-            if aside or (assoc_now and self.attach_pieces):
-                absorbed += attach_pieces(self, seen, greys, aside, assoc_now and self.attach_pieces)
         self._remember_stereo()
         tm["associate"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -580,8 +561,6 @@ class FrontEnd:
                 trs += [t for t in seen[a] if t.status == "confirmed" and len(t.members) >= 3]
             elif b == ref and self.reverse_views:  # _derive_views: a's tracks with no reference view
                 trs += self._unviewed_in_ref(seen, a)
-            if a != ref and self._pieces:  # attach_pieces: a's pieces' members in b
-                trs += [t for t in seen[a] if t.id in self._pieces]
             if not trs:
                 continue
             rows, _ = self._rows(self.trackers[a], np.concatenate([t.members for t in trs]))
