@@ -41,11 +41,11 @@ write their new state and over components wide enough to be cut):
    bearing leaves after ``depth_persist`` frames in a row (see ``_depth_split``). Needs the
    camera's rotation (``R_C_Cprev``); without it the step is off. Opt-in (``depth_ratio``).
 3e. Two clusters in one track (an obstacle beside ground at its range, which moves as it does,
-   chained to it by a feature or two): the members are re-linked at ``gap_factor`` times their
-   own nearest-neighbour spacing (at least ``gap_min_px``); when two parts of ``gap_min_part``
-   members or more come out, set apart by a gap that wide for each part's own spacing, found
-   ``gap_persist`` frames in a row, the smaller part leaves (see ``_gap_split``). Position is
-   the only cue there: motion and depth agree.
+   chained to it by a feature or two), opt-in (``gap_factor``): the members are re-linked at
+   ``gap_factor`` times their own nearest-neighbour spacing (at least ``gap_min_px``); when two
+   parts of ``gap_min_part`` members or more come out, set apart by a gap that wide for each
+   part's own spacing, found ``gap_persist`` frames in a row, the smaller part leaves (see
+   ``_gap_split``). Position is the only cue there: motion and depth agree.
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
    surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
    outside the lens do not count against it) and the flow field they span (an affine fit in the
@@ -211,12 +211,16 @@ class ObstacleGrouper:
             resolve a depth ratio of 2 at 0.16 rad/s where 5 frames cannot (tests).
         gap_factor: step 3e re-links a track's members closer than this many times their lower
             median nearest-neighbour spacing and splits off a part set apart by a gap that wide
-            for both parts' own spacing; 0 turns step 3e off. 3: a cluster of features is a few
-            spacings across, and a gap of 3 spacings is several missing features in a row, not
-            one. Measured (2026-11-22, trackers.benchmark on the nine presets and five held-out
-            renders, gap_min_part 4, gap_persist 5): turning's worst obstacle 0.088 -> 1.000,
-            heldout_mono_straight 0.506 -> 0.607, the others unchanged within 0.02; id switches
-            21 -> 20 over the fourteen scenes.
+            for both parts' own spacing; 0 (the default) turns step 3e off; 3 is the value
+            measured: a cluster of features is a few spacings across, and a gap of 3 spacings is
+            several missing features in a row, not one. Opt-in because of a trade measured
+            (2026-11-22, same-base A/B, gap_min_part 4, gap_persist 5): trackers.benchmark on the
+            nine presets and five held-out renders: turning's worst obstacle 0.088 -> 1.000,
+            heldout_mono_straight 0.506 -> 0.607, the others within 0.02, id switches 21 -> 20;
+            but accuracy --mode pipeline --set both (tuned | held-out): range NEES 1.019 -> 0.922
+            | 1.834 -> 2.919 (heldout_mono_straight 2.63 -> 6.14), mono obstacle-frame coverage
+            92.97 -> 93.57 | 94.71 -> 90.27 %, mono p90 3.13 -> 3.16 | 4.26 -> 3.39 %, stereo
+            unchanged.
         gap_min_px: ... and never closer than this (px at the lens's mean scale): KLT corners are
             kept ~5-10 px apart, so gaps under 12 px are texture, not space between objects.
         gap_min_part: members each side needs (a track of fewer than twice this is not judged):
@@ -258,7 +262,7 @@ class ObstacleGrouper:
         depth_gate: float = 4.0,
         depth_persist: int = 2,
         depth_frames: int = 20,
-        gap_factor: float = 3.0,
+        gap_factor: float = 0.0,
         gap_min_px: float = 12.0,
         gap_min_part: int = 4,
         gap_persist: int = 5,

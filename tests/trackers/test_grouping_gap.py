@@ -89,16 +89,17 @@ def test_two_clusters_with_a_gap_split_into_two_tracks(model):
     assert gr.gap_splits == 1
 
 
-def test_step_3e_is_on_by_default_and_gap_factor_0_turns_it_off(model):
-    """The same layout with the defaults (gap_persist 5, gap_min_part 4 <= 9): the sphere leaves
-    on the track's fifth update; with gap_factor 0 one track holds both clusters throughout."""
+def test_step_3e_is_off_by_default_and_its_other_defaults(model):
+    """The same layout with the defaults: one track holds both clusters throughout (step 3e is
+    opt-in). With gap_factor 3 and the other defaults (gap_persist 5, gap_min_part 4 <= 9) the
+    sphere leaves on the track's fifth update."""
     gr, (a, b), held = run(model, [SPHERE, GROUND])
+    assert all(list(h.values()) == [a | b] for h in held if h)
+    assert gr.gap_splits == 0
+    gr, (a, b), held = run(model, [SPHERE, GROUND], gap_factor=3.0)
     first = next(k for k, h in enumerate(held) if h)
     assert [len(h) for h in held[first : first + 6]] == [1, 1, 1, 1, 1, 2]
     assert sorted(map(sorted, held[-1].values())) == sorted([sorted(a), sorted(b)])
-    gr, (a, b), held = run(model, [SPHERE, GROUND], gap_factor=0.0)
-    assert all(list(h.values()) == [a | b] for h in held if h)
-    assert gr.gap_splits == 0
 
 
 @pytest.mark.parametrize(
