@@ -209,16 +209,20 @@ class FusionSettings:
             one place, e.g. hovering, meet at the camera centre). Default 0.1 (tracked stereo_hover:
             range NEES mean 1729 -> 8.5 against 0: a stereo track ranged 0.35 m from such points).
         feature_point_sigma_k: with feature_point, the range sigma is
-            hypot(max(k, sqrt(chi_f)) sigma_r,f, floor r) of the chosen feature (sigma_r,f its
-            first-order sigma, see _features_batch; chi_f its rays' own normalised miss, the fit's
-            a-posteriori variance factor: a feature whose rays miss its point by more than k
-            sigma_f gets its own scale, ``_posterior_sigma``; replays of one recording of both sets:
-            range NEES mean tuned 1.95 -> 1.85, held-out 2.15 -> 2.07, 1-sigma share unchanged).
-            Default 2.5 (per-feature errors on the tracked scenes: median |z| 2 at sigma_f = 1e-3
-            rad). The same k sigma_f is reused, unfitted, as the per-point
-            error of the stereo feature velocity (``_feature_velocity``): k was fitted on position
-            errors, which include a tracked corner's fixed offset from the surface point; that
-            offset cancels in a displacement, so it likely overstates the velocity noise.
+            hypot(max(k, sqrt(s2_f), sqrt(chi_now)) sigma_r,f, floor r) of the chosen feature
+            (sigma_r,f its first-order sigma, see _features_batch; s2_f its fit's a-posteriori
+            variance factor, ``_posterior_sigma``; chi_now its current ray's own miss over
+            2 sigma_f^2: a feature whose rays miss its point by more than k sigma_f gets its own
+            scale). Default 2.0: the smallest of 1.75 / 2 / 2.25 / 2.5 that keeps the tuned set's
+            range NEES mean within its 95 % interval (replay over the front end of d59c4ac, with
+            the current-ray term: 1.126 / 1.044 / 0.945 / 0.876; 1-sigma share 73.7 / 75.1 / 78.7 /
+            80.3 %), refitted after the rays' own depths entered sigma_r,f (c046719: larger on
+            approach). It was 2.5 (per-feature errors on the tracked scenes: median |z| 2 at
+            sigma_f = 1e-3 rad, with the current depth). The same k sigma_f is reused, unfitted,
+            as the per-point error of the stereo feature velocity (``_feature_velocity``): k was
+            fitted on position errors, which include a tracked corner's fixed offset from the
+            surface point; that offset cancels in a displacement, so it likely overstates the
+            velocity noise.
         feature_point_quantile: which feature's point: the lower q-quantile by range of the inner
             ones. Default 0.5 (the lower median; 0.3 ranged the tracked stereo scenes better, 1.1 vs
             1.6 % within 3 m, but picked a near stray feature on a fresh tracking: NEES mean 1204).
@@ -313,7 +317,7 @@ class FusionSettings:
     feature_max_chi: float = 36.0
     moving_mono_max_s: float = 0.3
     feature_min_depth_m: float = 0.1
-    feature_point_sigma_k: float = 2.5
+    feature_point_sigma_k: float = 2.0
     feature_point_quantile: float = 0.5
     feature_range_floor_frac: float = 0.01
     carried_range_floor_frac: float = 0.03
@@ -1449,6 +1453,8 @@ class ObstacleFusion:
         r = np.linalg.norm(r_vec, axis=1)
         d_vec = p - c_now
         depth = np.sum(d_vec * b_now, axis=1)
+        # the current ray's own miss of p_f (rad^2): |(I - b b^T)(p_f - c)|^2 / d^2
+        miss2 = np.maximum(_dot_rows(d_vec, d_vec) - depth * depth, 0.0) / np.maximum(depth * depth, 1e-12)
         u = r_vec / np.maximum(r, 1e-9)[:, None]
         # each ray i misses p_f by ~ sigma_f d_i (d_i its own depth, not the current one: flying at
         # an obstacle, the rays of the last 0.5 s were taken from up to twice as far; 15 m/s at
@@ -1462,8 +1468,9 @@ class ObstacleFusion:
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r, d2 = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], d2[keep])
+        g, rows, b_now, p, r, depth, sig_r, d2, miss2 = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], d2[keep],
+            miss2[keep])
         # static-point test: each ray misses its feature's point by ~ sigma_f d_i per axis, so
         #   chi = mean_i miss_i^2 / (2 sigma_f^2 mean_i d_i^2)  ~ 1 for a static point
         # (E = (2n - 3) / 2n, n rays); a moving obstacle's features (crossing motion) fit no static
@@ -1480,6 +1487,11 @@ class ObstacleFusion:
         # each point's range sigma scaled as the reports' are (``_posterior_sigma``: k sigma_r,f, or
         # its own fit's a-posteriori factor): the members are compared with a report in those units
         sig_post = _posterior_sigma(sig_r, chi, fs.n[rows], s.feature_point_sigma_k)
+        # ... or, when larger, its CURRENT ray's miss over its noise, chi_now = miss^2 / 2 sigma_f^2:
+        # a corner that has just slid off its point (onto an occluding edge, a T-junction) misses
+        # it now while the mean over its older rays (chi) hardly moves
+        sig_post = np.maximum(sig_post, sig_r * np.sqrt(miss2 / (2.0 * s.feature_sigma_rad ** 2))
+                              / max(s.feature_point_sigma_k, 1e-12))
         # every track's static member points: range, direction from the body origin, range sigma
         self._members_ls = (g[fit], r[fit], (p[fit] - o) / r[fit][:, None],
                             s.feature_point_sigma_k * sig_post[fit])
