@@ -74,11 +74,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from estimators.errors import ConfigError
+from estimators.geometry import _cross
 from trackers.features import FeatureTracker
 
 
 def _normalise(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))  # np.linalg.norm's own formula
     return v / np.where(n > 0, n, 1.0)
 
 
@@ -96,8 +97,8 @@ def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
     normalised (ref the z axis, or x near it), e2 = rep x e1."""
     ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    e1 = _normalise(np.cross(ref, rep))
-    return e1, np.cross(rep, e1)
+    e1 = _normalise(_cross(ref, rep))
+    return e1, _cross(rep, e1)
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
