@@ -1498,9 +1498,9 @@ class ObstacleFusion:
         keep = np.bincount(g, minlength=G)[g] >= n_min
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, chi, chi_cut, sig_post = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], chi[keep], chi_cut[keep],
-            sig_post[keep])
+        g, rows, b_now, p, r, depth, sig_r, chi, chi_cut, sig_post = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep],
+            chi_cut[keep], sig_post[keep])
         chi_med = _group_median(g, chi, G)
         if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
             fit = chi_cut <= s.feature_max_chi  # a corner sliding along an edge: not this point)
