@@ -110,3 +110,56 @@ def test_stereo_fix_is_not_ranged_on_a_silhouette_corner():
     assert r_off.range_m == pytest.approx(math.hypot(0.3 / 0.135, 0.15 - 0.06 * 0.3 / 0.135), rel=1e-3)
     b = np.asarray(r_off.bearing_body, float)
     assert _face_hit(b / np.linalg.norm(b))[1] < 0.0
+
+
+# The static-point (multi-frame) fix on a stereo rig: the rig flies forward (+x, 1.5 m/s) past a
+# box like the one above, whose side face y = 0 is only 0.2 m deep (back edge K2 = (2.2, 0)). cam0
+# (y = +0.15) sees the side face, so its silhouette corner on the texture line z = 0 is the back
+# edge K2, a static point (feature 12, cam0 only); cam1 (y = -0.15) sees the front edge F (feature
+# 13, cam1 only). The face's corners (ids 0..11) are seen by both, in rows z = -0.15, 0, 0.25 (the
+# middle row inside each view's hull). All rays are exact, so every feature fits a static point
+# and the static fix (not the stereo one) ranges the track. After 14 frames the body is at
+# x = 14 / 30 * 1.5 = 0.7 m; the inner half (nearest the representative ray, towards F + 0.2 U)
+# holds the face corners s = 0.1 (z = 0), s = 0.25 and 0.4 (z = -0.15, 0), s = 0.55 (z = 0) and
+# K2, at ranges |F + s U + (0, 0, z) - o| = 1.3613, 1.4654, 1.4577, 1.5658, 1.5586, 1.6631 and
+# |K2 - o| = 2.2 - 0.7 = 1.5 m: K2 is their lower median (4th of 7), the one chosen without the
+# outline rule; the nearest face corner to 1.5 m is 1.4790 (s = 0.25, z = 0.25).
+K2_W = np.array([2.2, 0.0, 0.0])
+
+
+def _box_flight_run(settings: FusionSettings | None = None, frames: int = 15):
+    rig = stereo_forward_rig(MODEL, 0.30)
+    ego = ConstantVelocity(1.5)
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    faces = [F_W + s * U_W + np.array([0.0, 0.0, z])
+             for s in (0.1, 0.25, 0.4, 0.55) for z in (-0.15, 0.0, 0.25)]
+    for k in range(frames):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        views = []
+        for c in rig:
+            cam0 = c.name == "cam0"
+            fb = np.array([_bearing(c, T_W_B, p) for p in faces + [K2_W if cam0 else F_W]])
+            views.append(CameraView(c.name, _bearing(c, T_W_B, F_W + 0.2 * U_W), [0, 0], 1e-3,
+                                    feature_ids=np.r_[np.arange(12), 12 if cam0 else 13], feature_b_C=fb))
+        (r,) = fus.step([ObstacleObservation(3, k, t, "confirmed", tuple(views))], k, t)
+    return r, faces, T_W_B.t
+
+
+def test_static_fix_on_a_stereo_rig_is_not_ranged_on_a_silhouette_corner():
+    r, faces, o = _box_flight_run()
+    assert o[0] == pytest.approx(0.7)
+    assert r.range_m is not None and "mono" in r.source
+    # the report is one of the face's physical corners: its bearing from the body meets the face
+    # at its range, and that range is a face corner's
+    b = np.asarray(r.bearing_body, float)
+    n = np.array([-1.0, -1.0, 0.0]) / math.sqrt(2.0)  # the front face's outward normal
+    b = b / np.linalg.norm(b)
+    t = float((F_W - o) @ n) / float(b @ n)
+    s = float((o + t * b - F_W) @ U_W) / float(U_W @ U_W)
+    assert min(abs(r.range_m - float(np.linalg.norm(p - o))) for p in faces) < 1e-3 * r.range_m
+    assert 0.05 <= s <= 1.0  # (the ray toward K2 meets the face's plane at its edge F: s = 0)
+    assert r.range_m == pytest.approx(t, rel=1e-3)
+    # with the rule off, the static fix is ranged on the silhouette corner K2: 1.5 m
+    r_off, _, _ = _box_flight_run(FusionSettings(feature_avoid_outline=False))
+    assert r_off.range_m == pytest.approx(1.5, rel=1e-3)
