@@ -15,8 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators.errors import InputError
-
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
     """Sine of the angle of b1 out of the epipolar plane of b0.
@@ -207,7 +205,6 @@ def stereo_klt(
     recheck_px: float = 1.0,
     follow_levels: int | None = None,
     crop: bool = True,
-    moved: str = "check",
 ) -> StereoKLT:
     """Find camera a's features in camera b's image by KLT, checked by the epipolar constraint and
     (where needed) forward-backward. One forward KLT call per pyramid depth (rows with their own
@@ -231,9 +228,6 @@ def stereo_klt(
             n searches n + 1 pyramid levels; a followed match starts within a pixel or two of its
             answer, so it needs no coarse levels); the other rows use ``levels`` (also a maxLevel).
             None: ``levels`` for all rows (one call).
-        moved: what happens to a row with a finite guess that lands more than ``recheck_px``
-            from it: "check" (the backward check) or "drop" (not found this call: no backward
-            pass at all unless ``check`` asks for one).
         crop: run each KLT call on the parts of the two images its search reads (``_lk_part``:
             the same answers for any point that travels less than the coarsest window's reach,
             for a fraction of the pyramid-building cost); False: on the whole images.
@@ -242,8 +236,6 @@ def stereo_klt(
     """
     import cv2
 
-    if moved not in ("check", "drop"):
-        raise InputError(f"stereo_klt: moved expected 'check' or 'drop', got {moved!r}")
     n = len(b_a)
     empty = StereoKLT(np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0, bool))
     if not n:
@@ -287,11 +279,7 @@ def stereo_klt(
     # the backward check: rows asked for, and followed rows that did not land where expected
     chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()
     chk |= ~own[idx]
-    far = own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
-    if moved == "drop":
-        good &= ~far
-    else:
-        chk |= far
+    chk |= own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
     ci = np.flatnonzero(chk & good)
     if len(ci):
         # backward: from the forward result in b, starting at the same pixel in a
@@ -356,3 +344,24 @@ def consistent_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> tuple[np.ndarray, 
     _, inv_b, cnt_b = np.unique(pairs[:, 1], return_inverse=True, return_counts=True)
     ok = (cnt_a[inv_a] == 1) & (cnt_b[inv_b] == 1)
     return pairs[ok, 0], pairs[ok, 1]
+
+
+def unheld(members: list[np.ndarray], held_ids: np.ndarray, min_held: int = 3) -> np.ndarray:
+    """Which tracks last frame's stereo matches cannot give a view in the other camera.
+
+    A view is made of >= ``min_held`` members found in the other camera's image; between
+    association frames a match is only followed from last frame (``FrontEnd._follow_only``), so a
+    track with fewer than ``min_held`` members among last frame's matches would have no view until
+    the next full search. Those tracks' members are searched in full instead.
+
+    Args:
+        members: per track, (M_i,) int feature ids of its members.
+        held_ids: (K,) int feature ids matched in the other camera last frame (any order).
+        min_held: the members a view needs.
+    Returns:
+        (len(members),) bool, True where fewer than ``min_held`` members are in ``held_ids``.
+    """
+    held = np.asarray(held_ids, np.int64).reshape(-1)
+    return np.array(
+        [int(np.isin(np.asarray(m, np.int64), held).sum()) < min_held for m in members], bool
+    ).reshape(len(members))

@@ -24,7 +24,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt
+from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt, unheld
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -264,9 +264,11 @@ class FrontEnd:
         # last frame's stereo KLT matches per camera pair (_remember_stereo), where this frame's start
         self._stereo_mem: dict[tuple[str, str], tuple] = {}
         # camera pairs whose stereo KLT this frame only follows last frame's matches (at
-        # follow_levels, no backward check; a match that lands off its guess is dropped): the
-        # reverse views' pairs between their retries (_derive_views)
+        # follow_levels; backward-checked only when it lands off its guess): the reverse views'
+        # pairs between their retries (_derive_views); _retry_rows: per such pair, the rows of
+        # a's features searched in full all the same (_unheld_rows)
         self._follow_only: set[tuple[str, str]] = set()
+        self._retry_rows: dict[tuple[str, str], np.ndarray] = {}
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
         # feature id -> the id it is reported under (the reference camera's matched feature, or a
@@ -490,9 +492,13 @@ class FrontEnd:
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
                 guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
                 last[hit] = m[4][kk]
-            if follow_only:  # only last frame's matches, followed (see _follow_only)
+            if follow_only:  # last frame's matches followed, plus the retry rows (see _follow_only)
                 tried[todo] = True
-                keep = np.flatnonzero(last >= 0)
+                held = last >= 0
+                retry = self._retry_rows.get((a, b))
+                if retry is not None and len(retry):
+                    held |= np.isin(todo, retry)
+                keep = np.flatnonzero(held)
                 todo, guess, last = todo[keep], guess[keep], last[keep]
         if len(todo):
             (ca, oa), (cb, ob) = fa.crop, fb.crop
@@ -514,7 +520,6 @@ class FrontEnd:
                 else (last < 0) | (self._n - last >= self.recheck_every),
                 recheck_px=self.recheck_px,
                 follow_levels=self.follow_levels,
-                moved="drop" if follow_only else "check",
             )
             tried[todo] = True
             found = todo[r.idx]
@@ -552,6 +557,11 @@ class FrontEnd:
         # followed only (_follow_only)
         rev = self.reverse_views and not assoc_now
         self._follow_only = {(n, ref) for n in self.cams if n != ref} if rev else set()
+        # ... except the members of tracks that last frame's matches cannot hold a view for
+        # (_unheld_rows): searched in full, so a view is not lost until the next association frame
+        self._retry_rows = {
+            (a, b): self._unheld_rows(a, b, self._unviewed_in_ref(seen, a)) for a, b in self._follow_only
+        }
         for a, b in itertools.permutations(names, 2):
             a_first = names.index(a) < names.index(b)
             trs = []
@@ -566,6 +576,21 @@ class FrontEnd:
             rows, _ = self._rows(self.trackers[a], np.concatenate([t.members for t in trs]))
             if len(rows):
                 self._stereo(a, b, rows)
+
+    def _unheld_rows(self, a: str, b: str, tracks: list[ObstacleTrack]) -> np.ndarray:
+        """Rows (K,) into camera a's live features: the members of ``tracks`` (a's tracks with no
+        view in camera b) whose track has fewer than 3 members among last frame's a -> b stereo
+        matches (``unheld``): following those cannot give a view, so between association frames
+        they are searched in full (``_follow_only``'s retry rows) instead of waiting for the next
+        association frame (a track confirmed, or whose linked reference track left, since the last
+        one; one whose followed matches were lost)."""
+        m = self._stereo_mem.get((a, b))
+        held_ids = m[1] if m is not None and m[0] == self._n - 1 else np.zeros(0, np.int64)
+        todo = [t.members for t in tracks]
+        out = [t for t, u in zip(todo, unheld(todo, held_ids, 3), strict=True) if u]
+        if not out:
+            return np.zeros(0, np.intp)
+        return self._rows(self.trackers[a], np.concatenate(out))[0]
 
     def _associate(self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray]) -> list[int]:
         """Link tracks of different cameras that share epipolar-consistent feature correspondences
@@ -732,9 +757,12 @@ class FrontEnd:
         track whose global id has no reference track this frame (``_unviewed_in_ref``) gets a
         reference view from its members found in the reference image alike (members under their
         physical-point ids, ``_pid``). That search is a retry every ``association.every`` frames
-        (new and re-checked matches, forward-backward); in between only last frame's matches are
-        followed (``_follow_only``: 2 pyramid levels, no backward pass, a match that lands off its
-        start is dropped until the next retry), so the extra KLT pair costs little per frame.
+        (new and re-checked matches, forward-backward); in between last frame's matches are
+        followed (``_follow_only``: 2 pyramid levels, the backward check only for a match that
+        lands off its start), so the extra KLT pair costs little per frame, and a track that
+        those matches cannot hold a view for (fewer than 3: confirmed, or left by its linked
+        reference track, since the last retry, or its matches lost) is searched in full
+        (``_unheld_rows``), so a view persists while >= 3 of its features are found.
         """
         ref = self.rig.cameras[0].name
         out: dict[str, list[ObstacleTrack]] = {}

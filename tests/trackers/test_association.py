@@ -478,10 +478,10 @@ def test_stereo_klt_on_the_parts_it_reads_equals_the_whole_images():
         assert np.median(err) < 0.3
 
 
-def test_stereo_klt_drops_a_followed_match_that_lands_off_its_guess_when_told():
-    """moved="drop": a followed row whose forward result lands more than recheck_px from its guess
-    is not found (no backward pass), one that lands on it is kept unchecked. Pure rotation as
-    above: the true match of each row is the projection of R b_a."""
+def test_stereo_klt_checks_a_followed_match_that_lands_off_its_guess():
+    """A followed row whose forward result lands more than recheck_px from its guess gets the
+    backward check (and most such rows pass it); one that lands on its guess is kept unchecked.
+    Pure rotation as above: the true match of each row is the projection of R b_a."""
     from trackers.association import stereo_klt
 
     model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
@@ -490,21 +490,7 @@ def test_stereo_klt_drops_a_followed_match_that_lands_off_its_guess_when_told():
     guess = expected.copy()
     guess[1::2] += 3.0  # odd rows start 4.2 px off their true match: KLT lands > 1 px from the guess
     none = np.zeros(len(b_a), bool)
-    kept = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=none,
-                      follow_levels=1, moved="drop")
-    checked = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=none,
-                         follow_levels=1)
-    assert len(kept.idx) >= 0.4 * len(b_a)
-    assert np.all(kept.idx % 2 == 0) and not kept.checked.any()
-    assert np.sum(checked.idx % 2 == 1) >= 0.4 * len(b_a) / 2  # checked instead, and most pass
-    assert np.all(checked.checked[checked.idx % 2 == 1])
-
-
-def test_stereo_klt_refuses_an_unknown_moved_rule():
-    """moved is "check" or "drop"; anything else is an InputError naming it (it used to act as "check")."""
-    from estimators.errors import InputError
-    from trackers.association import stereo_klt
-
-    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
-    with pytest.raises(InputError, match="moved"):
-        stereo_klt(img_a, img_b, ft.b_C, ft.uv.astype(float), model, R_b_a, np.zeros(3), moved="dorp")
+    r = stereo_klt(img_a, img_b, b_a, uv_a, model, R_b_a, t, guess_b=guess, check=none, follow_levels=1)
+    odd = r.idx % 2 == 1
+    assert np.sum(~odd) >= 0.4 * len(b_a) / 2 and not r.checked[~odd].any()
+    assert np.sum(odd) >= 0.4 * len(b_a) / 2 and r.checked[odd].all()
