@@ -217,9 +217,15 @@ class FusionSettings:
             range NEES mean within its 95 % interval (replay over the front end of d59c4ac, with
             the current-ray term: 1.126 / 1.044 / 0.945 / 0.876; 1-sigma share 73.7 / 75.1 / 78.7 /
             80.3 %), refitted after the rays' own depths entered sigma_r,f (c046719: larger on
-            approach). It was 2.5 (per-feature errors on the tracked scenes: median |z| 2 at
-            sigma_f = 1e-3 rad, with the current depth). The same k sigma_f is reused, unfitted,
-            as the per-point error of the stereo feature velocity (``_feature_velocity``): k was
+            approach). That front end had grouping step 3e on (5f4999b; off again since bdcb28d);
+            on the default front end, with the stereo static outline rule, k 2.0 gives a tuned
+            range NEES mean of 1.013 (median z^2 0.229, 1-sigma 75.4 %; accuracy --set both at
+            cb37d6f). It was 2.5 (per-feature errors on the tracked scenes: median |z| 2 at
+            sigma_f = 1e-3 rad, with the current depth). The same k sigma_f, unfitted for these
+            uses, is also the bearing sigma of a feature ray in the supported-point update
+            (``_supported_update``), the angle gate of a representative-ray triangulation's nearest
+            member (sqrt(gate) k sigma_f), and the per-point error of the stereo feature
+            velocity (``_feature_velocity``): k was
             fitted on position errors, which include a tracked corner's fixed offset from the
             surface point; that offset cancels in a displacement, so it likely overstates the
             velocity noise.
@@ -2030,10 +2036,11 @@ class ObstacleFusion:
             j = int(np.argmax(cos_f))
             tr.point_fid = int(vb.feature_ids[j])
             # the representative rays are centroids of members that come and go: when even the
-            # nearest member's ray misses their point by more than the bearing gate of a feature
-            # ray (sqrt(gate) k sigma_f, the support update's own test), no tracked point is at
-            # that range and the support update would only gate (mono_straight track 40: ranged
-            # 10.9 m with its one member 4 deg away, the obstacle on that bearing at 6.5 m)
+            # nearest member's ray misses their point by more than sqrt(gate) k sigma_f (the
+            # chi-square gate on a feature ray's bearing sigma alone, without the state's own
+            # covariance), no tracked point is at that range: not reported (mono_straight track
+            # 40: ranged 10.9 m with its one member 4 deg away, the obstacle on that bearing at
+            # 6.5 m)
             s = self.settings
             ang = math.acos(min(max(float(cos_f[j]), -1.0), 1.0))
             if ang > math.sqrt(self._gate2) * s.feature_point_sigma_k * s.feature_sigma_rad:
