@@ -101,6 +101,14 @@ def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, _cross(rep, e1)
 
 
+def _persist_count(n: int, prev_ids: np.ndarray, ids: np.ndarray) -> int:
+    """Frames in a row a split candidate has been seen: n + 1 when this frame's leaving members
+    ``ids`` (sorted feature ids) share at least half of the smaller of them and the last frame's
+    ``prev_ids`` (the same candidate), else 1 (a new candidate)."""
+    common = np.intersect1d(ids, prev_ids, assume_unique=True).size if len(prev_ids) else 0
+    return n + 1 if 2 * common >= min(len(ids), len(prev_ids)) > 0 else 1
+
+
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit vectors a (..., 3) and b (..., 3), stable at 0 and pi:
     ``atan2(|a x b|, a . b)``."""
@@ -1123,10 +1131,7 @@ class ObstacleGrouper:
                     found[t] = True
                     tr = tracks[t]
                     mids = np.sort(ids[move])
-                    prev = tr.depth_ids
-                    common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
-                    tr.depth_n = tr.depth_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
-                    tr.depth_ids = mids
+                    tr.depth_n, tr.depth_ids = _persist_count(tr.depth_n, tr.depth_ids, mids), mids
                     if tr.depth_n >= self.depth_persist:
                         tr.depth_n, tr.depth_ids = 0, np.zeros(0, np.int64)
                         # every member on that side leaves (those without a flow stay)
@@ -1243,10 +1248,7 @@ class ObstacleGrouper:
                 found[t] = True
                 tr = tracks[t]
                 mids = np.sort(fids[move])
-                prev = tr.gap_ids
-                common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
-                tr.gap_n = tr.gap_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
-                tr.gap_ids = mids
+                tr.gap_n, tr.gap_ids = _persist_count(tr.gap_n, tr.gap_ids, mids), mids
                 if tr.gap_n >= self.gap_persist:
                     tr.gap_n, tr.gap_ids = 0, np.zeros(0, np.int64)
                     out_rows.append(move)
