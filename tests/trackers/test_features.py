@@ -301,6 +301,21 @@ def test_only_keepable_keypoints_are_described():
     assert described[-1] == 10 and ft.n_live == 160
 
 
+def _detection_frames(ft, grey: np.ndarray, n: int = 20) -> list[int]:
+    """The frames (at 30 fps) of n tracked copies of ``grey`` on which ``ft`` ran a detection."""
+    frames: list[int] = []
+    orig = ft._detect
+
+    def counting(image, t_s):
+        frames.append(round(t_s * 30))
+        return orig(image, t_s)
+
+    ft._detect = counting
+    for k in range(n):
+        ft.track(grey, k, k / 30)
+    return frames
+
+
 def test_a_full_tracker_detects_half_as_often(model):
     """A static scene: with room for new features the tracker detects every redetect_every (4)
     frames; once full (max_features live) a detection could only re-acquire lost features, so it
@@ -309,18 +324,7 @@ def test_a_full_tracker_detects_half_as_often(model):
     grey = SphereScene(model).render()
 
     def detect_frames(max_features: int) -> list[int]:
-        ft = make_tracker(model, max_features=max_features, redetect_every=4)
-        frames: list[int] = []
-        orig = ft._detect
-
-        def counting(image, t_s):
-            frames.append(round(t_s * 30))
-            return orig(image, t_s)
-
-        ft._detect = counting
-        for k in range(20):
-            ft.track(grey, k, k / 30)
-        return frames
+        return _detection_frames(make_tracker(model, max_features=max_features, redetect_every=4), grey)
 
     assert detect_frames(40) == [0, 8, 16]  # full after the first detection
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
@@ -332,17 +336,7 @@ def test_full_redetect_factor_sets_how_often_a_full_tracker_detects(model, facto
     redetect_every (3 x 4 = 12) frames, and never again with a factor of 0 (counted over 20)."""
     grey = SphereScene(model).render()
     ft = make_tracker(model, max_features=40, redetect_every=4, full_redetect_factor=factor)
-    seen: list[int] = []
-    orig = ft._detect
-
-    def counting(image, t_s):
-        seen.append(round(t_s * 30))
-        return orig(image, t_s)
-
-    ft._detect = counting
-    for k in range(20):
-        ft.track(grey, k, k / 30)
-    assert seen == frames
+    assert _detection_frames(ft, grey) == frames
 
 
 def test_a_full_tracker_describes_only_reacquisition_candidates():
