@@ -1524,15 +1524,14 @@ class ObstacleFusion:
         keep = np.bincount(g, minlength=G)[g] >= n_min
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r, chi, chi_cut, sig_post = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], chi[keep],
-            chi_cut[keep], sig_post[keep])
+        g, rows, b_now, p, r, sig_r, chi, chi_cut, sig_post = (
+            g[keep], rows[keep], b_now[keep], p[keep], r[keep], sig_r[keep], chi[keep], chi_cut[keep],
+            sig_post[keep])
         chi_med = _group_median(g, chi, G)
         if s.feature_point:  # each feature must fit a static point itself (a stereo id mismatch,
             fit = chi_cut <= s.feature_max_chi  # a corner sliding along an edge: not this point)
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
-            g, rows, b_now, p, r, depth, sig_r = (
-                g[fit], rows[fit], b_now[fit], p[fit], r[fit], depth[fit], sig_post[fit])
+            g, rows, b_now, p, r, sig_r = (g[fit], rows[fit], b_now[fit], p[fit], r[fit], sig_post[fit])
         b_rep = feats[5]  # (G, 3) first views' bearings
         ang = np.arccos(np.clip(np.sum(b_now * b_rep[g], axis=1), -1.0, 1.0))
         inner = ang <= _group_median(g, ang, G)[g]
