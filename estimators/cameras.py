@@ -161,16 +161,20 @@ class CameraModel(ABC):
             valid: (N,) bool.
         """
         uv = self._as_points("uv", uv, 2)
-        n = uv.shape[0]
-        b = np.zeros((n, 3))
-        valid = np.all(np.isfinite(uv), axis=1)
+        u, v = uv[:, 0], uv[:, 1]
         if within_image:
-            valid &= self.in_image(uv)
+            # inside [-0.5, w-0.5] x [-0.5, h-0.5] (in_image's test); NaN and +-inf compare False, so
+            # this is also the finiteness test
+            valid = (u >= -0.5) & (u <= self.width - 0.5) & (v >= -0.5) & (v <= self.height - 0.5)
+        else:
+            valid = np.isfinite(u) & np.isfinite(v)
         if valid.all():  # the common case (whole images): no gathering and scattering
             b, vi = self._unproject(uv)
             valid = vi & self._within_angle(b)
-            b[~valid] = 0.0
+            if not valid.all():
+                b[~valid] = 0.0
             return b, valid
+        b = np.zeros((uv.shape[0], 3))
         idx = np.flatnonzero(valid)
         if idx.size:
             bi, vi = self._unproject(uv[idx])
@@ -321,7 +325,11 @@ class CameraModel(ABC):
 
         theta <= theta_max  <=>  b_z = cos(theta) >= cos(theta_max) for unit b (cos falls on [0, pi]).
         """
-        return b[:, 2] >= np.cos(min(self.max_angle_rad + _ANGLE_TOL_RAD, np.pi))
+        c = self.__dict__.get("_cos_max")  # cos(theta_max), computed once per model
+        if c is None:
+            c = np.cos(min(self.max_angle_rad + _ANGLE_TOL_RAD, np.pi))
+            object.__setattr__(self, "_cos_max", c)
+        return b[:, 2] >= c
 
     def _check_common(self) -> None:
         """Validate and normalise the shared fields (fx, fy, cx, cy, width, height)."""
@@ -416,9 +424,18 @@ class _ThetaModel(CameraModel):
             theta = np.zeros_like(td)
             theta[valid] = self._theta_from_theta_d(np.minimum(td[valid], self._theta_d_max))
         # b = (sin(theta) m / theta_d, cos(theta)); on the axis sin(theta)/theta_d -> 1/theta_d'(0) = 1.
-        q = np.where(td > 0, np.sin(theta) / np.where(td > 0, td, 1.0), 1.0)
-        b = np.stack([q * mx, q * my, np.cos(theta)], axis=1)
-        b[~valid] = 0.0
+        off = td > 0
+        if off.all():  # no pixel on the axis (the usual case): the same numbers without the two wheres
+            q = np.sin(theta)
+            q /= td
+        else:
+            q = np.where(off, np.sin(theta) / np.where(off, td, 1.0), 1.0)
+        b = np.empty((len(td), 3))
+        np.multiply(q, mx, out=b[:, 0])
+        np.multiply(q, my, out=b[:, 1])
+        b[:, 2] = np.cos(theta)  # (into a contiguous temporary: numpy's strided cos may round differently)
+        if not valid.all():
+            b[~valid] = 0.0
         return b, valid
 
 
@@ -553,13 +570,55 @@ class KannalaBrandt(_ThetaModel):
             grid = (th, self._theta_d(th)[0])
             object.__setattr__(self, "_theta_grid", grid)
         theta = np.interp(target, grid[1], grid[0])
-        for _ in range(2):
-            f, df = self._theta_d(theta)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                theta = theta - (f - target) / df
-        theta = np.clip(np.nan_to_num(theta, nan=0.0), 0.0, self.max_angle_rad)
-        f, _ = self._theta_d(theta)
-        miss = np.flatnonzero(np.abs(f - target) > 1e-13 * np.maximum(1.0, target))
+        # _theta_d written out with the same operations in the same order (so the same numbers),
+        # in place: its 20-odd temporaries cost more than the arithmetic on a few hundred rows
+        k1, k2, k3, k4 = self.k1, self.k2, self.k3, self.k4
+        c1, c2, c3 = 3 * k1, 5 * k2, 7 * k3
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for _ in range(2):
+                t2 = theta * theta
+                # f = theta (1 + t2 (k1 + t2 (k2 + t2 (k3 + t2 k4))))
+                f = t2 * k4
+                f += k3
+                f *= t2
+                f += k2
+                f *= t2
+                f += k1
+                f *= t2
+                f += 1
+                f *= theta
+                # df = 1 + t2 (3 k1 + t2 (5 k2 + t2 (7 k3 + t2 9 k4)))
+                df = t2 * 9
+                df *= k4
+                df += c3
+                df *= t2
+                df += c2
+                df *= t2
+                df += c1
+                df *= t2
+                df += 1
+                # theta <- theta - (theta_d(theta) - target) / theta_d'(theta)
+                f -= target
+                f /= df
+                theta = theta - f
+        # clip to [0, max_angle_rad], NaN -> 0 (as clip(nan_to_num(theta, nan=0))); +-inf clip to the ends
+        theta = np.minimum(np.maximum(theta, 0.0), self.max_angle_rad)
+        nan = np.isnan(theta)
+        if nan.any():
+            theta[nan] = 0.0
+        t2 = theta * theta
+        f = t2 * k4
+        f += k3
+        f *= t2
+        f += k2
+        f *= t2
+        f += k1
+        f *= t2
+        f += 1
+        f *= theta
+        f -= target
+        np.abs(f, out=f)
+        miss = np.flatnonzero(f > 1e-13 * np.maximum(1.0, target))
         if miss.size:
             theta[miss] = self._theta_safeguarded(target[miss])
         return theta
