@@ -55,8 +55,9 @@ from pipeline.config import scenarios_dir
 
 __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", "run_bearings",
            "summarize", "format_table", "format_scenes", "format_compare", "format_scene_rows",
-           "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "PIPELINE_SCENES",
-           "PIPELINE_SCENES_HELDOUT"]
+           "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "SET_GROUPS", "PIPELINE_SCENES",
+           "PIPELINE_SCENES_HELDOUT", "PIPELINE_SCENES_VALIDATION", "range_z2_reports", "z2_stats",
+           "settings_from_overrides", "render_cache_dir"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -106,7 +107,15 @@ class AccuracyOptions:
     "heldout" (the ``heldout_*`` presets, used to fit nothing) or "both" (each scored on its own,
     then side by side); ``scenes`` keeps only those scenes of the chosen set(s), in both modes (a
     set left with none is not run); a name in no chosen set is a ConfigError listing the valid ones.
-    In pipeline mode a set's valid names are its scenes and its --quick scenes."""
+    In pipeline mode a set's valid names are its scenes and its --quick scenes; "validation" (the
+    ``val_*`` / ``val2_*`` presets: fresh seeds of nine tuned and held-out scenes, used to fit
+    nothing) has no --quick scenes; "all" = tuned, heldout and validation. overrides (pipeline
+    mode): ``section.key=value`` strings applied to each scene's run config exactly like ``fisheye-des
+    run --set`` (``pipeline.config.load_config``); front-end sections change the recording key, so
+    ``reuse_frontend`` re-records. Fusion overrides reach ``settings`` through
+    :func:`settings_from_overrides` (the command does that). render_cache (pipeline mode): scene renders
+    are kept in :func:`render_cache_dir` keyed on the parsed scenario and the simulator's sources, and
+    linked into ``out_dir/scenes`` (False: rendered into ``out_dir/scenes`` as before)."""
 
     mode: str = "bearings"
     quick: bool = False
@@ -118,6 +127,8 @@ class AccuracyOptions:
     settings: FusionSettings = field(default_factory=FusionSettings)
     reuse_frontend: bool = False
     scene_set: str = "tuned"
+    overrides: tuple[str, ...] = ()
+    render_cache: bool = True
 
 
 @dataclass
@@ -600,12 +611,12 @@ def format_scenes(per_scene: dict) -> str:
 # ---------------------------------------------------------------------------------------- run
 def _set_names(opts: AccuracyOptions) -> tuple[str, ...]:
     """The scene sets ``opts.scene_set`` asks for, in print order; ConfigError for an unknown one."""
-    if opts.scene_set == "both":
-        return ("tuned", "heldout")
+    if opts.scene_set in SET_GROUPS:
+        return SET_GROUPS[opts.scene_set]
     if opts.scene_set not in SCENE_SETS:
         from estimators.errors import ConfigError
 
-        raise ConfigError(f"accuracy --set: expected one of {', '.join([*SCENE_SETS, 'both'])}, "
+        raise ConfigError(f"accuracy --set: expected one of {', '.join([*SCENE_SETS, *SET_GROUPS])}, "
                           f"got {opts.scene_set!r}")
     return (opts.scene_set,)
 
@@ -619,7 +630,7 @@ def _bearings_scenes(opts: AccuracyOptions, set_name: str) -> list:
     from pipeline.sim.scene import load_scenario
 
     # (with --quick the first three: the set's tiny pipeline scene is too short for bearings mode)
-    names = PIPELINE_SCENES_HELDOUT[:3] if opts.quick else SCENE_SETS[set_name][0]
+    names = SCENE_SETS[set_name][0][:3] if opts.quick else SCENE_SETS[set_name][0]
     return [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
 
 
@@ -691,11 +702,16 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         valid = {k: list(_all_pipeline_names(k)) for k in set_names}
         scenes_of = {k: _pipeline_names(opts, k) for k in set_names}
     _check_scenes(opts, valid)
+    if not any(scenes_of.values()):  # (--scene names are checked above: only --quick gets here)
+        from estimators.errors import ConfigError
+
+        raise ConfigError(f"accuracy --set {opts.scene_set} --quick: the set has no --quick scenes in "
+                          f"{opts.mode} mode (the validation set is 18 full scenes); drop --quick")
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
-        if opts.scenes and not scenes_of[set_name]:
-            continue  # --scene named none of this set's scenes
+        if not scenes_of[set_name]:
+            continue  # --scene named none of this set's scenes (or a set without --quick scenes)
         if opts.mode == "bearings":  # (each set's noise from the seed: scored on its own, as alone)
             rng = np.random.default_rng(opts.seed)
             samples, per_scene = _run_bearings_set(opts, scenes_of[set_name], rng, progress)
@@ -704,15 +720,21 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         metrics = summarize(samples)
         if opts.mode == "pipeline":  # obstacle-frames the mono / stereo metric could score, ranged share
             metrics.update(pool_coverage(per_scene))
+            z2_rows = range_z2_reports(samples)
+            metrics.update(z2_stats([r["z2"] for r in z2_rows]))
+            metrics["range_z2_top"] = z2_rows[:10]
         title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
                  f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
         if set_name != "tuned" or len(set_names) > 1:
             title += f"; {SET_TITLES[set_name]}"
         table = format_table(metrics, title)
+        halves = _halves(samples, per_scene) if opts.mode == "pipeline" and set_name == "validation" else {}
         if opts.mode == "pipeline":
-            table += "\n" + format_scenes(per_scene)
+            table += "\n" + format_pooled(metrics, halves) + "\n" + format_scenes(per_scene)
         tables.append(table)
         sets[set_name] = {"metrics": metrics, "per_scene": per_scene}
+        if halves:
+            sets[set_name]["halves"] = halves
     if len(sets) > 1:
         tables.append(format_compare({SET_TITLES[k].split(":")[0]: v["metrics"] for k, v in sets.items()}))
         # one row per scene, the i-th scene of each set together (the sets list their families in order)
@@ -739,6 +761,80 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
     return res
 
 
+def range_z2_reports(samples: list[Sample]) -> list[dict]:
+    """The range NEES population of ``summarize`` (reports on the obstacle with a range and a
+    positive sigma, on tracks whose motion hypothesis holds: stationary obstacle or stereo-fed) as
+    rows {"z2", "scene", "t_s", "track", "obstacle", "range_m", "range_true", "sigma", "source"},
+    largest z^2 = ((r - r_true) / sigma)^2 first (ties by scene, time, track: session 6's harness's
+    order)."""
+    rows = sorted(((((s.range_m - s.range_true) / s.range_sigma_m) ** 2, s.scene, round(s.t_s, 4), s.track,
+                    s.obstacle, s.range_m, s.range_true, s.range_sigma_m, s.source)
+                   for s in samples if s.hit == "obstacle" and s.range_m is not None and s.range_sigma_m
+                   and s.range_sigma_m > 0 and (not s.moving or s.stereo_fed)), reverse=True)
+    keys = ("z2", "scene", "t_s", "track", "obstacle", "range_m", "range_true", "sigma", "source")
+    return [dict(zip(keys, r, strict=True)) for r in rows]
+
+
+def z2_stats(z2: list[float]) -> dict:
+    """Pooled statistics of per-report range z^2 values (dimensionless): "range_z2_n", their
+    "range_z2_mean" (= the range NEES mean), "range_z2_median", "range_z2_trim1_mean" (the mean
+    with the largest floor(1 % n) values dropped: what the NEES is without its few outliers),
+    "range_z2_gt9_share" (share with z^2 > 9, i.e. beyond 3 sigma; 0.27 % for a Gaussian). None
+    each when there are no values."""
+    v = np.sort(np.asarray(z2, float))[::-1]
+    if not len(v):
+        return {"range_z2_n": 0, "range_z2_mean": None, "range_z2_median": None,
+                "range_z2_trim1_mean": None, "range_z2_gt9_share": None}
+    k = int(0.01 * len(v))  # floor(1 % of n) largest dropped
+    return {"range_z2_n": int(len(v)), "range_z2_mean": float(v.mean()),
+            "range_z2_median": float(np.median(v)), "range_z2_trim1_mean": float(v[k:].mean()),
+            "range_z2_gt9_share": float((v > 9.0).mean())}
+
+
+def _halves(samples: list[Sample], per_scene: dict) -> dict:
+    """The validation set's two halves (val_*, val2_*) scored on their own (``summarize`` and
+    ``pool_coverage``): session 6's figures were per half."""
+    out = {}
+    for prefix in ("val_", "val2_"):
+        if not any(k.startswith(prefix) for k in per_scene):
+            continue  # (--scene kept none of this half)
+        ss = [s for s in samples if s.scene.startswith(prefix)]
+        m = summarize(ss)
+        m.update(pool_coverage({k: v for k, v in per_scene.items() if k.startswith(prefix)}))
+        out[prefix.rstrip("_")] = m
+    return out
+
+
+def format_pooled(m: dict, halves: dict | None = None) -> str:
+    """The pooled range z^2 figures, coverage, (the validation set's halves) and the top 10 z^2
+    reports of one set's metrics ``m`` (``summarize`` + ``pool_coverage`` + ``z2_stats`` +
+    "range_z2_top"), for reading the outliers straight from the output."""
+    lines = [
+        f"pooled range z^2 over {m.get('range_z2_n')} reports: NEES mean {_fmt(m.get('range_z2_mean'))}, "
+        f"median {_fmt(m.get('range_z2_median'))}, mean without the top 1 % "
+        f"{_fmt(m.get('range_z2_trim1_mean'))}, "
+        f"z^2 > 9 {_fmt(m.get('range_z2_gt9_share'), True)}; 1-sigma {_fmt(m.get('one_sigma_share'), True)}; "
+        f"mono obstacle-frame coverage {_fmt(m.get('mono_obstacle_coverage'), True)} of "
+        f"{m.get('mono_eligible_n')}, stereo {_fmt(m.get('stereo_obstacle_coverage'), True)} of "
+        f"{m.get('stereo_eligible_n')}"]
+    for name, h in (halves or {}).items():
+        lines.append(
+            f"  half {name}_*: mono median/p90 {_fmt(h.get('mono_median_rel'), True)} / "
+            f"{_fmt(h.get('mono_p90_rel'), True)}, stereo <=3 m {_fmt(h.get('stereo_3m_median_rel'), True)}, "
+            f"range NEES {_fmt(h.get('range_nees_mean'))} (median {_fmt(h.get('range_nees_median'))}), "
+            f"1-sigma {_fmt(h.get('one_sigma_share'), True)}, mono coverage "
+            f"{_fmt(h.get('mono_obstacle_coverage'), True)}, stereo "
+            f"{_fmt(h.get('stereo_obstacle_coverage'), True)}")
+    top = m.get("range_z2_top") or []
+    if top:
+        lines.append(f"top {len(top)} range z^2 reports (scene, t s, track, obstacle, range m, truth m, "
+                     f"sigma m, source):")
+        lines += [f"  z2 {d['z2']:9.1f} {d['scene']:28s} t {d['t_s']:.3f} track {d['track']} obst "
+                  f"{d['obstacle']} r {d['range_m']:.2f} true {d['range_true']:.2f} sigma {d['sigma']:.3f} "
+                  f"{d['source']}" for d in top]
+    return "\n".join(lines)
+
+
 def format_compare(metrics_by_set: dict[str, dict]) -> str:
     """The target metrics of several scene sets side by side: metric, each set's value and verdict,
     target (``metrics_by_set``: set label -> ``summarize`` / ``pool_coverage`` metrics)."""
@@ -761,12 +857,18 @@ def format_compare(metrics_by_set: dict[str, dict]) -> str:
     for label, key, ikey in (("position NEES mean (3 dof)", "nees_mean", "nees_interval95"),
                              ("range NEES mean (1 dof, per report)", "range_nees_mean",
                               "range_nees_interval95"),
-                             ("range NEES median (chi2(1) median 0.45)", "range_nees_median", None)):
+                             ("range NEES median (chi2(1) median 0.45)", "range_nees_median", None),
+                             ("range z^2 mean without the top 1 %", "range_z2_trim1_mean", None)):
+        if key == "range_z2_trim1_mean" and not any(key in m for m in ms):
+            continue  # (bearings mode)
         cells = []
         for m in ms:
             verdict = _nees_verdict(m, key, ikey) if ikey else ""
             cells.append(f"{_fmt(m.get(key)) + ' ' + (verdict if verdict != 'n/a' else ''):>16s}")
         lines.append(f"{label:52s} " + " ".join(cells) + f" {'in int.' if ikey else '':>10s}")
+    if any("range_z2_gt9_share" in m for m in ms):
+        lines.append(f"{'range z^2 > 9 share (Gaussian 0.27 %)':52s} "
+                     + " ".join(f"{_fmt(m.get('range_z2_gt9_share'), True):>16s}" for m in ms))
     for label, key in (("samples", "n_samples"), ("mono samples", "mono_n"), ("stereo <=3 m samples",
                        "stereo_3m_n"), ("stereo <=8 m samples", "stereo_8m_n"),
                        ("bounded moving reports", "bounds_n"), ("stereo moving reports >= 1 s",
@@ -823,13 +925,25 @@ PIPELINE_SCENES = ("mono_straight", "stereo_flying", "moving_crossing", "stereo_
 PIPELINE_SCENES_HELDOUT = ("heldout_mono_straight", "heldout_stereo_flying", "heldout_moving",
                            "heldout_stereo_hover", "heldout_fast_18mps")
 PIPELINE_SCENES_HELDOUT_QUICK = ("heldout_ci_small",)
+# The validation set (configs/scenarios/val_*.yaml, val2_*.yaml): the five held-out scenes and
+# mono_straight, moving_crossing, stereo_flying, turning, each copied twice with only the seeds
+# changed (top-level seed: obstacle textures, noise, drops; ground seed); used to fit nothing. Large
+# enough to decide a grouping or fusion change; the two halves in the order of session 6's harness.
+_VAL_FAMILIES = ("heldout_fast_18mps", "heldout_mono_straight", "heldout_moving", "heldout_stereo_flying",
+                 "heldout_stereo_hover", "mono_straight", "moving_crossing", "stereo_flying", "turning")
+PIPELINE_SCENES_VALIDATION = (tuple(f"val_{f}" for f in _VAL_FAMILIES)
+                              + tuple(f"val2_{f}" for f in _VAL_FAMILIES))
 # scene set -> (pipeline scenes, pipeline --quick scenes)
 SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "tuned": (PIPELINE_SCENES, PIPELINE_SCENES_QUICK),
     "heldout": (PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_HELDOUT_QUICK),
+    "validation": (PIPELINE_SCENES_VALIDATION, ()),
 }
+# --set names that stand for several sets (run in this order, each scored on its own)
+SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation")}
 SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
-              "heldout": "held-out: scenes no setting was fitted on"}
+              "heldout": "held-out: scenes no setting was fitted on",
+              "validation": "validation: 18 fresh-seed copies of 9 scenes, used to fit nothing"}
 
 
 def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
@@ -848,11 +962,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     import tempfile
 
     from estimators.fusion import ObstacleFusion
-    from pipeline.config import load_config
     from pipeline.evaluate import ScenarioTruth, score_reports
     from pipeline.run import build_egomotion, build_rig, run
     from pipeline.sim.scene import load_scenario
-    from pipeline.sim.writer import simulate
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
     samples: list[Sample] = []
@@ -864,27 +976,10 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
             scn = scn.model_copy(update={"duration_s": max(scn.duration_s, 2.0)})
         scene_parts = {"quick": bool(opts.quick), "duration_s": float(scn.duration_s),
                        "scenario_yaml": yaml_path.read_text()}
-        sdir = root / "scenes" / name
-        key_path = sdir / SCENE_KEY_NAME
-        scene_key = _key(scene_parts)
-        stale_render = not key_path.is_file() or key_path.read_text().strip() != scene_key
-        if not (sdir / "gt.jsonl").is_file() or stale_render:
-            if progress:
-                progress(f"{name}: rendering" + (" (the render there is from another scenario text or "
-                                                 "length)" if (sdir / "gt.jsonl").is_file() else ""))
-            simulate(scn, sdir)
-            key_path.write_text(scene_key + "\n")
+        sdir = _scene_dir(opts, root, name, scn, scene_parts, progress)
         truth = ScenarioTruth.load(sdir)
         rdir = root / "runs" / name
-        cams = sorted(p.name[: -len(".mkv")] for p in sdir.glob("*.mkv"))
-        cfg = load_config(None, [], {
-            "inputs.videos": [str(sdir / f"{c}.mkv") for c in cams],
-            "rig.calibration": str(sdir / "camchain.yaml"),
-            "rig.cameras": None,
-            "ego_motion.trajectory": str(sdir / "trajectory.tum"),
-            "ego_motion.speed_mps": None,
-            "outputs.progress": False,
-        })
+        cfg = scene_config(sdir, opts.overrides)
         rig = build_rig(cfg)
         ego = build_egomotion(cfg)
         fusion = ObstacleFusion(rig, ego, opts.settings)
@@ -922,6 +1017,193 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         if progress:
             progress(f"{name}: {len(ss)} scored reports")
     return samples, per_scene
+
+
+def scene_config(sdir: Path, overrides: tuple[str, ...] | list[str] = ()):
+    """The run config (``pipeline.config.PipelineConfig``) of one rendered scene folder ``sdir``:
+    its videos (``cam*.mkv``), calibration and trajectory, progress off, after ``overrides``
+    (``section.key=value``, ``fisheye-des run --set``'s grammar and parser; a bad one is a
+    ConfigError naming it as ``--override ITEM``)."""
+    cams = sorted(p.name[: -len(".mkv")] for p in Path(sdir).glob("*.mkv"))
+    return _load_config(overrides, {
+        "inputs.videos": [str(sdir / f"{c}.mkv") for c in cams],
+        "rig.calibration": str(sdir / "camchain.yaml"),
+        "rig.cameras": None,
+        "ego_motion.trajectory": str(sdir / "trajectory.tum"),
+        "ego_motion.speed_mps": None,
+        "outputs.progress": False,
+    })
+
+
+def _load_config(overrides, cli: dict | None = None):
+    """``pipeline.config.load_config(None, overrides, cli)``; its errors name an override as
+    ``--override ITEM`` (this command's flag) instead of ``--set ITEM``."""
+    from estimators.errors import ConfigError
+    from pipeline.config import load_config
+
+    try:
+        return load_config(None, list(overrides), cli)
+    except ConfigError as e:
+        msg = str(e)
+        for item in overrides:
+            msg = msg.replace(f"--set {item!r}", f"--override {item!r}").replace(f"--set {item}",
+                                                                                 f"--override {item}")
+        raise ConfigError(msg) from None
+
+
+# tracker.<group> -> the class whose keywords that group holds (trackers.frontend.FrontEnd)
+_TRACKER_GROUPS = {"features": ("trackers.features", "FeatureTracker"),
+                   "grouping": ("trackers.grouping", "ObstacleGrouper"),
+                   "boxes": ("trackers.grouping", "BoxTracker")}
+
+
+def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_speed_mps: float | None = None,
+                            ) -> FusionSettings:
+    """Check ``overrides`` (``section.key=value``, as ``fisheye-des run --set``) before anything runs and
+    return the fusion settings they give: ``FusionSettings`` with the ``fusion.*`` keys set there (and
+    ``max_speed_mps`` when not None; it wins over ``fusion.max_speed_mps``), defaults otherwise.
+
+    Checked: every key against the config schema (``pipeline.config.load_config``); the keys of the
+    free-form ``tracker.features`` / ``grouping`` / ``boxes`` groups against their class's keywords;
+    then a front end is built on a stereo rig with the resulting config (detector name and options,
+    association options, values).
+
+    Raises:
+        ConfigError: naming the override (``--override ITEM``) or the key and what is expected.
+    """
+    import importlib
+    import inspect
+
+    from estimators.errors import ConfigError
+    from pipeline.config import _suggest
+
+    cfg = _load_config(overrides)
+    for group, (mod, cls) in _TRACKER_GROUPS.items():
+        given = getattr(cfg.tracker, group) or {}
+        params = [p for p in inspect.signature(getattr(importlib.import_module(mod), cls)).parameters
+                  if p not in ("self", "ids")]
+        for k in given:
+            if k not in params:
+                raise ConfigError(f"--override tracker.{group}.{k}: unknown key '{k}' in tracker.{group} "
+                                  f"({cls} keywords)" + _suggest(k, params))
+    if any(getattr(cfg, sec).model_fields_set for sec in ("detector", "tracker")):
+        from pipeline.run import build_frontend
+        from pipeline.sim.rigs import build_rig
+        from pipeline.sim.scene import load_scenario
+
+        rig = build_rig(load_scenario(scenarios_dir() / "stereo_flying.yaml").rig)
+        try:
+            build_frontend(cfg, rig)
+        except (ConfigError, TypeError, ValueError) as e:
+            given = [o for o in overrides
+                     if o.split("=", 1)[0].strip().split(".")[0] in ("detector", "tracker")]
+            raise ConfigError(f"--override {' '.join(given)}: the front end refuses it: {e}") from None
+    kw = {k: getattr(cfg.fusion, k) for k in cfg.fusion.model_fields_set}
+    if max_speed_mps is not None:
+        kw["max_speed_mps"] = max_speed_mps
+    try:
+        return FusionSettings(**kw)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"--override fusion.*: {e}") from None
+
+
+def render_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/fisheye-des/accuracy`` (``~/.cache/fisheye-des/accuracy``): pipeline mode's scene
+    renders, one folder ``<scene>-<render key>`` each (see :func:`render_key`), shared by every run."""
+    import os
+
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "fisheye-des" / "accuracy"
+
+
+def _sim_hash() -> str:
+    """sha1 of the simulator's sources (pipeline/sim/*.py): a render is only as current as they are."""
+    import hashlib
+
+    h = hashlib.sha1()
+    root = Path(__file__).resolve().parent / "sim"
+    for p in sorted(root.rglob("*.py")):
+        h.update(p.relative_to(root).as_posix().encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def render_key(scn) -> str:
+    """16 hex digits naming a render of scenario ``scn`` (a ``pipeline.sim.scene.Scenario``, after any
+    --quick length change): sha1 of the parsed scenario (so comments and layout of its YAML do not
+    matter) and of the simulator's sources."""
+    return _key({"scenario": scn.model_dump(mode="json"), "simulator": _sim_hash()})[:16]
+
+
+RENDER_DONE_NAME = "render_key.json"  # written last into a cached render: it is complete
+
+
+def _cached_render(scn, progress) -> Path:
+    """The render of ``scn`` in :func:`render_cache_dir`, rendered there first when missing (into a
+    private folder renamed into place, so concurrent runs never see half a render)."""
+    import os
+    import shutil
+
+    from pipeline.sim.writer import simulate
+
+    d = render_cache_dir() / f"{scn.name}-{render_key(scn)}"
+    if (d / RENDER_DONE_NAME).is_file():
+        return d
+    d.parent.mkdir(parents=True, exist_ok=True)
+    tmp = d.parent / f".{d.name}.part-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    if progress:
+        progress(f"{scn.name}: rendering into {d}")
+    simulate(scn, tmp)
+    (tmp / RENDER_DONE_NAME).write_text(json.dumps({"scene": scn.name, "render_key": d.name.rsplit("-", 1)[1],
+                                                    "simulator_sha1": _sim_hash()}) + "\n")
+    try:
+        os.rename(tmp, d)
+    except OSError:  # another run put it there first (or an incomplete copy is in the way)
+        if (d / RENDER_DONE_NAME).is_file():
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            shutil.rmtree(d, ignore_errors=True)
+            os.rename(tmp, d)
+    return d
+
+
+def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: dict, progress) -> Path:
+    """``root/scenes/<name>``, holding the render of ``scn``: an earlier run's own render there whose
+    scene key (``scene_parts``: --quick, length, scenario text) matches is used as it is; otherwise,
+    with ``opts.render_cache``, a link to the cached render (:func:`_cached_render`); without it, a
+    render made there."""
+    import shutil
+
+    sdir = root / "scenes" / name
+    key_path = sdir / SCENE_KEY_NAME
+    scene_key = _key(scene_parts)
+    own = sdir.is_dir() and not sdir.is_symlink() and (sdir / "gt.jsonl").is_file()
+    if own and key_path.is_file() and key_path.read_text().strip() == scene_key:
+        return sdir
+    if not opts.render_cache:
+        if progress:
+            progress(f"{name}: rendering" + (" (the render there is from another scenario text or "
+                                             "length)" if own else ""))
+        from pipeline.sim.writer import simulate
+
+        if sdir.is_symlink():
+            sdir.unlink()
+        simulate(scn, sdir)
+        key_path.write_text(scene_key + "\n")
+        return sdir
+    c = _cached_render(scn, progress)
+    if sdir.is_symlink() and sdir.resolve() == c.resolve():
+        return sdir
+    sdir.parent.mkdir(parents=True, exist_ok=True)
+    if sdir.is_symlink() or sdir.is_file():
+        sdir.unlink()
+    elif sdir.is_dir():
+        shutil.rmtree(sdir)  # this harness's own stale render
+    sdir.symlink_to(c, target_is_directory=True)
+    if progress:
+        progress(f"{name}: render {c}")
+    return sdir
 
 
 OBSERVATIONS_NAME = "observations.pkl"

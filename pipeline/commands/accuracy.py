@@ -2,8 +2,12 @@
 
 Prints one table (ours, the thesis's two-frame law-of-sines method, the target, a verdict) and, with
 ``--out DIR``, writes ``DIR/accuracy.json`` (every metric, per scene) and ``DIR/accuracy.txt``.
-``--set heldout`` scores the held-out scenes instead (``accuracy_heldout.*``), ``--set both`` both
-sets side by side (``accuracy_both.*``).
+``--set heldout`` scores the held-out scenes instead (``accuracy_heldout.*``), ``--set validation``
+the 18 fresh-seed validation scenes (``accuracy_validation.*``), ``--set both`` tuned and held-out
+side by side (``accuracy_both.*``), ``--set all`` the three. ``--override section.key=value`` sets a
+config key for every scene's run (``fisheye-des run --set``'s grammar), e.g.
+``--override tracker.grouping.gap_factor=3``; pipeline mode keeps scene renders in
+``~/.cache/fisheye-des/accuracy`` (``--no-render-cache``: in ``--out`` as before).
 """
 
 from __future__ import annotations
@@ -55,11 +59,39 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--set",
                 help="Scene set: tuned (default: the scenes the fusion and grouping settings were "
-                "fitted on), heldout (configs/scenarios/heldout_*.yaml, used to fit nothing) or both "
-                "(each table, then side by side and per scene). With --out, heldout / both write "
-                "accuracy_<set>.json / .txt.",
+                "fitted on), heldout (configs/scenarios/heldout_*.yaml, used to fit nothing), validation "
+                "(configs/scenarios/val_*.yaml and val2_*.yaml: 18 fresh-seed copies of the five held-out "
+                "scenes and mono_straight, moving_crossing, stereo_flying, turning; used to fit nothing; "
+                "pipeline mode, no --quick), both (tuned and heldout: each table, then side by side and "
+                "per scene) or all (tuned, heldout, validation). Pipeline mode also prints each set's "
+                "pooled range z^2 (median, mean without the top 1 %, share > 9) and its top 10 z^2 "
+                "reports. With --out, a set other than tuned writes accuracy_<set>.json / .txt.",
             ),
         ] = "tuned",
+        override: Annotated[
+            list[str] | None,
+            typer.Option(
+                "--override",
+                help="Override a config key for every scene's run: section.key=value (repeat), the "
+                "grammar of `fisheye-des run --set`, e.g. --override tracker.grouping.gap_factor=3 or "
+                "--override fusion.feature_point_sigma_k=2.5. Checked before anything runs. Front-end "
+                "sections (detector, tracker, ...) change the --reuse-frontend recording key, so a "
+                "changed front end is tracked again, not replayed. --max-speed wins over "
+                "fusion.max_speed_mps.",
+            ),
+        ] = None,
+        render_cache: Annotated[
+            bool,
+            typer.Option(
+                "--render-cache/--no-render-cache",
+                help="Pipeline mode: keep scene renders in ~/.cache/fisheye-des/accuracy "
+                "($XDG_CACHE_HOME), one folder <scene>-<key> per parsed scenario and simulator "
+                "version, linked into --out/scenes and reused by every later run (delete the folder "
+                "to render again). --no-render-cache renders into --out/scenes (reused there while "
+                "the scenario text and length are unchanged). A render already in --out/scenes from "
+                "an earlier run is used either way when its scenario text matches.",
+            ),
+        ] = True,
         reuse_frontend: Annotated[
             bool,
             typer.Option(
@@ -73,16 +105,20 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Measure range, bounds, velocity and consistency of the fusion filter (and the thesis's method)."""
         from estimators.errors import ConfigError
-        from estimators.fusion import FusionSettings
-        from pipeline.accuracy import AccuracyOptions, run_accuracy
+        from pipeline.accuracy import AccuracyOptions, run_accuracy, settings_from_overrides
 
         if mode not in ("bearings", "pipeline"):
             raise ConfigError(f"accuracy --mode: expected 'bearings' or 'pipeline', got {mode!r}")
+        overrides = tuple(override or ())
+        if overrides and mode != "pipeline" and any(
+                not o.strip().startswith("fusion.") for o in overrides):
+            raise ConfigError("accuracy --override: bearings mode runs only the fusion (fusion.* keys); "
+                              f"got {', '.join(overrides)}; use --mode pipeline for front-end keys")
         opts = AccuracyOptions(
             mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
             thesis_interval_s=thesis_interval, scenes=tuple(scene) if scene else None,
-            settings=FusionSettings(max_speed_mps=max_speed), reuse_frontend=reuse_frontend,
-            scene_set=scene_set,
+            settings=settings_from_overrides(overrides, max_speed), reuse_frontend=reuse_frontend,
+            scene_set=scene_set, overrides=overrides, render_cache=render_cache,
         )
         res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
         typer.echo(res["table"])

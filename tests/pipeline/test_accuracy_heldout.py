@@ -98,6 +98,12 @@ def test_heldout_presets_cover_the_issue_families():
     assert any(13.0 <= d["observer"].get("speed_mps", 0.0) <= 18.0 for d in held.values())
 
 
+@pytest.fixture(autouse=True)
+def _own_render_cache(tmp_path_factory, monkeypatch):
+    """Renders go to a cache of this test session, not ~/.cache (accuracy.render_cache_dir)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path_factory.getbasetemp() / "xdg_cache"))
+
+
 def test_set_heldout_quick_runs_and_scores_only_the_heldout_scene(tmp_path):
     """`accuracy --mode pipeline --set heldout --quick`: renders and tracks the tiny held-out scene
     only, prints the usual table titled held-out, writes accuracy_heldout.json (not the default's
@@ -122,8 +128,9 @@ def test_unknown_set_is_a_config_error():
     from estimators.errors import ConfigError
     from pipeline.accuracy import AccuracyOptions, run_accuracy
 
-    with pytest.raises(ConfigError, match="--set"):
-        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="validation"))
+    with pytest.raises(ConfigError, match="--set") as e:
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="nosuch"))
+    assert all(n in str(e.value) for n in ("tuned", "heldout", "validation", "both", "all"))
 
 
 def _canned(monkeypatch, calls):

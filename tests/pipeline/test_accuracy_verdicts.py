@@ -141,7 +141,10 @@ def test_recording_key_names_each_part_that_changed(tmp_path):
 
 def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_path, monkeypatch):
     """End to end on ci_small (1 s, 320x240): a matching recording is replayed; after the scenario
-    text changes the scene is rendered again and the front end re-run, not replayed."""
+    text changes (a comment) the front end is re-run, not replayed, on the same cached render (the
+    render is keyed on the parsed scenario); a front-end --override is re-recorded too; a changed
+    scenario is rendered again."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg_cache"))
     import pipeline.accuracy as acc
     from pipeline.accuracy import AccuracyOptions
     from pipeline.config import scenarios_dir
@@ -162,6 +165,18 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     (sc / "ci_small.yaml").write_text((sc / "ci_small.yaml").read_text() + "\n# edited\n")
     acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
     assert not any("fusion replayed" in m for m in msgs), msgs
-    assert any("rendering" in m for m in msgs) and any("not replaying" in m for m in msgs), msgs
+    assert not any("rendering" in m for m in msgs) and any("not replaying" in m for m in msgs), msgs
     rec = pickle.loads((out / "runs" / "ci_small" / "observations.pkl").read_bytes())
     assert len(rec["frames"]) == 30 and isinstance(rec["key"], str)  # 1 s at 30 fps, re-recorded
+    msgs.clear()  # an override of a front-end key: re-recorded, naming the config part
+    o2 = AccuracyOptions(mode="pipeline", scenes=("ci_small",), reuse_frontend=True,
+                         overrides=("tracker.grouping.min_age=4",))
+    acc._run_pipeline(o2, out, msgs.append, names=("ci_small",))
+    assert any("not replaying" in m and "frontend config" in m for m in msgs), msgs
+    msgs.clear()
+    acc._run_pipeline(o2, out, msgs.append, names=("ci_small",))
+    assert any("fusion replayed" in m for m in msgs), msgs
+    msgs.clear()  # the scenario itself changed: rendered again
+    (sc / "ci_small.yaml").write_text((sc / "ci_small.yaml").read_text().replace("seed: ", "seed: 1", 1))
+    acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
+    assert any("rendering" in m for m in msgs), msgs

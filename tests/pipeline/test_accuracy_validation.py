@@ -1,0 +1,310 @@
+"""Tests of the validation scene set of the accuracy harness (``--set validation``: 18 fresh-seed
+copies of nine tuned and held-out scenes, used to fit nothing), of ``--override`` and of the pooled
+range z^2 statistics.
+
+The presets are checked from their YAML alone (each is its preset with only the seeds changed);
+the statistics against values worked by hand on made-up samples; ``--override`` through the CLI
+and the config it builds."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+SCEN = REPO / "configs" / "scenarios"
+FAMILIES = ("heldout_fast_18mps", "heldout_mono_straight", "heldout_moving", "heldout_stereo_flying",
+            "heldout_stereo_hover", "mono_straight", "moving_crossing", "stereo_flying", "turning")
+TUNED = ("mono_straight", "stereo_flying", "moving_crossing", "stereo_hover", "thesis_speed_15mps")
+
+
+@pytest.fixture(autouse=True)
+def _own_render_cache(tmp_path_factory, monkeypatch):
+    """Renders go to a cache of this test session, not ~/.cache (accuracy.render_cache_dir)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path_factory.getbasetemp() / "xdg_cache"))
+
+
+def _yaml(name: str) -> dict:
+    return yaml.safe_load((SCEN / f"{name}.yaml").read_text())
+
+
+def _seeds(d: dict) -> set[int]:
+    return {d["seed"], *([d["ground"]["seed"]] if "seed" in d.get("ground", {}) else [])}
+
+
+# ---------------------------------------------------------------------------------------- the set
+def test_validation_set_is_exactly_its_18_presets_and_they_load():
+    from pipeline.accuracy import PIPELINE_SCENES_VALIDATION, SCENE_SETS
+    from pipeline.sim.scene import load_scenario
+
+    files = sorted(p.stem for p in SCEN.glob("val*.yaml"))
+    expected = sorted([f"val_{f}" for f in FAMILIES] + [f"val2_{f}" for f in FAMILIES])
+    assert files == expected
+    assert sorted(PIPELINE_SCENES_VALIDATION) == expected and len(set(PIPELINE_SCENES_VALIDATION)) == 18
+    assert SCENE_SETS["validation"][0] == PIPELINE_SCENES_VALIDATION
+    for n in expected:
+        scn = load_scenario(SCEN / f"{n}.yaml")
+        assert scn.name == n and scn.n_frames >= 90
+
+
+@pytest.mark.parametrize("name", [f"{h}_{f}" for h in ("val", "val2") for f in FAMILIES])
+def test_validation_preset_is_its_preset_with_only_the_seeds_changed(name):
+    d = _yaml(name)
+    preset = _yaml(name.split("_", 1)[1])
+    assert d["seed"] != preset["seed"] and d["ground"]["seed"] != preset["ground"].get("seed")
+    for x in (d, preset):
+        x.pop("name")
+        x.pop("seed")
+        x["ground"].pop("seed", None)
+    assert d == preset
+    head = (SCEN / f"{name}.yaml").read_text().splitlines()[0]
+    assert head.startswith("# VALIDATION copy of the preset") and "used to fit nothing" in head
+
+
+def test_no_validation_seed_is_shared_with_a_tuned_or_heldout_scene_or_another_validation_one():
+    others = set()
+    for n in TUNED + tuple(p.stem for p in SCEN.glob("heldout_*.yaml")):
+        others |= _seeds(_yaml(n))
+    val = [_seeds(_yaml(p.stem)) for p in sorted(SCEN.glob("val*.yaml"))]
+    assert len(val) == 18 and all(len(s) == 2 for s in val)  # a top-level and a ground seed each
+    flat = [x for s in val for x in s]
+    assert not set(flat) & others
+    assert len(flat) == len(set(flat))
+
+
+def test_session6_seeds_kept():
+    """The renders and numbers of session 6's harness (/tmp/val) are comparable only with its seeds."""
+    for name, seeds in (("val_heldout_fast_18mps", (301, 401)), ("val_turning", (357, 489)),
+                        ("val2_heldout_moving", (815, 923)), ("val2_turning", (857, 989))):
+        assert (_yaml(name)["seed"], _yaml(name)["ground"]["seed"]) == seeds
+
+
+def _canned(monkeypatch, calls):
+    """_run_pipeline replaced: one mono report per scene, 10 m away, 2 % long, sigma 0.1 m (z^2 4)."""
+    import pipeline.accuracy as acc
+
+    def fake(opts, out_dir, progress, names=None):
+        calls.append(names)
+        ss, per = [], {}
+        for n in names:
+            s = acc.Sample(scene=n, rig="mono", track=1, t_s=2.0, in_view_s=1.5, moving=False,
+                           speed_true=0.0, max_speed=5.0, off_axis_deg=30.0, range_true=10.0, n_views=1,
+                           range_m=10.2, range_sigma_m=0.1, range_min_m=None, range_max_m=None,
+                           source="mono", obstacle=1)
+            ss.append(s)
+            per[n] = acc.summarize([s])
+        return ss, per
+
+    monkeypatch.setattr(acc, "_run_pipeline", fake)
+
+
+def test_set_validation_runs_the_18_and_prints_verdicts_pooled_figures_halves_and_top_reports(
+        monkeypatch, tmp_path):
+    from pipeline.accuracy import PIPELINE_SCENES_VALIDATION, AccuracyOptions, run_accuracy
+
+    calls = []
+    _canned(monkeypatch, calls)
+    res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="validation"), tmp_path)
+    assert calls == [PIPELINE_SCENES_VALIDATION]
+    t = res["table"]
+    assert "validation" in t and "mono 3-20 m, >=10 deg off, >=1 s: median rel err" in t
+    assert "pooled range z^2 over 18 reports" in t and "median 4.000" in t and "z^2 > 9 0.00 %" in t
+    assert "half val_*" in t and "half val2_*" in t
+    assert "top 10 range z^2 reports" in t and t.count("  z2       4.0 val") == 10
+    m = res["sets"]["validation"]["metrics"]
+    assert m["range_z2_n"] == 18 and m["range_z2_trim1_mean"] == pytest.approx(4.0)
+    assert set(res["sets"]["validation"]["halves"]) == {"val", "val2"}
+    assert (tmp_path / "accuracy_validation.json").is_file()
+
+
+def test_set_all_is_tuned_heldout_validation_and_both_is_unchanged(monkeypatch, tmp_path):
+    from pipeline.accuracy import (
+        PIPELINE_SCENES_HELDOUT,
+        PIPELINE_SCENES_VALIDATION,
+        AccuracyOptions,
+        run_accuracy,
+    )
+
+    calls = []
+    _canned(monkeypatch, calls)
+    res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="all"), tmp_path)
+    assert calls == [TUNED, PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_VALIDATION]
+    assert list(res["sets"]) == ["tuned", "heldout", "validation"]
+    assert "range z^2 mean without the top 1 %" in res["table"]  # side by side
+    calls.clear()
+    run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
+    assert calls == [TUNED, PIPELINE_SCENES_HELDOUT]
+
+
+def test_validation_has_no_quick_scenes():
+    from estimators.errors import ConfigError
+    from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+    with pytest.raises(ConfigError, match="no --quick scenes"):
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="validation", quick=True))
+
+
+# ---------------------------------------------------------------------------------- z^2 statistics
+def test_z2_stats_against_hand_worked_values():
+    from pipeline.accuracy import z2_stats
+
+    # n 4: floor(1 % of 4) = 0 dropped; mean (4 + 0.25 + 9 + 16) / 4 = 7.3125; median (4 + 9) / 2;
+    # z^2 > 9: only 16 (9 is not beyond 3 sigma)
+    m = z2_stats([4.0, 0.25, 9.0, 16.0])
+    assert m["range_z2_n"] == 4
+    assert m["range_z2_mean"] == pytest.approx(7.3125) and m["range_z2_trim1_mean"] == pytest.approx(7.3125)
+    assert m["range_z2_median"] == pytest.approx(6.5) and m["range_z2_gt9_share"] == pytest.approx(0.25)
+    # n 200: 196 ones, 0, 10, 50, 400. Mean 656 / 200 = 3.28; the top 1 % = 2 values (400, 50)
+    # dropped: (196 + 10 + 0) / 198; median: the 100th and 101st of the sorted values, both 1;
+    # z^2 > 9: 10, 50, 400 = 3 of 200
+    m = z2_stats([1.0] * 196 + [0.0, 10.0, 50.0, 400.0])
+    assert m["range_z2_mean"] == pytest.approx(3.28)
+    assert m["range_z2_trim1_mean"] == pytest.approx(206 / 198)
+    assert m["range_z2_median"] == pytest.approx(1.0) and m["range_z2_gt9_share"] == pytest.approx(0.015)
+    assert z2_stats([])["range_z2_mean"] is None
+
+
+def test_range_z2_reports_are_summarize_nees_population_largest_first():
+    import pipeline.accuracy as acc
+
+    def s(r, sigma=0.5, **kw):
+        base = dict(scene="a", rig="mono", track=1, t_s=1.0, in_view_s=1.5, moving=False, speed_true=0.0,
+                    max_speed=5.0, off_axis_deg=30.0, range_true=10.0, n_views=1, range_m=r,
+                    range_sigma_m=sigma, range_min_m=None, range_max_m=None, source="mono", obstacle=3)
+        base.update(kw)
+        return acc.Sample(**base)
+
+    samples = [s(10.5), s(12.0, track=2), s(11.0, source="stereo", moving=True, stereo_fed=True, track=3),
+               s(20.0, moving=True, track=4),  # moving, not stereo-fed: no motion hypothesis, left out
+               s(20.0, hit="near", track=5), s(None, track=6), s(20.0, sigma=None, track=7)]
+    rows = acc.range_z2_reports(samples)
+    # z^2 = ((r - 10) / 0.5)^2: 16 (track 2), 4 (track 3), 1 (track 1)
+    assert [(r["track"], r["z2"]) for r in rows] == [(2, 16.0), (3, 4.0), (1, 1.0)]
+    assert rows[0] == {"z2": 16.0, "scene": "a", "t_s": 1.0, "track": 2, "obstacle": 3, "range_m": 12.0,
+                       "range_true": 10.0, "sigma": 0.5, "source": "mono"}
+    assert acc.summarize(samples)["range_nees_n"] == 3
+
+
+# ---------------------------------------------------------------------------------------- override
+def _scene_folder(tmp_path: Path) -> Path:
+    d = tmp_path / "scene"
+    d.mkdir()
+    for f in ("cam0.mkv", "camchain.yaml", "trajectory.tum"):
+        (d / f).write_text("")
+    return d
+
+
+def test_override_reaches_the_scene_config_and_the_recording_key(tmp_path):
+    from pipeline.accuracy import frontend_key_parts, scene_config
+
+    d = _scene_folder(tmp_path)
+    base = scene_config(d)
+    cfg = scene_config(d, ("tracker.grouping.gap_factor=3", "fusion.feature_point_sigma_k=2.5"))
+    assert cfg.tracker.grouping == {"gap_factor": 3} and "gap_factor" not in base.tracker.grouping
+    assert cfg.fusion.feature_point_sigma_k == 2.5
+    assert [str(v) for v in cfg.inputs.videos] == [str(d / "cam0.mkv")]  # the scene's own inputs kept
+    parts = {"quick": False, "duration_s": 4.0, "scenario_yaml": "x"}
+    k0, k1 = frontend_key_parts(parts, base), frontend_key_parts(parts, cfg)
+    assert k0["frontend config"] != k1["frontend config"]  # a front-end override: not replayed
+    k2 = frontend_key_parts(parts, scene_config(d, ("fusion.feature_point_sigma_k=2.5",)))
+    assert k2 == k0  # a fusion override: the recording still holds
+
+
+def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
+    from typer.testing import CliRunner
+
+    import pipeline.accuracy as acc
+    from pipeline.cli import app
+
+    seen = {}
+
+    def fake(opts, out_dir=None, progress=None):
+        seen["opts"] = opts
+        return {"table": "T", "elapsed_s": 0.0}
+
+    monkeypatch.setattr(acc, "run_accuracy", fake)
+    r = CliRunner().invoke(app, ["accuracy", "--mode", "pipeline", "--set", "validation",
+                                 "--override", "tracker.grouping.gap_factor=3",
+                                 "--override", "fusion.feature_point_sigma_k=2.5", "--max-speed", "4"])
+    assert r.exit_code == 0, r.output
+    o = seen["opts"]
+    assert o.overrides == ("tracker.grouping.gap_factor=3", "fusion.feature_point_sigma_k=2.5")
+    assert o.scene_set == "validation" and o.render_cache
+    assert o.settings.feature_point_sigma_k == 2.5 and o.settings.max_speed_mps == 4.0
+    from estimators.fusion import FusionSettings
+
+    r = CliRunner().invoke(app, ["accuracy", "--mode", "pipeline"])
+    assert seen["opts"].settings == FusionSettings() and seen["opts"].overrides == ()
+
+
+@pytest.mark.parametrize(
+    "item, expect",
+    [
+        ("tracker.grouping.gap_factr=3", ["tracker.grouping.gap_factr", "did you mean 'gap_factor'"]),
+        ("tracker.grping.gap_factor=3", ["--override tracker.grping.gap_factor=3", "unknown key 'grping'",
+                                         "did you mean 'grouping'"]),
+        ("fusion.feature_point_sigma_k=abc", ["--override fusion.feature_point_sigma_k=abc",
+                                              "expected float"]),
+        ("gap_factor", ["--override 'gap_factor'", "expected section.key=value"]),
+        ("tracker.features.max_features=2.5", ["tracker.features.max_features=2.5", "integer"]),
+    ],
+)
+def test_bad_override_is_a_clear_error_before_anything_runs(monkeypatch, item, expect):
+    from typer.testing import CliRunner
+
+    import pipeline.accuracy as acc
+    from pipeline.cli import app
+
+    monkeypatch.setattr(acc, "run_accuracy", lambda *a, **k: pytest.fail("ran despite a bad --override"))
+    r = CliRunner().invoke(app, ["accuracy", "--mode", "pipeline", "--override", item])
+    assert r.exit_code != 0
+    msg = str(r.exception) if r.exception and not isinstance(r.exception, SystemExit) else r.output
+    for e in expect:
+        assert e in msg, msg
+
+
+# -------------------------------------------------------------------------------------- render cache
+def test_render_cache_key_ignores_comments_and_follows_the_scenario(tmp_path):
+    from pipeline.accuracy import render_key
+    from pipeline.sim.scene import load_scenario
+
+    a = tmp_path / "a.yaml"
+    text = (SCEN / "ci_small.yaml").read_text()
+    a.write_text("# a comment\n" + text)
+    scn = load_scenario(SCEN / "ci_small.yaml")
+    assert render_key(load_scenario(a)) == render_key(scn)
+    assert render_key(scn.model_copy(update={"duration_s": 2.0})) != render_key(scn)
+    assert render_key(scn.model_copy(update={"seed": scn.seed + 1})) != render_key(scn)
+
+
+def test_two_runs_share_one_cached_render(tmp_path, monkeypatch):
+    """A scene rendered for one --out is linked, not rendered again, for another --out."""
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.sim.scene import load_scenario
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    renders = []
+
+    def fake_simulate(scn, out):
+        renders.append(scn.name)
+        Path(out).mkdir(parents=True)
+        (Path(out) / "gt.jsonl").write_text("{}\n")
+
+    monkeypatch.setattr(writer, "simulate", fake_simulate)
+    scn = load_scenario(SCEN / "ci_small.yaml")
+    parts = {"quick": False, "duration_s": 1.0, "scenario_yaml": "x"}
+    opts = acc.AccuracyOptions(mode="pipeline")
+    d1 = acc._scene_dir(opts, tmp_path / "out1", "ci_small", scn, parts, None)
+    d2 = acc._scene_dir(opts, tmp_path / "out2", "ci_small", scn, parts, None)
+    assert renders == ["ci_small"]
+    assert d1.is_symlink() and d2.is_symlink() and d1.resolve() == d2.resolve()
+    assert d1.resolve().parent == tmp_path / "cache" / "fisheye-des" / "accuracy"
+    assert (d1 / acc.RENDER_DONE_NAME).is_file()
+    # --no-render-cache: rendered into --out itself, and reused there while the text is unchanged
+    off = acc.AccuracyOptions(mode="pipeline", render_cache=False)
+    d3 = acc._scene_dir(off, tmp_path / "out3", "ci_small", scn, parts, None)
+    d3b = acc._scene_dir(off, tmp_path / "out3", "ci_small", scn, parts, None)
+    assert renders == ["ci_small", "ci_small"] and not d3.is_symlink() and d3 == d3b
