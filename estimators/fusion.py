@@ -284,6 +284,11 @@ class FusionSettings:
             share 72.4 -> 75.3 %, 75.6 -> 75.4 % (errors unchanged).
         member_spread_min_n: the number of member points nearest the reported direction that
             are its neighbourhood (or all, when fewer). Default 6.
+        occluder_min_members: a report whose direction from the body origin passes inside the
+            angular convex hull of this many member points or more of ANOTHER track that lie nearer
+            than it beyond their joint noise (``_occluded_by_members``) is hidden from the body
+            origin by that track's surface: its range sigma reaches the depth of those points
+            (0 = off). Default 3 (the fewest points that enclose a direction).
         baseline_max_age_s: oldest sighting (s) a mono baseline / bound may use. Default 1.0.
         bounds_noise_sigmas: bearing-noise margin of the bounds, in sigmas. Default 4.0 (the angle
             between two noisy bearings exceeds 4 sqrt(2) sigma with probability exp(-8) = 3e-4).
@@ -345,6 +350,7 @@ class FusionSettings:
     feature_avoid_outline_mono: bool = False
     member_spread_weight: float = 1.0
     member_spread_min_n: int = 6
+    occluder_min_members: int = 3
     feature_mad_all_weight: float = 0.5
     feature_small_n_inflate: float = 1.0
     stereo_feature_min_count: int = 2
@@ -812,6 +818,8 @@ class ObstacleFusion:
         self._last_t: float | None = None
         self._last_frame: int | None = None
         self._T_C_B_inv = {c.name: c.T_C_B.inverse() for c in rig}
+        # the largest camera centre offset from the body origin (m): ``_occluded_by_members``
+        self._cam_offset_m = max((float(np.linalg.norm(T.t)) for T in self._T_C_B_inv.values()), default=0.0)
         self._cam_index = {n: i for i, n in enumerate(rig.names)}
         self._features = _FeatureRays()
         self._gidx: dict[int, int] = {}
@@ -2253,7 +2261,11 @@ class ObstacleFusion:
                                else tr.struct_sigma_m
                                for tr, r in zip(trs, rng.tolist(), strict=True)])
             extra = self._member_spread(trs, rng, u, var + struct * struct)
-            sig = np.sqrt(var + struct * struct + extra * extra).tolist()
+            var_r = var + struct * struct + extra * extra
+            # (a track reported lost is not scored: its bearing is not tested)
+            hid = (self._occluded_by_members(trs, rng, u, var_r)
+                   if any(items[k][1] != "lost" for k in with_kf) else np.zeros(len(trs)))
+            sig = np.sqrt(var_r + hid * hid).tolist()
             rw = _dot_rows(r_W, w).tolist()
             ww = _dot_rows(w, w).tolist()
             moving = [j for j, tr in enumerate(trs) if tr.moving]
@@ -2389,6 +2401,116 @@ class ObstacleFusion:
         d = np.abs(med - rng)
         ex2 = d * d - var0 - (0.5 * math.pi) * s2 / np.maximum(k, 1)
         return np.where(k > 0, np.sqrt(s.member_spread_weight * np.maximum(ex2, 0.0)), 0.0)
+
+    def _occluded_by_members(self, trs: list[_Track], rng: np.ndarray, u: np.ndarray,
+                             var0: np.ndarray) -> np.ndarray:
+        """The occlusion term of each report's range sigma (m), (K,) for the tracks trs with their
+        reported ranges rng (K,) m, unit directions u (K, 3) in W from the body origin and their
+        range variances so far var0 (K,) m^2.
+
+        A report's range is the range along its bearing from the body origin. The cameras sit off
+        the body origin (a stereo rig's by half the baseline), so a point one camera sees past the
+        edge of a nearer obstacle can be hidden from the body origin by it (heldout_stereo_flying:
+        ground points at 3.3-5 m seen from cam0 past a box 0.8-2 m away, the body's ray toward
+        them on the box); a feature whose rays stayed on its point while a nearer obstacle moved in
+        front of it is hidden from the camera too. The other tracks' member points of this frame
+        (``_member_spread``'s: static least-squares points, shared features' two-ray points; range
+        r_i, direction b_i from the body origin, sigma s_i in the reports' units) tell: when the
+        report's direction u lies inside the angular convex hull of n >= occluder_min_members
+        points of one other track that are nearer than it beyond the joint noise,
+            r_i < r - 3 sqrt(var0 + s_i^2),
+        that track's surface spans the bearing in front of the reported point, and the range along
+        the bearing is that surface's: the term is r - median(r_i) (the report stays: its point is
+        real, but its bearing is not clear up to its range). The hull test: the points projected on
+        the plane tangent at u (gnomonic, p_i = (b_i.e1, b_i.e2) / b_i.u, straight lines stay
+        straight) enclose the origin when no half-plane through it holds them all, i.e. when the
+        largest gap between their sorted polar angles is below pi. 0 without such a track.
+        """
+        s = self.settings
+        K = len(trs)
+        out = np.zeros(K)
+        n_min = int(s.occluder_min_members)
+        if n_min <= 0 or not self._gidx:
+            return out
+        parts = [m for m in (self._members_ls, self._members_st) if m is not None and len(m[0])]
+        if not parts:
+            return out
+        g = np.concatenate([m[0] for m in parts])
+        r = np.concatenate([m[1] for m in parts])
+        b = np.concatenate([m[2] for m in parts])
+        sr = np.concatenate([m[3] for m in parts])
+        gidx = self._gidx
+        own = np.array([gidx.get(tr.id, -1) for tr in trs], dtype=np.int64)
+        off = self._cam_offset_m
+        # pre-selection by track (K x tracks, not K x points): each track's points' mean direction
+        # c_g, angular radius rho_g about it and nearest range; a pair (report j, track g) can
+        # hold a point inside the hull or within the offset of u_j only when angle(u_j, c_g) <=
+        # rho_g + asin(offset / min r) and min r < r_j
+        order = np.argsort(g, kind="stable")
+        g, r, b, sr = g[order], r[order], b[order], sr[order]
+        ug, gstart, gcnt = np.unique(g, return_index=True, return_counts=True)
+        cg = np.add.reduceat(b, gstart, axis=0)
+        cg /= np.maximum(np.sqrt(_dot_rows(cg, cg)), 1e-12)[:, None]
+        cos_b = np.clip(_dot_rows(b, cg[np.repeat(np.arange(len(ug)), gcnt)]), -1.0, 1.0)
+        cos_min = np.minimum.reduceat(cos_b, gstart)
+        rmin = np.minimum.reduceat(r, gstart)
+        reach = np.arccos(cos_min) + np.arcsin(np.minimum(off / np.maximum(rmin, 1e-9), 1.0))
+        pair = ((u @ cg.T) >= np.cos(np.minimum(reach, math.pi))[None, :]) & (rmin[None, :] < rng[:, None])
+        pair &= ug[None, :] != own[:, None]
+        pj, pg = np.nonzero(pair)
+        if not len(pj):
+            return out
+        # candidate (report, point) pairs: the pre-selected tracks' points, nearer than the report
+        # beyond the noise, in the hemisphere ahead of the bearing
+        n_p = gcnt[pg]
+        jj = np.repeat(pj, n_p)
+        mm = np.repeat(gstart[pg] - (np.cumsum(n_p) - n_p), n_p) + np.arange(int(n_p.sum()))
+        cos_jm = _dot_rows(u[jj], b[mm])
+        keep = (r[mm] < rng[jj] - 3.0 * np.sqrt(var0[jj] + sr[mm] ** 2)) & (cos_jm > 0.5)
+        if not keep.any():
+            return out
+        jj, mm, cos_jm = jj[keep], mm[keep], cos_jm[keep]
+        key = jj * (int(g.max()) + 1) + g[mm]
+        ukey, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+        n_q = len(ukey)
+        q_rep = ukey // (int(g.max()) + 1)  # each (report, track) pair's report
+        # (a) the hull test, all pairs at once: the polar angle of each point about u_j in the
+        # plane tangent at u_j, sorted within each pair; the gaps between neighbours and the wrap
+        e = np.zeros_like(u)
+        e[np.arange(K), np.argmin(np.abs(u), axis=1)] = 1.0
+        e1 = _cross(u, e)
+        e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
+        e2 = _cross(u, e1)
+        B = b[mm]
+        ang = np.arctan2(_dot_rows(B, e2[jj]), _dot_rows(B, e1[jj]))  # (gnomonic: same angle)
+        order = np.lexsort((ang, inv))
+        a_s, q_s = ang[order], inv[order]
+        start = np.cumsum(cnt) - cnt
+        gaps = np.diff(a_s)
+        gaps[np.diff(q_s) != 0] = 0.0  # (no gap across pairs)
+        gmax = np.zeros(n_q)
+        if len(gaps):
+            np.maximum.at(gmax, q_s[1:], gaps)
+        wrap = a_s[start] + 2.0 * math.pi - a_s[start + cnt - 1]
+        enclosed = (cnt >= n_min) & (np.maximum(gmax, wrap) < math.pi)
+        sel_a = enclosed[inv]
+        # (b) within the cameras' offset of the bearing: the points whose distance from the
+        # bearing's line, r_i sin(angle), is at most the largest camera offset from the body origin
+        # (the body's and a camera's rays toward the reported point are at most that far apart
+        # there, so the surface around those points can cut the one and not the other); two or more
+        sel_b = np.zeros(len(mm), dtype=bool)
+        if off > 0:
+            c_ = cos_jm
+            close = r[mm] * np.sqrt(np.maximum(1.0 - c_ * c_, 0.0)) <= off
+            n_close = np.bincount(inv[close], minlength=n_q)
+            sel_b = close & (n_close >= 2)[inv]
+        for sel in (sel_a, sel_b):
+            if not sel.any():
+                continue
+            med = _group_median(inv[sel], r[mm[sel]], n_q)
+            hq = np.unique(inv[sel])
+            np.maximum.at(out, q_rep[hq], rng[q_rep[hq]] - med[hq])
+        return out
 
     @staticmethod
     def _report_common(tr: _Track, status: str) -> dict:
