@@ -723,6 +723,8 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
             z2_rows = range_z2_reports(samples)
             metrics.update(z2_stats([r["z2"] for r in z2_rows]))
             metrics["range_z2_top"] = z2_rows[:10]
+            for rig in ("mono", "stereo"):
+                metrics[f"{rig}_uncovered"] = pool_uncovered(per_scene, rig)
         title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
                  f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
         if set_name != "tuned" or len(set_names) > 1:
@@ -817,6 +819,14 @@ def format_pooled(m: dict, halves: dict | None = None) -> str:
         f"mono obstacle-frame coverage {_fmt(m.get('mono_obstacle_coverage'), True)} of "
         f"{m.get('mono_eligible_n')}, stereo {_fmt(m.get('stereo_obstacle_coverage'), True)} of "
         f"{m.get('stereo_eligible_n')}"]
+    for rig in ("mono", "stereo"):
+        u = m.get(f"{rig}_uncovered")
+        if u:
+            lines.append(
+                f"{rig} obstacle-frames not covered: {u['no_report'] + u['near_only'] + u['unranged']} "
+                f"(no report on the obstacle {u['no_report']}, only near-miss reports {u['near_only']}, "
+                f"reports on it unranged {u['unranged']}); worst obstacles: "
+                + ", ".join(f"{sc} #{o} {kind} {c}/{e}" for sc, o, kind, c, e in u["worst"]))
     for name, h in (halves or {}).items():
         lines.append(
             f"  half {name}_*: mono median/p90 {_fmt(h.get('mono_median_rel'), True)} / "
@@ -984,8 +994,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         ego = build_egomotion(cfg)
         fusion = ObstacleFusion(rig, ego, opts.settings)
         obs_path = rdir / OBSERVATIONS_NAME
-        parts = frontend_key_parts(scene_parts, cfg)
-        stale = _stale_parts(obs_path, parts) if opts.reuse_frontend and obs_path.is_file() else None
+        parts = frontend_key_parts(scene_parts, cfg, sdir)  # (portable: a copied --out replays)
+        stale = (_stale_parts(obs_path, parts, frontend_key_parts(scene_parts, cfg))
+                 if opts.reuse_frontend and obs_path.is_file() else None)
         if stale == []:
             frames, note = _replay_fusion(fusion, obs_path)
             if progress:
@@ -1013,6 +1024,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         cov_s = _mono_covered(ss, elig_s)  # same rule: a ranged report whose bearing hits it
         per_scene[name]["stereo_eligible_n"] = len(elig_s)
         per_scene[name]["stereo_obstacle_coverage"] = len(cov_s) / len(elig_s) if elig_s else None
+        kinds = {int(o.id): str(o.kind) for o in truth.scn.obstacles}
+        per_scene[name]["mono_uncovered"] = _uncovered(rows, elig, cov, kinds)
+        per_scene[name]["stereo_uncovered"] = _uncovered(rows, elig_s, cov_s, kinds)
         samples.extend(ss)
         if progress:
             progress(f"{name}: {len(ss)} scored reports")
@@ -1250,23 +1264,37 @@ def _key(obj) -> str:
     return hashlib.sha1(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
 
 
-def frontend_key_parts(scene_parts: dict, cfg) -> dict:
+def frontend_key_parts(scene_parts: dict, cfg, scene_dir: str | Path | None = None) -> dict:
     """What a recording of the front end's observations depends on, by part: "trackers" (sha1 of
     trackers/*.py), "scene" (scene_parts: the --quick flag, the scene length in s, the scenario
     YAML text) and "frontend config" (the sections of ``cfg``, a PipelineConfig, the front end
-    reads: rig, ego_motion, detector, tracker, inputs)."""
-    return {
-        "trackers": _trackers_hash(),
-        "scene": dict(scene_parts),
-        "frontend config": {k: cfg.model_dump(mode="json")[k] for k in _FRONTEND_SECTIONS},
-    }
+    reads: rig, ego_motion, detector, tracker, inputs). With ``scene_dir`` (the folder the scene's
+    inputs are read from), paths inside it are written relative to it ("<scene>/cam0.mkv"), so a
+    copy of an output folder replays its recordings (the scene's content is in "scene")."""
+    fc = {k: cfg.model_dump(mode="json")[k] for k in _FRONTEND_SECTIONS}
+    if scene_dir is not None:
+        fc = _under(fc, str(scene_dir).rstrip("/") + "/")
+    return {"trackers": _trackers_hash(), "scene": dict(scene_parts), "frontend config": fc}
 
 
-def _stale_parts(path: Path, parts: dict) -> list[str]:
+def _under(obj, prefix: str):
+    """``obj`` (JSON-like) with every string starting with ``prefix`` written as "<scene>/rest"."""
+    if isinstance(obj, dict):
+        return {k: _under(v, prefix) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_under(v, prefix) for v in obj]
+    if isinstance(obj, str) and obj.startswith(prefix):
+        return "<scene>/" + obj[len(prefix):]
+    return obj
+
+
+def _stale_parts(path: Path, parts: dict, legacy: dict | None = None) -> list[str]:
     """The parts (names of ``frontend_key_parts``) that differ from the recording at ``path``; []
-    when it matches. A recording without a key (older harness) differs in every part."""
+    when it matches ``parts`` or ``legacy`` (the same parts with absolute scene paths, the way
+    recordings were keyed before the paths became relative to the scene folder). A recording
+    without a key (older harness) differs in every part."""
     rec = pickle.loads(path.read_bytes())
-    if rec.get("key") == _key(parts):
+    if rec.get("key") == _key(parts) or (legacy is not None and rec.get("key") == _key(legacy)):
         return []
     old = rec.get("key_parts") or {}
     diff = [k for k, v in parts.items() if old.get(k) != _key(v)]
@@ -1335,6 +1363,48 @@ def _mono_covered(samples: list[Sample], eligible: set[tuple[float, int]]) -> se
     return {(round(s.t_s, 6), s.obstacle) for s in samples
             if s.hit == "obstacle" and s.range_m is not None and s.obstacle is not None
             and (round(s.t_s, 6), s.obstacle) in eligible}
+
+
+def _uncovered(rows, eligible: set[tuple[float, int]], covered: set[tuple[float, int]],
+               kinds: dict[int, str]) -> dict:
+    """Why eligible obstacle-frames are not covered, from the evaluator's rows (``score_reports``):
+    "no_report" (no report associated with the obstacle that frame), "near_only" (only near-miss
+    reports: the bearing passes within 2 deg of it, not on it), "unranged" (a report on it, none
+    ranged); "by_obstacle": {obstacle id: {"kind", "covered", "eligible"}} (obstacle-frames)."""
+    on: dict[tuple[float, int], list] = defaultdict(list)
+    for r in rows:
+        if r.obstacle_id is not None:
+            on[(round(r.t_s, 6), int(r.obstacle_id))].append(r)
+    out = {"no_report": 0, "near_only": 0, "unranged": 0}
+    for k in eligible - covered:
+        v = on.get(k, [])
+        out["no_report" if not v else "near_only" if all(r.hit != "obstacle" for r in v) else "unranged"] += 1
+    by: dict[str, dict] = {}
+    for t_oid in eligible:
+        d = by.setdefault(str(t_oid[1]), {"kind": kinds.get(t_oid[1], "?"), "covered": 0, "eligible": 0})
+        d["eligible"] += 1
+        d["covered"] += t_oid in covered
+    out["by_obstacle"] = dict(sorted(by.items(), key=lambda kv: int(kv[0])))
+    return out
+
+
+def pool_uncovered(per_scene: dict, rig: str, worst: int = 8) -> dict | None:
+    """``<rig>_uncovered`` of every scene summed (no_report, near_only, unranged) and the ``worst``
+    obstacles by covered share: [scene, obstacle id, kind, covered, eligible]; None without any."""
+    tot = {"no_report": 0, "near_only": 0, "unranged": 0}
+    obs = []
+    for name, m in per_scene.items():
+        u = m.get(f"{rig}_uncovered")
+        if not u:
+            continue
+        for k in tot:
+            tot[k] += u[k]
+        obs += [[name, int(oid), d["kind"], d["covered"], d["eligible"]]
+                for oid, d in u["by_obstacle"].items() if d["covered"] < d["eligible"]]
+    if not obs and not any(tot.values()):
+        return None
+    obs.sort(key=lambda x: (x[3] / x[4], x[0], x[1]))
+    return tot | {"worst": obs[:worst]}
 
 
 def _front_end_rays(obs_frames, rig, ego) -> dict[tuple[float, int], list[tuple[np.ndarray, np.ndarray]]]:

@@ -308,3 +308,51 @@ def test_two_runs_share_one_cached_render(tmp_path, monkeypatch):
     d3 = acc._scene_dir(off, tmp_path / "out3", "ci_small", scn, parts, None)
     d3b = acc._scene_dir(off, tmp_path / "out3", "ci_small", scn, parts, None)
     assert renders == ["ci_small", "ci_small"] and not d3.is_symlink() and d3 == d3b
+
+
+# ------------------------------------------------------------------------------ uncovered obstacle-frames
+def test_uncovered_obstacle_frames_by_reason_and_obstacle():
+    from types import SimpleNamespace as R
+
+    import pipeline.accuracy as acc
+
+    eligible = {(1.0, 4), (1.1, 4), (1.2, 4), (1.3, 4), (1.0, 3)}
+    covered = {(1.0, 4), (1.0, 3)}
+    rows = [R(t_s=1.1, obstacle_id=4, hit="near"),  # only a near miss at 1.1
+            R(t_s=1.2, obstacle_id=4, hit="obstacle"),  # on it (unranged: not covered)
+            R(t_s=1.2, obstacle_id=4, hit="near"),
+            R(t_s=1.3, obstacle_id=3, hit="obstacle"),  # another obstacle: 1.3 has no report on 4
+            R(t_s=1.3, obstacle_id=None, hit="background")]
+    u = acc._uncovered(rows, eligible, covered, {3: "pole", 4: "box"})
+    assert (u["no_report"], u["near_only"], u["unranged"]) == (1, 1, 1)
+    assert u["by_obstacle"] == {"3": {"kind": "pole", "covered": 1, "eligible": 1},
+                                "4": {"kind": "box", "covered": 1, "eligible": 4}}
+    other = {"no_report": 2, "near_only": 0, "unranged": 0,
+             "by_obstacle": {"1": {"kind": "sphere", "covered": 1, "eligible": 2}}}
+    pooled = acc.pool_uncovered({"a": {"mono_uncovered": u}, "b": {"mono_uncovered": other}}, "mono")
+    assert (pooled["no_report"], pooled["near_only"], pooled["unranged"]) == (3, 1, 1)
+    assert pooled["worst"] == [["a", 4, "box", 1, 4], ["b", 1, "sphere", 1, 2]]  # 25 %, then 50 %
+    assert acc.pool_uncovered({"a": {}}, "stereo") is None
+
+
+def test_recording_key_is_relative_to_the_scene_folder_and_old_keys_still_match(tmp_path):
+    import pickle
+
+    from pipeline.accuracy import _key, _stale_parts, frontend_key_parts, scene_config
+
+    a, b = tmp_path / "a" / "scenes" / "s", tmp_path / "b" / "scenes" / "s"
+    for d in (a, b):
+        d.mkdir(parents=True)
+        for f in ("cam0.mkv", "camchain.yaml", "trajectory.tum"):
+            (d / f).write_text("")
+    parts = {"quick": False, "duration_s": 4.0, "scenario_yaml": "x"}
+    pa = frontend_key_parts(parts, scene_config(a), a)
+    pb = frontend_key_parts(parts, scene_config(b), b)
+    assert pa == pb and pa["frontend config"]["inputs"]["videos"] == ["<scene>/cam0.mkv"]
+    assert pa["frontend config"]["rig"]["calibration"] == "<scene>/camchain.yaml"
+    legacy = frontend_key_parts(parts, scene_config(a))  # absolute paths: a recording made before
+    assert legacy != pa
+    rec = tmp_path / "obs.pkl"
+    rec.write_bytes(pickle.dumps({"key": _key(legacy), "key_parts": {k: _key(v) for k, v in legacy.items()}}))
+    assert _stale_parts(rec, pa, legacy) == []  # replayed where it was recorded
+    assert _stale_parts(rec, pb, frontend_key_parts(parts, scene_config(b))) == ["frontend config"]

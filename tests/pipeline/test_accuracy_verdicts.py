@@ -145,6 +145,8 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     render is keyed on the parsed scenario); a front-end --override is re-recorded too; a changed
     scenario is rendered again."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg_cache"))
+    import shutil
+
     import pipeline.accuracy as acc
     from pipeline.accuracy import AccuracyOptions
     from pipeline.config import scenarios_dir
@@ -160,6 +162,10 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     assert not any("replayed" in m for m in msgs)  # nothing recorded yet: tracked
     msgs.clear()
     acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
+    assert any("fusion replayed" in m for m in msgs), msgs
+    msgs.clear()  # a copy of the output folder replays its recordings too (scene paths are relative)
+    shutil.copytree(out, tmp_path / "copy", symlinks=True)
+    acc._run_pipeline(opts, tmp_path / "copy", msgs.append, names=("ci_small",))
     assert any("fusion replayed" in m for m in msgs), msgs
     msgs.clear()
     (sc / "ci_small.yaml").write_text((sc / "ci_small.yaml").read_text() + "\n# edited\n")
