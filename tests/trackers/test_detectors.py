@@ -165,11 +165,15 @@ def test_navlights_heading_follows_the_thesis(red_u, green_u, expected):
     assert x1 <= min(red_u, green_u) and x2 >= max(red_u, green_u) and y1 <= 120 <= y2
 
 
-def test_navlights_needs_the_white_light_unless_told_otherwise():
+def test_navlights_needs_the_white_light_only_when_told():
+    """The white light is not required by default (a far drone's merges into its body); it raises
+    the box's score; ``require_white`` is the thesis's strict test."""
     img = lights_image(200, 120, white=False)
-    assert len(make_detector("navlights").detect(img).boxes) == 0
-    d = make_detector("navlights", require_white=False).detect(img)
-    assert len(d.boxes) == 1 and d.attributes[0]["white_uv"] is None
+    assert len(make_detector("navlights", require_white=True).detect(img).boxes) == 0
+    d = make_detector("navlights").detect(img)
+    assert len(d.boxes) == 1 and d.attributes[0]["white_uv"] is None and d.box_scores[0] < 1.0
+    d = make_detector("navlights").detect(lights_image(200, 120))
+    assert len(d.boxes) == 1 and d.attributes[0]["white_uv"] is not None and d.box_scores[0] == 1.0
 
 
 def test_navlights_rejects_grey_frames():
