@@ -148,7 +148,8 @@ class FrontEnd:
             if isinstance(detector, Detector)
             else make_detector(detector, **options.get("detector_options", {}))
         )
-        self.label = self.detector.name or "detector"
+        # feature tracks are labelled by the keypoint detector (``orb`` also inside ``orb+navlights``)
+        self.label = self.detector.keypoint_part.name or self.detector.name or "detector"
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
@@ -227,7 +228,7 @@ class FrontEnd:
             if self.detector.produces_keypoints:
                 try:
                     self.trackers[c.name] = FeatureTracker(
-                        c, self.detector, ids=self._feature_ids, **options.get("features", {})
+                        c, self.detector.keypoint_part, ids=self._feature_ids, **options.get("features", {})
                     )
                     self.groupers[c.name] = ObstacleGrouper(
                         self._track_ids, label=self.label, **options.get("grouping", {})
@@ -380,10 +381,11 @@ class FrontEnd:
             if name in self.boxers:
                 t0 = time.perf_counter()
                 if usable:
-                    det = self.detector.detect(img, self.masks[name])
+                    det = self.detector.detect_boxes(img, self.masks[name])
                     tm["detect"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
-                    s2, l2 = self.boxers[name].update(cam, det)
+                    # (given this frame's feature tracks: one obstacle found by both is reported once)
+                    s2, l2 = self.boxers[name].update(cam, det, s)
                 else:
                     s2, l2 = [], self.boxers[name].coast()
                 tm["group"] += time.perf_counter() - t0

@@ -1522,6 +1522,28 @@ class BoxTracker:
     A box's representative bearing is its centre's bearing; boxes are matched to tracks of the same
     label greedily by angle, within ``gate_rad`` plus the box's own angular half-size. Life cycle as
     ObstacleGrouper's. sigma_rad = half the box's angular diagonal / 3, floored at ``sigma_floor_rad``.
+
+    One obstacle, two tracks (a composite detector such as ``orb+navlights``: a drone textured enough
+    for ORB, a textured obstacle with a light-like spot): ``update`` is given the camera's feature
+    tracks seen this frame (``others``). A box track and a feature track are LINKED when the feature
+    track lies on the box (its representative bearing and at least half of its members, and at
+    least ``min(link_min_members, its members)``, within the box's angular half-diagonal plus
+    ``link_margin_px`` of the box centre) AND its members nearest the box moved with the box centre
+    over the last ``link_frames`` frames: their mean displacement and the box centre's, raw (the camera's own
+    rotation moves both alike, so it cancels in the difference), differ by at most ``link_tol_px``
+    (in the lens's mean rad/px). A link holds while the pair stays so placed. A linked box track is
+    not reported (it is tracked on, and comes back under its own id if the feature track goes); the
+    feature track is reported with the box's attributes added and ``box_label`` (e.g. ``drone``).
+    The feature track is the one kept: its member features give it ranges and stereo association,
+    and they lie on the box, so its bearing does too.
+
+    Not linked, so reported twice: a box well inside a larger feature track, off its representative
+    bearing (a light near the edge of a big textured obstacle). A rule "members all around the box"
+    was tried and dropped: on tuned scene moving_headon it linked the approaching drone, at 14 m
+    near the focus of expansion where everything hardly moves, to a background track whose features
+    surround it (one on the drone, ten off it) and hid the drone for 7 frames; so did "the bearing
+    and two members in the box" (that track's bearing was 10 px from the box centre, inside its
+    12 px radius). Hiding a drone is worse than a second report of an obstacle.
     """
 
     def __init__(
@@ -1531,21 +1553,48 @@ class BoxTracker:
         confirm_frames: int = 3,
         max_missed: int = 10,
         sigma_floor_rad: float = np.radians(0.2),
+        link_margin_px: float = 3.0,
+        link_min_members: int = 2,
+        link_frames: int = 3,
+        link_tol_px: float = 2.0,
     ) -> None:
+        for nm, v in (("confirm_frames", confirm_frames), ("max_missed", max_missed),
+                      ("link_min_members", link_min_members), ("link_frames", link_frames)):
+            lo = 0 if nm == "max_missed" else 1
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ConfigError(f"BoxTracker: {nm} expected an integer >= {lo}, got {v!r}")
+        for nm, v in (("gate_rad", gate_rad), ("sigma_floor_rad", sigma_floor_rad),
+                      ("link_margin_px", link_margin_px), ("link_tol_px", link_tol_px)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) or not v >= 0:
+                raise ConfigError(f"BoxTracker: {nm} expected a number >= 0, got {v!r}")
         self._ids = ids
         self.gate_rad = float(gate_rad)
         self.confirm_frames = int(confirm_frames)
         self.max_missed = int(max_missed)
         self.sigma_floor_rad = float(sigma_floor_rad)
+        self.link_margin_px = float(link_margin_px)
+        self.link_min_members = int(link_min_members)
+        self.link_frames = int(link_frames)
+        self.link_tol_px = float(link_tol_px)
         self.tracks: dict[int, ObstacleTrack] = {}
+        self.links: dict[int, int] = {}  # box track id -> linked feature track id
+        self._half: dict[int, float] = {}  # box track id -> its box's angular half-diagonal (rad)
+        # (box id, feature track id) -> recent (update count, near members' mean bearing, box bearing)
+        self._hist: dict[tuple[int, int], deque] = {}
+        self._decorated: dict[int, tuple[ObstacleTrack, tuple[str, ...]]] = {}  # keys added to others
+        self._n = 0
 
-    def update(self, camera, det) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
+    def update(self, camera, det, others=()) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
         """Match this frame's boxes (``det``: Detections) of ``camera`` (an ``estimators.rig.Camera``).
 
+        Args:
+            others: the camera's feature tracks seen this frame (ObstacleTrack with ``member_b_C``),
+                for the links described in the class docstring; empty: no links.
         Returns:
-            (tracks seen this frame, tracks lost this frame).
+            (box tracks seen this frame and not linked to a feature track, tracks lost this frame).
         """
         model = camera.model
+        self._n += 1
         seen: list[ObstacleTrack] = []
         for tr in self.tracks.values():
             tr.seen = False
@@ -1592,6 +1641,7 @@ class BoxTracker:
                 tr.attributes = dict(det.attributes[i])
                 tr.missed = 0
                 tr.seen = True
+                self._half[tr.id] = float(half[i])
                 if tr.status == "tentative" and tr.hits >= self.confirm_frames:
                     tr.status = "confirmed"
                 seen.append(tr)
@@ -1604,11 +1654,77 @@ class BoxTracker:
                     tr.status = "lost"
                     lost.append(tr)
                     del self.tracks[tid]
-        return seen, lost
+        hidden = self._link(model, seen, others)
+        return [tr for tr in seen if tr.id not in hidden], lost
+
+    def _link(self, model, seen: list[ObstacleTrack], others) -> set[int]:
+        """Update the box <-> feature track links (class docstring); decorate the linked feature
+        tracks; return the ids of the box tracks not to report."""
+        rad_px = model.max_angle_rad / max(model.image_circle()[2], 1.0)
+        feats = [t for t in others if len(t.member_b_C) == len(t.members) and len(t.members)]
+        by_id = {t.id: t for t in feats}
+        links: dict[int, int] = {}
+        now: set[tuple[int, int]] = set()
+        for b in seen:
+            radius = self._half.get(b.id, 0.0) + self.link_margin_px * rad_px
+            best: tuple[float, int] | None = None  # (angle to the feature track's bearing, its id)
+            for f in feats:
+                ang = angle_between(f.member_b_C, b.b_C)
+                d_c = float(angle_between(f.b_C, b.b_C))
+                # its bearing and most of its members in the box (features on the lights' object)
+                n_in = int(np.count_nonzero(ang <= radius))
+                n_min = max(min(self.link_min_members, len(f.members)), (len(f.members) + 1) // 2)
+                if d_c > radius or n_in < n_min:
+                    continue
+                key = (b.id, f.id)
+                k = np.argsort(ang)[:8]  # the members nearest the box: does it move with them?
+                h = self._hist.setdefault(key, deque(maxlen=self.link_frames + 1))
+                near = dict(zip(f.members[k].tolist(), f.member_b_C[k], strict=True))
+                h.append((self._n, near, b.b_C.copy()))
+                now.add(key)
+                held = self.links.get(b.id) == f.id  # a link holds while the pair stays so placed
+                if (held or self._moves_with(h, rad_px)) and (best is None or d_c < best[0]):
+                    best = (d_c, f.id)
+            if best is not None:
+                links[b.id] = best[1]
+        for key in [k for k in self._hist if k not in now]:
+            del self._hist[key]  # the pair was not seen so placed this update: its history restarts
+        # one box per feature track (the lowest box id kept)
+        taken: dict[int, int] = {}
+        for bid, fid in sorted(links.items()):
+            taken.setdefault(fid, bid)
+        self.links = {bid: fid for fid, bid in taken.items()}
+        for fid, (tr, keys) in list(self._decorated.items()):  # undo last update's additions
+            for key in keys:
+                tr.attributes.pop(key, None)
+            del self._decorated[fid]
+        for bid, fid in self.links.items():
+            b, f = self.tracks[bid], by_id[fid]
+            add = {**b.attributes, "box_label": b.label}
+            add = {key: v for key, v in add.items() if key not in f.attributes}
+            f.attributes.update(add)
+            self._decorated[fid] = (f, tuple(add))
+        for tid in [t for t in self._half if t not in self.tracks]:
+            del self._half[tid]
+        return set(self.links)
+
+    def _moves_with(self, h: deque, rad_px: float) -> bool:
+        """Whether a (box, feature track) pair's history ``h`` covers ``link_frames`` consecutive
+        updates and the feature track's members nearest the box (those in both the first and the
+        last entry) moved on average as the box centre did over them."""
+        if len(h) < self.link_frames + 1 or h[-1][0] - h[0][0] != self.link_frames:
+            return False
+        common = [i for i in h[-1][1] if i in h[0][1]]
+        if not common:
+            return False
+        d_f = np.mean([h[-1][1][i] - h[0][1][i] for i in common], axis=0)  # (3,) rad, tangent
+        d_b = h[-1][2] - h[0][2]
+        return float(np.linalg.norm(d_f - d_b)) <= self.link_tol_px * rad_px
 
     def coast(self) -> list[ObstacleTrack]:
         """A frame without a usable image: every track goes unseen; returns those lost now
         (unseen for more than ``max_missed`` frames)."""
+        self._n += 1
         lost = []
         for tid in list(self.tracks):
             tr = self.tracks[tid]

@@ -2,7 +2,8 @@
 
 A detector turns one frame into keypoints (to be tracked and grouped into obstacles) and/or boxes
 (each box one obstacle candidate with a label and attributes). Built-ins register themselves with
-``@register_detector("name")``; outside packages add theirs through the entry-point group
+``@register_detector("name")``; ``"a+b"`` combines a keypoint detector ``a`` with a box detector
+``b`` (``trackers.detectors.composite``); outside packages add theirs through the entry-point group
 ``fisheye_des.detectors`` (``name = "package.module:DetectorClass"``), and ``make_detector(name)``
 finds both. An unknown name is a ConfigError that lists the installed ones.
 """
@@ -134,6 +135,18 @@ class Detector(ABC):
     name: ClassVar[str] = ""
     produces_keypoints: ClassVar[bool] = True
     produces_boxes: ClassVar[bool] = False
+    needs_colour: ClassVar[bool] = False  # refuses grey frames (navlights)
+
+    @property
+    def keypoint_part(self) -> Detector:
+        """The detector whose keypoints the FeatureTracker tracks: this one (a composite detector
+        gives its keypoint part, so that e.g. ORB runs as it does alone)."""
+        return self
+
+    def detect_boxes(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """This frame's boxes (for the BoxTracker; arguments as ``detect``). Default: ``detect``; a
+        composite detector runs only its box part."""
+        return self.detect(image, mask)
 
     @abstractmethod
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
@@ -182,6 +195,14 @@ def make_detector(name: str, **options: Any) -> Detector:
             load or is not a Detector, or options the detector does not accept.
     """
     factory = _REGISTRY.get(name)
+    if factory is None and "+" in name and name not in _entry_points():
+        # "<keypoint detector>+<box detector>": a composite of two registered detectors
+        kp, _, box = name.partition("+")
+        from trackers.detectors.composite import CompositeDetector
+
+        det = CompositeDetector(kp.strip(), box.strip(), **options)
+        det.name = name
+        return det
     if factory is None:
         ep = _entry_points().get(name)
         if ep is None:
