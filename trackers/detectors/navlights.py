@@ -26,9 +26,11 @@ a sky blob far above ``max_area_px``.
 Its box covers the lights; attributes: ``heading`` (``"towards"`` | ``"away"``), ``red_uv``,
 ``green_uv``, ``white_uv`` (None when not seen).
 
-Cost: the colour test runs on the mask's bounding box only (a fisheye lens circle is about half of
-a 16:9 frame) and the blob labelling only in the box around the bright saturated pixels found; a
-frame without any costs the HSV conversion and two ``inRange``.
+Cost: a cheap test on the mask's bounding box (a fisheye lens circle is about half of a 16:9 frame)
+keeps the pixels that may be red or green lights (max(G, R) >= B and >= ``min_value``; a
+saturation test there cost as much as the HSV conversion it saves); the HSV test runs only in
+their box, and the blob labelling only around the bright saturated red-to-green pixels found. A
+frame without candidates costs three elementwise passes over the lens box.
 """
 
 from __future__ import annotations
@@ -190,9 +192,23 @@ class NavLightsDetector(Detector):
         x0, y0, x1, y1 = self._crop_box(mask, image.shape[:2])
         if x1 <= x0 or y1 <= y0:
             return Detections.empty()
+        # a red, green or white light's HSV V is max(G, R) >= B: pixels that fail this or V >=
+        # min_value (a blue sky, the dark ground) cannot be lights; most frames have none and stop
+        # here, at a third of the HSV conversion's cost
+        crop = image[y0:y1, x0:x1]
+        v_rg = cv2.max(crop[:, :, 1], crop[:, :, 2])
+        cand = cv2.compare(v_rg, crop[:, :, 0], cv2.CMP_GE)
+        cand &= cv2.compare(v_rg, self.min_value, cv2.CMP_GE)
+        if mask is not None:
+            cand = cv2.bitwise_and(cand, cand, mask=mask[y0:y1, x0:x1])
+        if cv2.countNonZero(cand) == 0:
+            return Detections.empty()
+        # the HSV test only in their box, grown by 8 px (the lone-light ring, the white light's window)
+        cx, cy, cw, ch = cv2.boundingRect(cand)
+        x0, y0, x1, y1 = (max(x0, x0 + cx - 8), max(y0, y0 + cy - 8),
+                          min(x1, x0 + cx + cw + 8), min(y1, y0 + cy + ch + 8))
         hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_BGR2HSV)
-        # bright, saturated pixels of a red to green hue (two inRange: red wraps round 180, and a
-        # blue sky is bright and saturated too); most frames have none and stop here
+        # bright, saturated pixels of a red to green hue (two inRange: red wraps round 180)
         lo, hi = (self.min_saturation, self.min_value), (255, 255)
         lit = cv2.inRange(hsv, (0, *lo), (90, *hi))
         lit |= cv2.inRange(hsv, (170, *lo), (179, *hi))
