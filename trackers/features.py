@@ -503,46 +503,68 @@ class FeatureTracker:
         md2 = float(min_distance_px) ** 2
         new_uv: list[np.ndarray] = []
         new_des: list[np.ndarray] = []
-        for (u, v), r in zip(np.asarray(centres_uv, float), np.asarray(radii_px, float), strict=True):
+        # the regions' boxes, and which live features lie within min_distance_px of each box (one
+        # (K, N) test for all regions; features added by earlier regions are tested per region)
+        boxes = []
+        centres = np.asarray(centres_uv, float).tolist()
+        for (u, v), r in zip(centres, np.asarray(radii_px, float).tolist(), strict=True):
+            r = int(max(12, r)) + 8
+            x, y = int(u), int(v)
+            boxes.append((max(0, x - r), max(0, y - r), min(w, x + r + 1), min(h, y + r + 1)))
+        # the box edges widened by min_distance_px, rounded to float32 as a Python float compared
+        # with the float32 positions is (the per-region test's numbers)
+        bx = np.array(boxes, np.float64).reshape(-1, 4)
+        lo = (bx[:, :2] - min_distance_px).astype(np.float32)
+        hi = (bx[:, 2:] + min_distance_px).astype(np.float32)
+        tu, tv = taken[:, 0], taken[:, 1]
+        near_live = (
+            (tu[None, :] >= lo[:, 0, None])
+            & (tu[None, :] < hi[:, 0, None])
+            & (tv[None, :] >= lo[:, 1, None])
+            & (tv[None, :] < hi[:, 1, None])
+        )
+        n_live = len(taken)
+        for k, (x0, y0, x1, y1) in enumerate(boxes):
             if room <= 0:
                 break
-            r = int(max(12, r)) + 8
-            x0, y0, x1, y1 = (
-                max(0, int(u) - r),
-                max(0, int(v) - r),
-                min(w, int(u) + r + 1),
-                min(h, int(v) + r + 1),
-            )
             if x1 - x0 < 20 or y1 - y0 < 20:
                 continue
             crop = grey[y0:y1, x0:x1]
             kps = self._orb_roi.detect(crop, None)
             if not kps:
                 continue
-            p = cv2.KeyPoint_convert(kps).reshape(-1, 2) + np.array([x0, y0], np.float32)  # frame px
-            resp = np.array([k.response for k in kps], np.float32)
+            p = cv2.KeyPoint_convert(kps).reshape(-1, 2)
+            p += np.array([x0, y0], np.float32)  # frame px
+            pu_, pv_ = p[:, 0], p[:, 1]
             # (keypoints lie in the crop, so the rounded indices are >= 0)
-            ui = np.minimum(np.rint(p[:, 0]).astype(np.intp), w - 1)
-            vi = np.minimum(np.rint(p[:, 1]).astype(np.intp), h - 1)
+            ui = np.minimum(np.rint(pu_).astype(np.intp), w - 1)
+            vi = np.minimum(np.rint(pv_).astype(np.intp), h - 1)
             ok = self.mask[vi, ui] > 0
-            tu, tv = taken[:, 0], taken[:, 1]
-            near = np.flatnonzero(
-                (tu >= x0 - min_distance_px)
-                & (tu < x1 + min_distance_px)
-                & (tv >= y0 - min_distance_px)
-                & (tv < y1 + min_distance_px)
-            )
+            near = np.flatnonzero(near_live[k])
+            if len(taken) > n_live:  # features added by earlier regions of this call
+                tu, tv = taken[n_live:, 0], taken[n_live:, 1]
+                more = np.flatnonzero(
+                    (tu >= x0 - min_distance_px)
+                    & (tu < x1 + min_distance_px)
+                    & (tv >= y0 - min_distance_px)
+                    & (tv < y1 + min_distance_px)
+                )
+                near = np.concatenate([near, more + n_live])
             if len(near):  # at least min_distance_px from every live (or newly added) feature
-                du = p[:, 0, None] - tu[near][None, :]
-                dv = p[:, 1, None] - tv[near][None, :]
-                ok &= (du * du + dv * dv).min(axis=1) >= md2
+                du = pu_[:, None] - taken[near, 0][None, :]
+                dv = pv_[:, None] - taken[near, 1][None, :]
+                du *= du
+                dv *= dv
+                du += dv
+                ok &= du.min(axis=1) >= md2
             cand = np.flatnonzero(ok)
             if not len(cand):
                 continue
+            resp = np.array([kps[i].response for i in cand.tolist()], np.float32)
             # strongest first, each at least min_distance_px from those already chosen
             chosen: list[int] = []
             want = min(per_roi, room)
-            for i in cand[np.argsort(-resp[cand], kind="stable")].tolist():
+            for i in cand[np.argsort(-resp, kind="stable")].tolist():
                 pu, pv = float(p[i, 0]), float(p[i, 1])
                 if all((pu - p[j, 0]) ** 2 + (pv - p[j, 1]) ** 2 >= md2 for j in chosen):
                     chosen.append(i)
