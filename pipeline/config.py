@@ -188,8 +188,7 @@ class TrackerConfig(_Section):
         "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
         "fb_retry (bool, a level-0 failure is checked again one level up), "
-        "min_distance_px (px), history (frames), full_redetect_factor (int, 2: a full tracker detects every "
-        "this many x redetect_every frames; 0: not while full).",
+        "min_distance_px (px), history (frames).",
     )
     grouping: dict[str, Any] = Field(
         default_factory=dict,

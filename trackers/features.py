@@ -128,19 +128,16 @@ class FeatureTracker:
             features triggers re-detection.
         min_per_cell: see ``grid``.
         redetect_every: re-detect every this many frames (1 = every frame); a full tracker
-            (``max_features`` live) every ``full_redetect_factor`` times this many.
-        full_redetect_factor: see ``redetect_every`` (default 2; 0: a full tracker does not
-            detect, so lost features are re-acquired only while there is room). A full tracker's
-            detection can only re-acquire lost features (about 0.7 per detection on the 640x480
-            and 1280x720 bench clips). Measured with 0 (same run against 2): trackers.benchmark
-            coverage of every obstacle unchanged on the six presets, id switches 11 -> 12
-            (stereo_flying 1 -> 2); the 1280x720 bench clip's detect + track CPU per frame mean
-            8.5-9.2 -> 7.4-7.7 ms, p99 15.9-19.3 -> 12.5-12.9 ms; accuracy --mode pipeline --set
-            both: mono identical, range NEES 1.85 -> 1.79 (tuned) | 2.07 -> 2.01 (held-out), but
-            held-out stereo heading 8.4 -> 12.7 deg (19 -> 25 moving reports: over the 10 deg
-            target) and stereo <= 8 m obstacle-frames ranged 75.9 -> 74.6 % (tuned). Not the
-            default: it gives up re-acquisition whenever the tracker is full (at 640x480 and
-            1280x720 most of the time), and those stereo numbers move.
+            (``max_features`` live) every twice this many: its detection can only re-acquire lost
+            features (about 0.7 per detection on the 640x480 and 1280x720 bench clips). (Never
+            detecting while full was an option, ``full_redetect_factor`` 0, removed after a same-base
+            A/B, 0 against 2: trackers.benchmark identical on 29 of 32 scenes (9 tuned, 5 held-out,
+            18 validation), stereo_flying id switches 1 -> 2, heldout_stereo_flying's worst obstacle
+            0.797 -> 0.750, val_stereo_flying switches 3 -> 2; accuracy --set all: mono identical,
+            stereo obstacle-frame coverage down on every set (tuned 76.8 -> 75.4, held-out 75.3 ->
+            74.7, validation 83.9 -> 83.5 %), held-out stereo heading 8.3 -> 13.0 deg (target 10)
+            and range NEES 1.83 -> 2.07, validation NEES 2.99 -> 2.78; for about 1 ms a frame of
+            detect + track CPU at 1280x720, as measured when the option was added.)
         win_px, levels: KLT window (px) and pyramid levels.
         fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
             backward misses its start by more than this (px).
@@ -189,7 +186,6 @@ class FeatureTracker:
         grid: tuple[int, int] = (16, 9),
         min_per_cell: int = 1,
         redetect_every: int = 4,
-        full_redetect_factor: int = 2,
         win_px: int = 11,
         levels: int = 2,
         fb_max_px: float = 1.0,
@@ -210,7 +206,6 @@ class FeatureTracker:
             ("max_features", max_features),
             ("min_per_cell", min_per_cell),
             ("redetect_every", redetect_every),
-            ("full_redetect_factor", full_redetect_factor),
             ("win_px", win_px),
             ("levels", levels),
             ("fb_levels", fb_levels),
@@ -229,15 +224,14 @@ class FeatureTracker:
             or not px_per_feature > 0
             or history < 2
             or redetect_every < 1
-            or full_redetect_factor < 0
             or fb_max_px <= 0
             or fb_levels < 0
         ):
             raise ConfigError(
                 "FeatureTracker: expected max_features >= 1 (or None), px_per_feature > 0, "
-                "history >= 2, redetect_every >= 1, full_redetect_factor >= 0, "
+                "history >= 2, redetect_every >= 1, "
                 "fb_max_px > 0, fb_levels >= 0; got "
-                f"{max_features}, {px_per_feature}, {history}, {redetect_every}, {full_redetect_factor}, "
+                f"{max_features}, {px_per_feature}, {history}, {redetect_every}, "
                 f"{fb_max_px}, {fb_levels}"
             )
         self.camera = camera
@@ -249,7 +243,6 @@ class FeatureTracker:
         self.grid = (int(grid[0]), int(grid[1]))
         self.min_per_cell = int(min_per_cell)
         self.redetect_every = int(redetect_every)
-        self.full_redetect_factor = int(full_redetect_factor)
         self.win = (int(win_px), int(win_px))
         self.levels = int(levels)
         self.fb_max_px = float(fb_max_px)
@@ -735,7 +728,7 @@ class FeatureTracker:
     def _need_detection(self) -> bool:
         """Whether to detect this frame: coverage thins (fewer than 60 % of the budget live and a
         live cell below ``min_per_cell``), or periodically (every ``redetect_every`` frames; a full
-        tracker every ``full_redetect_factor`` times that, never with 0)."""
+        tracker every twice that)."""
         if len(self.ids) < 0.6 * self.max_features:
             counts = self._cell_counts()
             if np.any(counts[self._live_cells] < self.min_per_cell):
@@ -743,9 +736,7 @@ class FeatureTracker:
         # full (no room for new features): a detection can only re-acquire lost features (0.7 per
         # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so more rarely
         full = len(self.ids) >= self.max_features
-        if full and self.full_redetect_factor == 0:
-            return False
-        period = self.redetect_every * (self.full_redetect_factor if full else 1)
+        period = self.redetect_every * (2 if full else 1)
         return self._frames_since_detect >= period
 
     def _detect(self, image: np.ndarray, t_s: float) -> None:

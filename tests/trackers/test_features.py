@@ -161,7 +161,6 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
         {"max_features": 0},
         {"history": 1},
         {"redetect_every": 0},
-        {"full_redetect_factor": -1},
         {"fb_max_px": 0.0},
         {"fb_levels": -1},
     ],
@@ -184,7 +183,6 @@ def test_bad_tracker_options(model, kw):
         ("min_per_cell", 1.5),
         ("reacquire_frames", 2.5),
         ("reacquire_max_hamming", np.float64(40.0)),
-        ("full_redetect_factor", np.True_),
         ("grid", (16.5, 9)),
         ("grid", (16, True)),
         ("grid", (16,)),
@@ -328,15 +326,6 @@ def test_a_full_tracker_detects_half_as_often(model):
 
     assert detect_frames(40) == [0, 8, 16]  # full after the first detection
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
-
-
-@pytest.mark.parametrize(("factor", "frames"), [(3, [0, 12]), (0, [0])])
-def test_full_redetect_factor_sets_how_often_a_full_tracker_detects(model, factor, frames):
-    """A static scene, full after the first detection: it detects every full_redetect_factor x
-    redetect_every (3 x 4 = 12) frames, and never again with a factor of 0 (counted over 20)."""
-    grey = SphereScene(model).render()
-    ft = make_tracker(model, max_features=40, redetect_every=4, full_redetect_factor=factor)
-    assert _detection_frames(ft, grey) == frames
 
 
 def test_a_full_tracker_describes_only_reacquisition_candidates():
