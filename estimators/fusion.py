@@ -262,13 +262,15 @@ class FusionSettings:
             recorded front end, tuned | held-out, without -> with both: range NEES 0.987 -> 1.010 |
             1.836 -> 1.852, median z^2 0.201 -> 0.228 | 0.187 -> 0.232, 1-sigma 78.7 -> 75.6 |
             76.8 -> 75.1 %, stereo <= 3 m (held-out) 0.64 -> 0.69 %, <= 8 m (tuned) 1.04 -> 1.06 %
-            (the sigmas' shape more honest; every range target still met).
-        feature_avoid_outline_mono: the outline rule for the static-point fix on a mono rig too (on
-            a stereo rig feature_avoid_outline applies it). Default False: replays (front end of
-            the fifth session, before the stereo-rig rule) gave held-out range NEES 2.03 -> 1.75
-            and mono coverage 94.7 -> 97.3 %, but tuned NEES 1.10 -> 1.11, mono coverage 91.8 ->
-            91.6 % and mono median 1.16 -> 1.27 % (mono_straight's same reports 1.02 -> 1.24 %): a
-            trade.
+            (the sigmas' shape more honest; every range target still met). Not on a mono rig: the
+            same rule for a mono rig's static-point fix (the opt-in feature_avoid_outline_mono,
+            removed) was a trade on replays of one recorded front end (cb37d6f's, with the occlusion
+            term), tuned | validation val_* | val2_* | held-out, off -> on: mono median 1.17 ->
+            1.27 | 1.17 -> 1.14 | 1.28 -> 1.26 | 1.02 -> 1.05 %, p90 3.12 -> 3.12 | 4.75 -> 4.04 |
+            4.25 -> 4.04 | 4.26 -> 4.18 %, mono obstacle-frame coverage 92.97 -> 92.77 | 89.22 ->
+            92.12 | 86.56 -> 86.73 | 94.71 -> 97.27 % (val2_heldout_moving 98.4 -> 94.4, val2_turning
+            87.7 -> 85.3), range NEES 0.954 -> 0.981 | 2.110 -> 2.437 | 2.267 -> 2.228 | 1.790 ->
+            1.714 (median z^2 0.225 -> 0.234 | 0.218 -> 0.205 | 0.241 -> 0.233 | 0.205 -> 0.205).
         carried_range_floor_frac: smallest range sigma, as a fraction of the range, of a report
             whose range no feature fix or feature stereo fix measured this frame (a state carried
             by the filter from earlier fixes and the representative bearing, a centroid that slides
@@ -347,7 +349,6 @@ class FusionSettings:
     carried_range_floor_frac: float = 0.03
     feature_depth_gap_frac: float = 0.3
     feature_avoid_outline: bool = True
-    feature_avoid_outline_mono: bool = False
     member_spread_weight: float = 1.0
     member_spread_min_n: int = 6
     occluder_min_members: int = 3
@@ -1437,21 +1438,16 @@ class ObstacleFusion:
         fs.add(rows[first], b_now[first], c_now[first], t_s, s.feature_memory_s, unique=ncam == 1)
         # the features on their track's outline in a view (``_outline_flags``): not chosen to range
         # the track while two interior ones can be
-        avoid_st = s.feature_point and s.feature_avoid_outline and ncam > 1
-        # the static-point (multi-frame) fix: on a stereo rig always (with feature_avoid_outline),
-        # on a mono rig only with feature_avoid_outline_mono. On a rig the cameras sit off the body
-        # origin, so the body's ray toward a silhouette corner that one camera tracks passes beside
-        # the obstacle (heldout_stereo_flying track 92: a point at 1.04 m on obstacle 1's edge seen
-        # from cam0; the body's ray toward it hits obstacle 3 at 3.85 m)
-        stereo_rig = ncam > 1
-        avoid_ls = s.feature_point and (
-            s.feature_avoid_outline_mono or (s.feature_avoid_outline and stereo_rig))
+        # on a stereo rig only: the stereo fix's feature, and the static-point (multi-frame) fix's
+        # feature too: the cameras sit off the body origin, so the body's ray toward a silhouette
+        # corner that one camera tracks passes beside the obstacle (heldout_stereo_flying track
+        # 92: a point at 1.04 m on obstacle 1's edge seen from cam0; the body's ray toward it hits
+        # obstacle 3 at 3.85 m). (On a mono rig the rule for the static-point fix was a measured
+        # trade, removed: see FusionSettings.feature_avoid_outline.)
+        avoid_ls = avoid_st = s.feature_point and s.feature_avoid_outline and ncam > 1
         edge = np.zeros(len(ids), dtype=bool)
-        if avoid_st or avoid_ls:
-            vkey = g * ncam + cam
-            vg = g[np.flatnonzero(np.diff(vkey, prepend=vkey[0] - 1))]  # each view's track
-            # (the stereo rule needs only the views of tracks seen by two cameras)
-            edge = _outline_flags(b_now, vkey, None if avoid_ls else np.bincount(vg)[vg] >= 2)
+        if avoid_st:
+            edge = _outline_flags(b_now, g * ncam + cam)
         if ncam > 1:
             self._feature_stereo(work, ids, b_now, c_now, feats[5], edge)
         if not s.feature_ranging:
