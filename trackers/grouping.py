@@ -33,13 +33,6 @@ write their new state and over components wide enough to be cut):
    comes from step 4 exempting a split-off part, which the crossing box's features then joined;
    the cause there is step 4's least-squares fit pulled by a mover nearby. Kept until a fix of
    step 4 that does not cost stereo accuracy replaces it.
-3d. Two depths in one track (an obstacle in line with another behind it), before step 3c: with the
-   camera's rotation removed, a static member's flow is its inverse depth times a direction its
-   neighbours share, so the members' flows along the track's mean flow, over ``depth_frames``
-   frames, sort into two groups whose rates differ by ``depth_ratio`` and by ``depth_gate``
-   sigmas of the KLT noise (``depth_sigma_px``); the part farther from the representative
-   bearing leaves after ``depth_persist`` frames in a row (see ``_depth_split``). Needs the
-   camera's rotation (``R_C_Cprev``); without it the step is off. Opt-in (``depth_ratio``).
 3e. Two clusters in one track (an obstacle beside ground at its range, which moves as it does,
    chained to it by a feature or two), opt-in (``gap_factor``): the members are re-linked at
    ``gap_factor`` times their own nearest-neighbour spacing (at least ``gap_min_px``); when two
@@ -151,8 +144,6 @@ class ObstacleTrack:
     split_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3c candidate
     split_n: int = 0  # frames in a row the step 3c candidate split was found
     split: bool = False  # split off another track by its motion (step 3c): not judged as texture
-    depth_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3d candidate
-    depth_n: int = 0  # frames in a row the step 3d candidate split was found
     gap_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3e candidate
     gap_n: int = 0  # frames in a row the step 3e candidate split was found
 
@@ -204,20 +195,6 @@ class ObstacleGrouper:
             much as pairs beside it; 3 leaves room for noise in the medians.
         split_persist: frames in a row the same split (half its features in common) must be found
             before the track splits: evidence over several frames, not one.
-        depth_ratio: step 3d splits a track where its members' parallax rates (inverse depths)
-            jump by this factor (1.5: an obstacle at 10 m in front of one at 15 m); 1 (the
-            default) turns it off. Opt-in: 1.5 was measured (2026-11-22, same-base A/B of
-            accuracy --set both, tuned | held-out) to lower range NEES 1.95 -> 1.85 | 2.15 -> 2.03
-            and raise mono obstacle-frame coverage on the tuned set 91.8 -> 95.4 %, but held-out
-            mono coverage fell 94.7 -> 92.5 % (a split-off part starts a track with no range yet)
-            and trackers.benchmark's id switches rose 17 -> 20 on the eleven scenes: not the default.
-        depth_sigma_px: KLT's position noise (px) in step 3d's noise model: a window flow's sigma
-            is ``sqrt(2) depth_sigma_px rad_px / dt``.
-        depth_gate: ... and by this many sigmas of the two members' rates (not noise).
-        depth_persist: frames in a row the same step 3d split must be found.
-        depth_frames: step 3d's window (frames; as far back as the camera's rotation is known).
-            Parallax grows with the window, KLT noise does not: 20 frames (2/3 s at 30 fps)
-            resolve a depth ratio of 2 at 0.16 rad/s where 5 frames cannot (tests).
         gap_factor: step 3e re-links a track's members closer than this many times their lower
             median nearest-neighbour spacing and splits off a part set apart by a gap that wide
             for both parts' own spacing; 0 (the default) turns step 3e off; 3 is the value
@@ -266,11 +243,6 @@ class ObstacleGrouper:
         split_rel: float = 0.1,
         split_step: float = 3.0,
         split_persist: int = 3,
-        depth_ratio: float = 1.0,
-        depth_sigma_px: float = 0.25,
-        depth_gate: float = 4.0,
-        depth_persist: int = 2,
-        depth_frames: int = 20,
         gap_factor: float = 0.0,
         gap_min_px: float = 12.0,
         gap_min_part: int = 4,
@@ -323,51 +295,23 @@ class ObstacleGrouper:
         self.split_rel = float(split_rel)
         self.split_step = float(split_step)
         self.split_persist = int(split_persist)
-        bad_depth = []
-        depth_ratio, depth_sigma_px, depth_gate = (
-            _as_float(v) for v in (depth_ratio, depth_sigma_px, depth_gate)
-        )
-        if not 1 <= depth_ratio < float("inf"):  # (also NaN) 1: step 3d off
-            bad_depth.append(
-                f"depth_ratio = {depth_ratio!r} (expected a finite number >= 1; 1 turns step 3d off)"
-            )
-        if not 0 < depth_sigma_px < float("inf"):
-            bad_depth.append(f"depth_sigma_px = {depth_sigma_px!r} (expected a finite number > 0, pixels)")
-        if not 0 < depth_gate < float("inf"):
-            bad_depth.append(f"depth_gate = {depth_gate!r} (expected a finite number > 0, sigmas)")
-        if (
-            not isinstance(depth_persist, (int, np.integer))
-            or isinstance(depth_persist, bool)
-            or depth_persist < 1
-        ):
-            bad_depth.append(f"depth_persist = {depth_persist!r} (expected an integer >= 1, frames)")
-        if (
-            not isinstance(depth_frames, (int, np.integer))
-            or isinstance(depth_frames, bool)
-            or depth_frames < 1
-        ):
-            bad_depth.append(f"depth_frames = {depth_frames!r} (expected an integer >= 1, frames)")
+        bad = []
         gap_factor, gap_min_px = _as_float(gap_factor), _as_float(gap_min_px)
         if not (gap_factor == 0 or 1 < gap_factor < float("inf")):  # (also NaN)
-            bad_depth.append(f"gap_factor = {gap_factor!r} (expected 0 (step 3e off) or a finite number > 1)")
+            bad.append(f"gap_factor = {gap_factor!r} (expected 0 (step 3e off) or a finite number > 1)")
         if not 0 <= gap_min_px < float("inf"):
-            bad_depth.append(f"gap_min_px = {gap_min_px!r} (expected a finite number >= 0, pixels)")
+            bad.append(f"gap_min_px = {gap_min_px!r} (expected a finite number >= 0, pixels)")
         for name, v, lo in (("gap_min_part", gap_min_part, 2), ("gap_persist", gap_persist, 1)):
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
-                bad_depth.append(f"{name} = {v!r} (expected an integer >= {lo})")
-        if bad_depth:
-            raise ConfigError("ObstacleGrouper: " + "; ".join(bad_depth))
+                bad.append(f"{name} = {v!r} (expected an integer >= {lo})")
+        if bad:
+            raise ConfigError("ObstacleGrouper: " + "; ".join(bad))
         self.gap_factor = float(gap_factor)
         self.gap_min_px = float(gap_min_px)
         self.gap_min_part = int(gap_min_part)
         self.gap_persist = int(gap_persist)
-        self.depth_ratio = float(depth_ratio)
-        self.depth_sigma_px = float(depth_sigma_px)
-        self.depth_gate = float(depth_gate)
-        self.depth_persist = int(depth_persist)
-        self.depth_frames = int(depth_frames)
-        # the frame-to-frame rotations, as far back as step 3c's and step 3d's windows reach
-        self._R1_hist: deque[np.ndarray] = deque(maxlen=max(self.depth_frames, self.split_frames))
+        # the frame-to-frame rotations, as far back as step 3c's window reaches
+        self._R1_hist: deque[np.ndarray] = deque(maxlen=self.split_frames)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
         self._last_t_s: float | None = None
@@ -377,7 +321,6 @@ class ObstacleGrouper:
         self._frame = 0
         self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
         self.splits = 0  # tracks split by step 3c so far (a diagnostic count)
-        self.depth_splits = 0  # tracks split by step 3d so far (a diagnostic count)
         self.gap_splits = 0  # tracks split by step 3e so far (a diagnostic count)
 
     # ---------------------------------------------------------------------------------- api
@@ -404,7 +347,7 @@ class ObstacleGrouper:
         cos_link, cos_r = np.cos(self.link_rad), np.cos(self.max_radius_rad)
         R1 = R_C_Cprev.get(1) if R_C_Cprev else None
         self._remember_rotation(R1)
-        flow, fvalid, fdt = self._flows(ft, t_s, R_C_Cprev)
+        flow, fvalid, _ = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
         fnorm = np.sqrt(np.einsum("ij,ij->i", flow, flow))
         b_prev, pvalid = ft.previous_bearing()
@@ -515,8 +458,8 @@ class ObstacleGrouper:
         # 3c. two surfaces in one track (an occluding edge, an obstacle crossing the background):
         # split by the members' motion over split_frames frames, found split_persist frames in a row
         split_born = np.zeros(TK, bool)
-        for step in ("3d", "3c", "3e"):
-            off = {"3d": self.depth_ratio <= 1.0, "3c": self.split_min_px <= 0, "3e": self.gap_factor <= 0}
+        for step in ("3c", "3e"):
+            off = {"3c": self.split_min_px <= 0, "3e": self.gap_factor <= 0}
             if not T or off[step]:
                 continue
             if step == "3e":
@@ -524,11 +467,6 @@ class ObstacleGrouper:
                     ft.b_C, ft.ids, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
                 )
                 self.gap_splits += len(sp_rows)
-            elif step == "3d":
-                sp_rows, sp_tgt = self._depth_split(
-                    ft, t_s, R_C_Cprev, owner, rep, tracks, taken, rad_px, flow, fvalid, fdt, tflow, R1, dt_s
-                )
-                self.depth_splits += len(sp_rows)
             else:
                 sp_rows, sp_tgt = self._split(
                     ft, t_s, R_C_Cprev, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
@@ -536,10 +474,9 @@ class ObstacleGrouper:
                 self.splits += len(sp_rows)
             born = step == "3c"  # (split off by its motion: exempt from step 4's texture rule)
             for rows_s, (src, dst) in zip(sp_rows, sp_tgt, strict=True):
-                # steps 3c and 3e: its representative restarts at its remaining members' mean (3e:
-                # it lay between the two parts); step 3d: the part nearer the representative
-                # stayed, which moves on with it
-                fresh[src] |= step != "3d"
+                # its representative restarts at its remaining members' mean (3e: it lay between
+                # the two parts)
+                fresh[src] = True
                 if dst < 0:  # a new track
                     dst = TK
                     TK += 1
@@ -988,7 +925,7 @@ class ObstacleGrouper:
 
     def _remember_rotation(self, R1: np.ndarray | None) -> None:
         """Keep this frame's R_C_Cprev[1] (3,3) (the rotation from the previous frame's camera
-        frame into this one's) for step 3c's and step 3d's windows; a frame without it breaks
+        frame into this one's) for step 3c's window; a frame without it breaks
         the chain."""
         if R1 is None:
             self._R1_hist.clear()
@@ -999,7 +936,7 @@ class ObstacleGrouper:
         """{k: R_C_Cprev[k]} (3,3) for k = 1..frames as far as known: the given ones (the front
         end's, a few frames back), and beyond them the product of the remembered frame-to-frame
         rotations, ``R_C(t)_C(t-k) = R_C(t)_C(t-1) R_C(t-1)_C(t-2) ... R_C(t-k+1)_C(t-k)``.
-        Used by step 3c and step 3d: a window sample older than the rotation known is not
+        Used by step 3c: a window sample older than the rotation known is not
         derotated by the identity (it would read the camera's turn as the member's motion)."""
         if not R or not self._R1_hist:
             return {}
@@ -1009,138 +946,6 @@ class ObstacleGrouper:
             acc = acc @ R1
             out.setdefault(k, acc)
         return out
-
-    def _depth_split(
-        self,
-        ft: FeatureTracker,
-        t_s: float,
-        R: dict[int, np.ndarray] | None,
-        owner: np.ndarray,
-        rep: np.ndarray,
-        tracks: list[ObstacleTrack],
-        taken: np.ndarray,
-        rad_px: float,
-        flow: np.ndarray,
-        fvalid: np.ndarray,
-        fdt: np.ndarray,
-        tflow: np.ndarray,
-        R1: np.ndarray | None,
-        dt_s: float,
-    ) -> tuple[list[np.ndarray], list[tuple[int, int]]]:
-        """Step 3d: tracks whose members lie at two clearly different depths (an obstacle and what
-        lies behind it in line, a hover track over box and pole), found by their parallax rates.
-
-        Model. A static point at unit bearing b and depth d, seen from a camera moving at v (C)
-        and turning, has the flow ``db/dt = -(I - b b^T) v / d + w x b``. After the rotation is
-        removed (``R_C_Cprev``; without it the grouper's flows keep it) the members of one track,
-        all within ``max_radius`` of each other, share ``g = -(I - b b^T) v`` to first order in
-        their angular spread, so their flows are parallel and ``|f| = rho |g|`` with rho = 1/d:
-        the component ``s_i = f_i . u`` along the track's mean flow direction u is the member's
-        inverse depth times a common factor, and ``s_i / s_j = d_j / d_i``.
-
-        Noise. A flow over dt is a difference of two KLT positions with ``depth_sigma_px`` pixel
-        noise each: ``sigma_s,i = sqrt(2) depth_sigma_px rad_px / dt_i`` (rad/s), so the
-        inverse-depth sigma is ``sigma_rho,i = sigma_s,i / |g|``.
-
-        Test. Per judged track (>= 4 members with a flow, at least 2 a side) the members' s are
-        sorted; a gap between neighbours in that order (s_lo below, s_hi above) separates two
-        depths when both hold: ``s_hi >= depth_ratio * s_lo`` (the inverse depths differ by that
-        factor: 1.5 is an obstacle at 10 m in front of one at 15 m) and ``s_hi - s_lo >
-        depth_gate sqrt(sigma_lo^2 + sigma_hi^2)`` (not noise; near the focus of expansion or
-        hovering, where |g| ~ 0, nothing is split: depth is not observable there). A smooth
-        surface (the ground) spreads its members over s without such a gap. Of the gaps that
-        pass, the widest in sigmas is taken; the side whose mean bearing lies farther from the
-        track's representative bearing ``rep`` (TK,3) leaves, once the split was found
-        ``depth_persist`` frames in a row with half its features in common. It revives a
-        memberless track predicted there (``_revive``) or starts a new one.
-
-        Args: ft: the FeatureTracker; owner (N,) track index per live feature (not changed); rep
-        (TK,3) unit bearings in C; tracks: the T existing tracks (their depth_ids/depth_n are
-        updated); taken (TK,) from ``_inherit``; rad_px: radians per pixel; flow (N,3) rad/s,
-        fvalid (N,), fdt (N,) s: the features' flows, whether they have one, over what time;
-        tflow (TK,3): the tracks' mean flows; R1 (3,3) or None, dt_s: for ``_revive``.
-        Returns (rows per split-off part, (source track index, target index or -1) per part)."""
-        T = len(tracks)
-        out_rows: list[np.ndarray] = []
-        out_tgt: list[tuple[int, int]] = []
-        found = np.zeros(T, bool)
-        R = self._window_rotations(R, self.depth_frames)
-        if not R:  # without the camera's rotation the flows are not proportional to 1/depth
-            for t in range(T):
-                tracks[t].depth_n = 0
-            return out_rows, out_tgt
-        # window: depth_frames, or as far back as the camera's rotation is known
-        L = min(self.depth_frames, max(R))
-        if L > self.flow_frames:  # window flows over up to L frames (at least half of it)
-            # (computed for the existing tracks' members only; b_then <- R_C_Cprev[k] b_then)
-            m = np.flatnonzero((owner >= 0) & (owner < T) & fvalid)
-            back = np.minimum(ft._h_n[ft.slot[m]] - 1, L)
-            b_then, t_then, _ = ft.bearing_ago(L)
-            Rs = np.tile(np.eye(3), (L + 1, 1, 1))
-            for kk, Rk in R.items():
-                if 0 < kk <= L:
-                    Rs[kk] = Rk
-            dt_m = np.maximum(t_s - t_then[m], 1e-9)
-            flow, fdt = flow.copy(), fdt.copy()
-            flow[m] = (ft.b_C[m] - np.einsum("nij,nj->ni", Rs[back], b_then[m])) / dt_m[:, None]
-            fdt[m] = dt_m
-            fvalid = np.zeros_like(fvalid)
-            fvalid[m] = 2 * back >= L
-        rows = np.flatnonzero((owner >= 0) & (owner < T) & fvalid)
-        o = owner[rows]
-        cnt = np.bincount(o, minlength=T)
-        un = np.linalg.norm(tflow[:T], axis=1)
-        judged = (cnt >= 4) & (taken[:T] < 0) & (un > 0)
-        sel = judged[o]
-        rows, o = rows[sel], o[sel]
-        if len(rows):
-            u = tflow[:T] / np.maximum(un, 1e-300)[:, None]
-            s = np.einsum("ij,ij->i", flow[rows], u[o])  # s_i = f_i . u (rad/s)
-            # sigma_s = sqrt(2) sigma_px rad_px / dt
-            sig = np.sqrt(2.0) * self.depth_sigma_px * rad_px / np.maximum(fdt[rows], 1e-9)
-            order = np.lexsort((s, o))
-            rows, o, s, sig = rows[order], o[order], s[order], sig[order]
-            n = np.bincount(o, minlength=T)
-            start = np.concatenate([[0], np.cumsum(n)[:-1]])
-            below = np.arange(len(o))[1:] - start[o[1:]]  # members below each gap (same track)
-            same = o[1:] == o[:-1]
-            lo, hi = s[:-1], s[1:]
-            z = (hi - lo) / np.sqrt(sig[:-1] ** 2 + sig[1:] ** 2)
-            gap_ok = same & (below >= 2) & (n[o[1:]] - below >= 2)
-            gap_ok &= (hi >= self.depth_ratio * lo) & (z > self.depth_gate)
-            gi = np.flatnonzero(gap_ok)
-            if len(gi):
-                # per track the widest passing gap (in sigmas)
-                gk = gi[np.lexsort((-z[gi], o[gi + 1]))]
-                first = np.r_[True, o[gk[1:] + 1] != o[gk[:-1] + 1]]
-                ids = ft.ids
-                for g in gk[first]:
-                    t = int(o[g + 1])
-                    a0, k, a1 = start[t], g + 1, start[t] + n[t]
-                    lo_rows, hi_rows = rows[a0:k], rows[k:a1]
-                    # a step, not a gradient: the jump in log rate beats either side's own spread
-                    # (a surface whose depth changes across it, sampled sparsely, has gaps as
-                    # wide as its sides)
-                    if s[a0] > 0 and np.log(s[k] / s[k - 1]) < max(
-                        np.log(s[k - 1] / s[a0]), np.log(s[a1 - 1] / s[k])
-                    ):
-                        continue
-                    d_lo = float(_normalise(ft.b_C[lo_rows].mean(0)) @ rep[t])
-                    d_hi = float(_normalise(ft.b_C[hi_rows].mean(0)) @ rep[t])
-                    move = lo_rows if d_lo < d_hi else hi_rows
-                    found[t] = True
-                    tr = tracks[t]
-                    mids = np.sort(ids[move])
-                    tr.depth_n, tr.depth_ids = _persist_count(tr.depth_n, tr.depth_ids, mids), mids
-                    if tr.depth_n >= self.depth_persist:
-                        tr.depth_n, tr.depth_ids = 0, np.zeros(0, np.int64)
-                        # every member on that side leaves (those without a flow stay)
-                        out_rows.append(move)
-                        out_tgt.append((t, -1))
-        for t in np.flatnonzero(~found):  # no candidate this frame: the count restarts
-            tracks[t].depth_n = 0
-        self._revive(ft.b_C, out_rows, out_tgt, owner, rep, tracks, taken, flow, fvalid, tflow, R1, dt_s)
-        return out_rows, out_tgt
 
     def _gap_split(
         self,
@@ -1162,7 +967,7 @@ class ObstacleGrouper:
         as it does, chained into one track by a feature or two in between).
 
         Why position: an obstacle and the ground around it at the same range move alike (flow and
-        parallax agree), so neither step 3c nor step 3d can part them; but a track grows by
+        parallax agree), so neither step 3c nor a depth cue can part them; but a track grows by
         ``link_rad`` steps, and once formed its members stay while they move with it, so two
         clusters ``link_rad`` apart at first stay together however the texture between them
         thins. Single linkage at ``link_rad`` cannot tell one sparse surface from two dense ones;

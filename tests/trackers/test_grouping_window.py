@@ -14,13 +14,25 @@ from __future__ import annotations
 import numpy as np
 
 from tests.trackers.conftest import rot_axis
-from tests.trackers.test_grouping import unit
-from tests.trackers.test_grouping_depth import Features
+from tests.trackers.test_grouping import PointFeatures, unit
 from trackers.grouping import ObstacleGrouper
 
 FPS = 30.0
 YAW_RAD_S = 0.5
 FRONT_END_K = 7  # the front end's rotations reach this many frames back (deque of 8 poses)
+
+
+class Features(PointFeatures):
+    """The test's stand-in FeatureTracker, with the history counts the grouper reads when it is
+    given the camera's rotations (one sample per frame since a feature was born)."""
+
+    @property
+    def slot(self) -> np.ndarray:
+        return np.arange(len(self.ids))
+
+    @property
+    def _h_n(self) -> np.ndarray:
+        return self.age
 
 
 def _turning_wall(model, rotations_back: int, frames: int = 30):
