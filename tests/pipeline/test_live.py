@@ -192,9 +192,14 @@ def test_cli_live_replays_a_video_with_stub_stages(tmp_path, monkeypatch, capsys
         ["live", "--camera", str(v), "--speed-mps", "2", "--out", str(tmp_path / "o"), "--preview", "file"]
     )
     assert rc == 0
-    assert len((tmp_path / "o" / "tracks.jsonl").read_text().splitlines()) == 6
+    lines = len((tmp_path / "o" / "tracks.jsonl").read_text().splitlines())
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert s["mode"] == "live" and s["latency"]["n"] == 6 and (tmp_path / "o" / "preview.mp4").is_file()
+    # every frame of the video is either processed (one line, one latency sample) or dropped as stale
+    # (replaced by a newer one while the loop was busy: on a loaded machine that happens to 1-2 of the
+    # 6 frames paced at 30 Hz), never lost
+    dropped = s["stale_frames_dropped"]["cam0"]
+    assert lines >= 1 and lines + dropped == 6
+    assert s["mode"] == "live" and s["latency"]["n"] == lines and (tmp_path / "o" / "preview.mp4").is_file()
     assert "latency median" in capsys.readouterr().err
 
 
