@@ -201,11 +201,7 @@ class TrackerConfig(_Section):
         "track; 0 turns the rule off), extended_frames (frames a tentative track may be judged so before "
         "it is dropped), split_frames (frames, 10: window over which step 3c compares members' motions), "
         "split_min_px (px, 1.5; 0 turns the split by motion off), split_rel (0.1), split_step (3.0), "
-        "split_persist (frames, 3: a split must be found this many frames in a row), gap_factor (0 = off: "
-        "step 3e splits off a "
-        "cluster of members set apart from the rest by a gap this many times their own nearest-neighbour "
-        "spacing, opt-in, 3 the measured value), gap_min_px (px, 12), gap_min_part (int, 4), "
-        "gap_persist (frames, 5).",
+        "split_persist (frames, 3: a split must be found this many frames in a row).",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,

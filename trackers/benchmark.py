@@ -410,8 +410,8 @@ def run_benchmark(
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
     distinct track ids seen on each obstacle, reported tracks on no obstacle per frame (the ground,
     false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
-    (``track_splits``, step 3c) and at a gap between two clusters (``gap_splits``, step 3e)
-    (``switch_log``: frame, obstacle, old and new id, why the old one no longer counts), rim features.
+    (``track_splits``, step 3c) (``switch_log``: frame, obstacle, old and new id, why the old one no
+    longer counts), rim features.
     ``use_poses``: pass the scene's true ``T_W_B`` per frame (when ``gt.jsonl`` has it) to the
     front end, as the pipeline passes its trajectory's poses; False: none (no rotation compensation).
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
@@ -580,7 +580,6 @@ def run_benchmark(
         "observations_per_frame": n_obs / nf,
         "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
         "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
-        "gap_splits": sum(getattr(g, "gap_splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
         **({"explain": ex.summary()} if ex is not None else {}),

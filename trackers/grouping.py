@@ -33,12 +33,6 @@ write their new state and over components wide enough to be cut):
    comes from step 4 exempting a split-off part, which the crossing box's features then joined;
    the cause there is step 4's least-squares fit pulled by a mover nearby. Kept until a fix of
    step 4 that does not cost stereo accuracy replaces it.
-3e. Two clusters in one track (an obstacle beside ground at its range, which moves as it does,
-   chained to it by a feature or two), opt-in (``gap_factor``): the members are re-linked at
-   ``gap_factor`` times their own nearest-neighbour spacing (at least ``gap_min_px``); when two
-   parts of ``gap_min_part`` members or more come out, set apart by a gap that wide for each
-   part's own spacing, found ``gap_persist`` frames in a row, the smaller part leaves (see
-   ``_gap_split``). Position is the only cue there: motion and depth agree.
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
    surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
    outside the lens do not count against it) and the flow field they span (an affine fit in the
@@ -76,30 +70,12 @@ def _normalise(v: np.ndarray) -> np.ndarray:
     return v / np.where(n > 0, n, 1.0)
 
 
-def _as_float(v) -> float:
-    """float(v) for a real number, NaN for anything else (a bool, a string, None)."""
-    if isinstance(v, bool):
-        return float("nan")
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
-
-
 def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
     normalised (ref the z axis, or x near it), e2 = rep x e1."""
     ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
     e1 = _normalise(_cross(ref, rep))
     return e1, _cross(rep, e1)
-
-
-def _persist_count(n: int, prev_ids: np.ndarray, ids: np.ndarray) -> int:
-    """Frames in a row a split candidate has been seen: n + 1 when this frame's leaving members
-    ``ids`` (sorted feature ids) share at least half of the smaller of them and the last frame's
-    ``prev_ids`` (the same candidate), else 1 (a new candidate)."""
-    common = np.intersect1d(ids, prev_ids, assume_unique=True).size if len(prev_ids) else 0
-    return n + 1 if 2 * common >= min(len(ids), len(prev_ids)) > 0 else 1
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -144,8 +120,6 @@ class ObstacleTrack:
     split_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3c candidate
     split_n: int = 0  # frames in a row the step 3c candidate split was found
     split: bool = False  # split off another track by its motion (step 3c): not judged as texture
-    gap_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3e candidate
-    gap_n: int = 0  # frames in a row the step 3e candidate split was found
 
 
 class ObstacleGrouper:
@@ -195,25 +169,6 @@ class ObstacleGrouper:
             much as pairs beside it; 3 leaves room for noise in the medians.
         split_persist: frames in a row the same split (half its features in common) must be found
             before the track splits: evidence over several frames, not one.
-        gap_factor: step 3e re-links a track's members closer than this many times their lower
-            median nearest-neighbour spacing and splits off a part set apart by a gap that wide
-            for both parts' own spacing; 0 (the default) turns step 3e off; 3 is the value
-            measured: a cluster of features is a few spacings across, and a gap of 3 spacings is
-            several missing features in a row, not one. Opt-in because of a trade measured
-            (2026-11-22, same-base A/B, gap_min_part 4, gap_persist 5): trackers.benchmark on the
-            nine presets and five held-out renders: turning's worst obstacle 0.088 -> 1.000,
-            heldout_mono_straight 0.506 -> 0.607, the others within 0.02, id switches 21 -> 20;
-            but accuracy --mode pipeline --set both (tuned | held-out): range NEES 1.019 -> 0.922
-            | 1.834 -> 2.919 (heldout_mono_straight 2.63 -> 6.14), mono obstacle-frame coverage
-            92.97 -> 93.57 | 94.71 -> 90.27 %, mono p90 3.13 -> 3.16 | 4.26 -> 3.39 %, stereo
-            unchanged.
-        gap_min_px: ... and never closer than this (px at the lens's mean scale): KLT corners are
-            kept ~5-10 px apart, so gaps under 12 px are texture, not space between objects.
-        gap_min_part: members each side needs (a track of fewer than twice this is not judged):
-            3 cut single obstacles' corner clusters into pieces that then died (id switches on
-            demo and stereo_flying); 4 did not.
-        gap_persist: frames in a row the same step 3e split must be found (5: a track young
-            enough to be tentative is not cut on its first sight).
         label: label of the tracks (the detector's name).
     """
 
@@ -243,10 +198,6 @@ class ObstacleGrouper:
         split_rel: float = 0.1,
         split_step: float = 3.0,
         split_persist: int = 3,
-        gap_factor: float = 0.0,
-        gap_min_px: float = 12.0,
-        gap_min_part: int = 4,
-        gap_persist: int = 5,
         label: str = "orb",
     ) -> None:
         if (
@@ -295,21 +246,6 @@ class ObstacleGrouper:
         self.split_rel = float(split_rel)
         self.split_step = float(split_step)
         self.split_persist = int(split_persist)
-        bad = []
-        gap_factor, gap_min_px = _as_float(gap_factor), _as_float(gap_min_px)
-        if not (gap_factor == 0 or 1 < gap_factor < float("inf")):  # (also NaN)
-            bad.append(f"gap_factor = {gap_factor!r} (expected 0 (step 3e off) or a finite number > 1)")
-        if not 0 <= gap_min_px < float("inf"):
-            bad.append(f"gap_min_px = {gap_min_px!r} (expected a finite number >= 0, pixels)")
-        for name, v, lo in (("gap_min_part", gap_min_part, 2), ("gap_persist", gap_persist, 1)):
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
-                bad.append(f"{name} = {v!r} (expected an integer >= {lo})")
-        if bad:
-            raise ConfigError("ObstacleGrouper: " + "; ".join(bad))
-        self.gap_factor = float(gap_factor)
-        self.gap_min_px = float(gap_min_px)
-        self.gap_min_part = int(gap_min_part)
-        self.gap_persist = int(gap_persist)
         # the frame-to-frame rotations, as far back as step 3c's window reaches
         self._R1_hist: deque[np.ndarray] = deque(maxlen=self.split_frames)
         self.label = label
@@ -321,7 +257,6 @@ class ObstacleGrouper:
         self._frame = 0
         self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
         self.splits = 0  # tracks split by step 3c so far (a diagnostic count)
-        self.gap_splits = 0  # tracks split by step 3e so far (a diagnostic count)
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -458,25 +393,13 @@ class ObstacleGrouper:
         # 3c. two surfaces in one track (an occluding edge, an obstacle crossing the background):
         # split by the members' motion over split_frames frames, found split_persist frames in a row
         split_born = np.zeros(TK, bool)
-        for step in ("3c", "3e"):
-            off = {"3c": self.split_min_px <= 0, "3e": self.gap_factor <= 0}
-            if not T or off[step]:
-                continue
-            if step == "3e":
-                sp_rows, sp_tgt = self._gap_split(
-                    ft.b_C, ft.ids, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
-                )
-                self.gap_splits += len(sp_rows)
-            else:
-                sp_rows, sp_tgt = self._split(
-                    ft, t_s, R_C_Cprev, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
-                )
-                self.splits += len(sp_rows)
-            born = step == "3c"  # (split off by its motion: exempt from step 4's texture rule)
+        if T and self.split_min_px > 0:
+            sp_rows, sp_tgt = self._split(
+                ft, t_s, R_C_Cprev, owner, rep, tracks, taken, rad_px, flow, fvalid, tflow, R1, dt_s
+            )
+            self.splits += len(sp_rows)
             for rows_s, (src, dst) in zip(sp_rows, sp_tgt, strict=True):
-                # its representative restarts at its remaining members' mean (3e: it lay between
-                # the two parts)
-                fresh[src] = True
+                fresh[src] = True  # its representative restarts at its remaining members' mean
                 if dst < 0:  # a new track
                     dst = TK
                     TK += 1
@@ -486,9 +409,9 @@ class ObstacleGrouper:
                     fresh = np.concatenate([fresh, [True]])
                     keep1 = np.concatenate([keep1, [False]])
                     taken = np.concatenate([taken, [-1]])
-                    split_born = np.concatenate([split_born, [born]])
+                    split_born = np.concatenate([split_born, [True]])  # (exempt from step 4)
                 else:  # a memberless track revived by it
-                    tracks[dst].split = born
+                    tracks[dst].split = True
                     fresh[dst] = True
                     rep[dst] = _normalise(b[rows_s].mean(0))
                 owner[rows_s] = dst
@@ -946,141 +869,6 @@ class ObstacleGrouper:
             acc = acc @ R1
             out.setdefault(k, acc)
         return out
-
-    def _gap_split(
-        self,
-        b: np.ndarray,
-        fids: np.ndarray,
-        owner: np.ndarray,
-        rep: np.ndarray,
-        tracks: list[ObstacleTrack],
-        taken: np.ndarray,
-        rad_px: float,
-        flow: np.ndarray,
-        fvalid: np.ndarray,
-        tflow: np.ndarray,
-        R1: np.ndarray | None,
-        dt_s: float,
-    ) -> tuple[list[np.ndarray], list[tuple[int, int]]]:
-        """Step 3e: tracks whose members lie in two clusters on the sphere with a gap between them
-        that is wide for the clusters' own spacing (an obstacle beside a patch of ground that moves
-        as it does, chained into one track by a feature or two in between).
-
-        Why position: an obstacle and the ground around it at the same range move alike (flow and
-        parallax agree), so neither step 3c nor a depth cue can part them; but a track grows by
-        ``link_rad`` steps, and once formed its members stay while they move with it, so two
-        clusters ``link_rad`` apart at first stay together however the texture between them
-        thins. Single linkage at ``link_rad`` cannot tell one sparse surface from two dense ones;
-        a gap measured against the members' own spacing can.
-
-        Rule. Per existing track with at least ``2 gap_min_part`` members: s = the lower median
-        over its members of the angle to their nearest fellow member (its texture's spacing); the
-        members are re-linked when closer than ``tau = max(gap_min_px rad_px, gap_factor s)``.
-        When two or more of the resulting components have ``gap_min_part`` members or more, the
-        second largest (A; ties: the one farther from the representative bearing) is a candidate
-        when the gap between A and the rest (the smallest angle across) is also at least
-        ``gap_factor`` times the spacing within A and within the largest part (each its own lower
-        median nearest-neighbour angle): a gap, not a sparse stretch of one surface. The
-        candidate leaves once found ``gap_persist`` frames in a row with half its features in
-        common; it revives a memberless track predicted there (``_revive``) or starts a new one,
-        and the remaining members' mean becomes the track's representative bearing.
-
-        Args: b (N,3) unit bearings in C and fids (N,) int ids of the live features; owner (N,)
-        track index per live feature (not changed); rep (TK,3) unit representative bearings in C;
-        tracks: the T existing tracks (their gap_ids/gap_n are updated); taken (TK,) from
-        ``_inherit``; rad_px: radians per pixel; flow (N,3) rad/s, fvalid (N,), tflow (TK,3), R1
-        (3,3) or None, dt_s (s): for ``_revive``.
-        Returns (rows (K_i,) into the live features per split-off part, (source track index, -1
-        or a revived track's index) per part)."""
-        T = len(tracks)
-        P = self.gap_min_part
-        out_rows: list[np.ndarray] = []
-        out_tgt: list[tuple[int, int]] = []
-        found = np.zeros(T, bool)
-        rows = np.flatnonzero((owner >= 0) & (owner < T))
-        o = owner[rows]
-        judged = (np.bincount(o, minlength=T) >= 2 * P) & (taken[:T] < 0)
-        sel = judged[o]
-        rows, o = rows[sel], o[sel]
-        if len(rows):
-            srt = np.argsort(o, kind="stable")
-            rows, o = rows[srt], o[srt]
-            m = len(rows)
-            bj = b[rows]
-            # every ordered pair of members of one track (rows are in blocks by track)
-            cnt_o = np.bincount(o, minlength=T)
-            first = np.concatenate([[0], np.cumsum(cnt_o)])[o]
-            reps_n = cnt_o[o]
-            ei = np.repeat(np.arange(m), reps_n)
-            ej = first[ei] + (np.arange(len(ei)) - np.repeat(np.cumsum(reps_n) - reps_n, reps_n))
-            keep = ei != ej
-            ei, ej = ei[keep], ej[keep]
-            c = np.einsum("ij,ij->i", bj[ei], bj[ej])  # cos of the angle between the two
-            # nearest fellow member (angle) of each member: ei is sorted, every member has pairs
-            st = np.flatnonzero(np.r_[True, ei[1:] != ei[:-1]])
-            nn = np.arccos(np.clip(np.maximum.reduceat(c, st), -1.0, 1.0))
-            s_t = np.nan_to_num(self._group_lower_median(o, nn, T))
-            # tau = max(gap_min_px rad_px, gap_factor s)
-            tau = np.maximum(self.gap_min_px * rad_px, self.gap_factor * s_t)
-            linked = c > np.cos(tau)[o[ei]]
-            labels = self._components(m, ei[linked], ej[linked])
-            size = np.bincount(labels, minlength=m)
-            root = np.flatnonzero((labels == np.arange(m)) & (size >= P))
-            multi = np.flatnonzero(np.bincount(o[root], minlength=T) >= 2)
-            starts = np.concatenate([[0], np.cumsum(cnt_o)])
-            for t in multi.tolist():
-                blk = np.arange(starts[t], starts[t + 1])
-                lab = labels[blk]
-                big = root[o[root] == t]
-                sz = size[big]
-                order = np.argsort(-sz, kind="stable")
-                if (len(big) > 2 and sz[order[1]] == sz[order[2]]) or sz[order[0]] == sz[order[1]]:
-                    # a tie: of the equal-sized parts the one nearer rep[t] stays (cos to it)
-                    near = [float(_normalise(bj[blk[lab == r]].mean(0)) @ rep[t]) for r in big]
-                    order = sorted(range(len(big)), key=lambda k: (-sz[k], -near[k]))
-                in_a, in_b = lab == big[order[1]], lab == big[order[0]]
-                bb = bj[blk]
-                cc = bb @ bb.T  # cos of the angles between members
-                cc[np.diag_indices(len(blk))] = -2.0
-                # gap: the smallest angle across; spacing: each part's lower median nearest angle
-                gap = np.arccos(min(float(cc[np.ix_(in_a, ~in_a)].max()), 1.0))
-                c_a = np.sort(cc[np.ix_(in_a, in_a)].max(1))[::-1]
-                c_b = np.sort(cc[np.ix_(in_b, in_b)].max(1))[::-1]
-                s_ab = np.arccos(min(c_a[(len(c_a) - 1) // 2], c_b[(len(c_b) - 1) // 2], 1.0))
-                if gap < self.gap_factor * s_ab:  # a sparse stretch, not a gap
-                    continue
-                move = rows[blk[in_a]]
-                found[t] = True
-                tr = tracks[t]
-                mids = np.sort(fids[move])
-                tr.gap_n, tr.gap_ids = _persist_count(tr.gap_n, tr.gap_ids, mids), mids
-                if tr.gap_n >= self.gap_persist:
-                    tr.gap_n, tr.gap_ids = 0, np.zeros(0, np.int64)
-                    out_rows.append(move)
-                    out_tgt.append((t, -1))
-        for t in np.flatnonzero(~found):  # no candidate this frame: the count restarts
-            tracks[t].gap_n = 0
-        self._revive(b, out_rows, out_tgt, owner, rep, tracks, taken, flow, fvalid, tflow, R1, dt_s)
-        return out_rows, out_tgt
-
-    @staticmethod
-    def _components(m: int, li: np.ndarray, lj: np.ndarray) -> np.ndarray:
-        """Connected components of m nodes linked by the pairs (li, lj) (K,) int, given in both
-        directions and sorted by li: per node the smallest node index of its component (min-label
-        propagation over the links with pointer jumping)."""
-        labels = np.arange(m)
-        if not len(li):
-            return labels
-        st = np.flatnonzero(np.r_[True, li[1:] != li[:-1]])
-        heads = li[st]
-        for _ in range(m):
-            nxt = labels.copy()
-            nxt[heads] = np.minimum(labels[heads], np.minimum.reduceat(labels[lj], st))
-            nxt = nxt[nxt]
-            if np.array_equal(nxt, labels):
-                break
-            labels = nxt
-        return labels
 
     @staticmethod
     def _group_lower_median(keys: np.ndarray, vals: np.ndarray, T: int) -> np.ndarray:

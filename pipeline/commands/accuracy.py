@@ -6,7 +6,7 @@ Prints one table (ours, the thesis's two-frame law-of-sines method, the target, 
 the 18 fresh-seed validation scenes (``accuracy_validation.*``), ``--set both`` tuned and held-out
 side by side (``accuracy_both.*``), ``--set all`` the three. ``--override section.key=value`` sets a
 config key for every scene's run (``fisheye-des run --set``'s grammar), e.g.
-``--override tracker.grouping.gap_factor=3``; pipeline mode keeps scene renders in
+``--override tracker.grouping.link_px=30``; pipeline mode keeps scene renders in
 ``~/.cache/fisheye-des/accuracy`` (``--no-render-cache``: in ``--out`` as before).
 """
 
@@ -73,7 +73,7 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--override",
                 help="Override a config key for every scene's run: section.key=value (repeat), the "
-                "grammar of `fisheye-des run --set`, e.g. --override tracker.grouping.gap_factor=3 or "
+                "grammar of `fisheye-des run --set`, e.g. --override tracker.grouping.link_px=30 or "
                 "--override fusion.feature_point_sigma_k=2.5. Checked before anything runs. Front-end "
                 "sections (detector, tracker, ...) change the --reuse-frontend recording key, so a "
                 "changed front end is tracked again, not replayed. --max-speed wins over "

@@ -201,8 +201,8 @@ def test_override_reaches_the_scene_config_and_the_recording_key(tmp_path):
 
     d = _scene_folder(tmp_path)
     base = scene_config(d)
-    cfg = scene_config(d, ("tracker.grouping.gap_factor=3", "fusion.feature_point_sigma_k=2.5"))
-    assert cfg.tracker.grouping == {"gap_factor": 3} and "gap_factor" not in base.tracker.grouping
+    cfg = scene_config(d, ("tracker.grouping.link_px=30", "fusion.feature_point_sigma_k=2.5"))
+    assert cfg.tracker.grouping == {"link_px": 30} and "link_px" not in base.tracker.grouping
     assert cfg.fusion.feature_point_sigma_k == 2.5
     assert [str(v) for v in cfg.inputs.videos] == [str(d / "cam0.mkv")]  # the scene's own inputs kept
     parts = {"quick": False, "duration_s": 4.0, "scenario_yaml": "x"}
@@ -226,11 +226,11 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
 
     monkeypatch.setattr(acc, "run_accuracy", fake)
     r = CliRunner().invoke(app, ["accuracy", "--mode", "pipeline", "--set", "validation",
-                                 "--override", "tracker.grouping.gap_factor=3",
+                                 "--override", "tracker.grouping.link_px=30",
                                  "--override", "fusion.feature_point_sigma_k=2.5", "--max-speed", "4"])
     assert r.exit_code == 0, r.output
     o = seen["opts"]
-    assert o.overrides == ("tracker.grouping.gap_factor=3", "fusion.feature_point_sigma_k=2.5")
+    assert o.overrides == ("tracker.grouping.link_px=30", "fusion.feature_point_sigma_k=2.5")
     assert o.scene_set == "validation" and o.render_cache
     assert o.settings.feature_point_sigma_k == 2.5 and o.settings.max_speed_mps == 4.0
     from estimators.fusion import FusionSettings
@@ -242,12 +242,12 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
 @pytest.mark.parametrize(
     "item, expect",
     [
-        ("tracker.grouping.gap_factr=3", ["tracker.grouping.gap_factr", "did you mean 'gap_factor'"]),
-        ("tracker.grping.gap_factor=3", ["--override tracker.grping.gap_factor=3", "unknown key 'grping'",
+        ("tracker.grouping.link_pz=3", ["tracker.grouping.link_pz", "did you mean 'link_px'"]),
+        ("tracker.grping.link_px=30", ["--override tracker.grping.link_px=30", "unknown key 'grping'",
                                          "did you mean 'grouping'"]),
         ("fusion.feature_point_sigma_k=abc", ["--override fusion.feature_point_sigma_k=abc",
                                               "expected float"]),
-        ("gap_factor", ["--override 'gap_factor'", "expected section.key=value"]),
+        ("link_px", ["--override 'link_px'", "expected section.key=value"]),
         ("tracker.features.max_features=2.5", ["tracker.features.max_features=2.5", "integer"]),
     ],
 )
