@@ -1258,26 +1258,36 @@ class BoxTracker:
         by_id = {t.id: t for t in feats}
         links: dict[int, int] = {}
         now: set[tuple[int, int]] = set()
-        for b in seen:
+        if seen and feats:
+            # all members at once: cosines against each box, compared with cos(radius) (no arccos)
+            n_mem = np.array([len(f.members) for f in feats])
+            start = np.concatenate([[0], np.cumsum(n_mem)])
+            owner = np.repeat(np.arange(len(feats)), n_mem)
+            mem_b = np.concatenate([f.member_b_C for f in feats])  # (M, 3)
+            rep_b = np.array([f.b_C for f in feats])  # (T, 3)
+            n_min = np.maximum(np.minimum(self.link_min_members, n_mem), (n_mem + 1) // 2)
+        for b in seen if feats else ():
             radius = self._half.get(b.id, 0.0) + self.link_margin_px * rad_px
-            best: tuple[float, int] | None = None  # (angle to the feature track's bearing, its id)
-            for f in feats:
-                ang = angle_between(f.member_b_C, b.b_C)
-                d_c = float(angle_between(f.b_C, b.b_C))
-                # its bearing and most of its members in the box (features on the lights' object)
-                n_in = int(np.count_nonzero(ang <= radius))
-                n_min = max(min(self.link_min_members, len(f.members)), (len(f.members) + 1) // 2)
-                if d_c > radius or n_in < n_min:
-                    continue
+            cos_r = np.cos(radius)
+            cos_c = rep_b @ b.b_C
+            cand = np.flatnonzero(cos_c >= cos_r)  # its bearing in the box ...
+            if not len(cand):
+                continue
+            cos_m = mem_b @ b.b_C
+            n_in = np.bincount(owner[cos_m >= cos_r], minlength=len(feats))
+            best: tuple[float, int] | None = None  # (-cos to the feature track's bearing, its id)
+            for ti in cand[n_in[cand] >= n_min[cand]]:  # ... and most of its members too
+                f = feats[ti]
+                seg = cos_m[start[ti]:start[ti + 1]]
+                k = np.argsort(-seg, kind="stable")[:8]  # the members nearest the box: does it move with them
                 key = (b.id, f.id)
-                k = np.argsort(ang)[:8]  # the members nearest the box: does it move with them?
                 h = self._hist.setdefault(key, deque(maxlen=self.link_frames + 1))
                 near = dict(zip(f.members[k].tolist(), f.member_b_C[k], strict=True))
                 h.append((self._n, near, b.b_C.copy()))
                 now.add(key)
                 held = self.links.get(b.id) == f.id  # a link holds while the pair stays so placed
-                if (held or self._moves_with(h, rad_px)) and (best is None or d_c < best[0]):
-                    best = (d_c, f.id)
+                if (held or self._moves_with(h, rad_px)) and (best is None or -cos_c[ti] < best[0]):
+                    best = (-float(cos_c[ti]), f.id)
             if best is not None:
                 links[b.id] = best[1]
         for key in [k for k in self._hist if k not in now]:

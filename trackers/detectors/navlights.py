@@ -148,7 +148,7 @@ class NavLightsDetector(Detector):
         self.box_margin_px = float(box_margin_px)
         self.single_lights = bool(single_lights)
         self.single_max_area_px = int(single_max_area_px)
-        self._box_cache: tuple[int, tuple[int, ...], tuple[int, int, int, int]] | None = None
+        self._box_cache: dict[int, tuple[np.ndarray, tuple[int, ...], tuple[int, int, int, int]]] = {}
 
     # ------------------------------------------------------------------------------ colour
     def _colour(self, hsv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -171,14 +171,17 @@ class NavLightsDetector(Detector):
         return res
 
     def _crop_box(self, mask: np.ndarray | None, shape_hw: tuple[int, int]) -> tuple[int, int, int, int]:
-        """The mask's bounding box, remembered for the same mask object (the front end passes one
-        fixed lens mask per camera)."""
+        """The mask's bounding box, remembered per mask object (the front end passes one fixed lens
+        mask per camera; the mask is kept referenced so that its id is not reused)."""
         if mask is None:
             return _mask_box(None, shape_hw)
-        key = (id(mask), mask.shape)
-        if self._box_cache is None or self._box_cache[:2] != key:
-            self._box_cache = (*key, _mask_box(mask, shape_hw))  # type: ignore[assignment]
-        return self._box_cache[2]  # type: ignore[index]
+        hit = self._box_cache.get(id(mask))
+        if hit is None or hit[0] is not mask or hit[1] != mask.shape:
+            if len(self._box_cache) > 16:
+                self._box_cache.clear()
+            hit = (mask, mask.shape, _mask_box(mask, shape_hw))
+            self._box_cache[id(mask)] = hit
+        return hit[2]
 
     # ------------------------------------------------------------------------------ detect
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
