@@ -361,7 +361,12 @@ def unheld(members: list[np.ndarray], held_ids: np.ndarray, min_held: int = 3) -
     Returns:
         (len(members),) bool, True where fewer than ``min_held`` members are in ``held_ids``.
     """
+    n = len(members)
+    if not n:
+        return np.zeros(0, bool)
     held = np.asarray(held_ids, np.int64).reshape(-1)
-    return np.array(
-        [int(np.isin(np.asarray(m, np.int64), held).sum()) < min_held for m in members], bool
-    ).reshape(len(members))
+    ids = [np.asarray(m, np.int64).reshape(-1) for m in members]
+    # one membership test for all tracks' members; count each track's held ones (run of its members)
+    owner = np.repeat(np.arange(n), [len(m) for m in ids])
+    hit = np.isin(np.concatenate(ids), held)
+    return np.bincount(owner[hit], minlength=n) < min_held
