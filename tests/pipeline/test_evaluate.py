@@ -406,3 +406,34 @@ def test_frames_outside_the_scenario_are_counted_and_flagged(scen_dir, tmp_path)
     m = evaluate([(_write_run(tmp_path, frames), scen_dir)]).metrics
     assert m["overall"]["frames_outside_truth"] == 1 and m["overall"]["all_reports"] == 0
     assert "1 tracks.jsonl frames lie outside the scenario's time span" in format_table(m)
+
+
+def test_a_narrow_miss_goes_to_the_obstacle_it_passes_not_to_a_big_bounding_sphere():
+    """A tall pole 6 m away has a bounding sphere of ~+-30 deg; a ray 0.3 deg beside a sphere 15 m
+    away, far from the pole's surface but inside its sphere's cone, is a narrow miss of the sphere.
+    Geometry by hand: the sphere (centre [15, 0, 2], R 0.9) is seen from the origin at 2 m height
+    along +x; the ray is turned about z by asin(0.9 / 15) + 0.3 deg; the pole stands at y = -2.5
+    (its nearest surface 13+ deg from that ray)."""
+    from pipeline.evaluate import _nearest_obstacle
+    from pipeline.sim.world import World
+
+    scn = scenario_from_dict({
+        "name": "poleball", "seed": 1, "fps": 10.0, "duration_s": 1.0,
+        "rig": {"kind": "mono", "resolution": [64, 48]},
+        "observer": {"kind": "straight", "speed_mps": 0.0, "start": {"position_m": [0, 0, 2.0]}},
+        "obstacles": [
+            {"id": 1, "kind": "pole", "radius_m": 0.15, "height_m": 7.0, "position_m": [6.0, -2.5, 0.0]},
+            {"id": 2, "kind": "sphere", "radius_m": 0.9, "position_m": [15.0, 0.0, 2.0]},
+        ],
+    })
+    world = World(scn)
+    placed = {p.spec.id: p for p in world.place(0.0)}
+    o = np.array([0.0, 0.0, 2.0])
+    a = math.asin(0.9 / 15.0) + math.radians(0.3)
+    d = np.array([math.cos(a), -math.sin(a), 0.0])  # beside the sphere, towards the pole's side
+    pole = placed[1]
+    v = pole.bound_c_W - o
+    ang_pole = math.acos(d @ v / np.linalg.norm(v)) - math.asin(pole.bound_r / np.linalg.norm(v))
+    assert ang_pole < 0.0  # the premise: inside the pole's bounding-sphere cone
+    tol = math.radians(2.0)
+    assert _nearest_obstacle(placed, o, d, tol, world, 0.0) == 2
