@@ -167,7 +167,8 @@ class DetectorConfig(_Section):
     name: str = Field(
         "orb",
         description="str: detector registry name: 'orb', 'navlights', 'kornia', 'torch' or a plug-in's name "
-        "(entry-point group fisheye_des.detectors).",
+        "(entry-point group fisheye_des.detectors); '<keypoint detector>+<box detector>' runs both in one "
+        "front end, e.g. 'orb+navlights' (options per part: {orb: {...}, navlights: {...}}).",
     )
     options: dict[str, Any] = Field(
         default_factory=dict, description="dict: keyword options passed to the detector's constructor."
