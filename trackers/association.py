@@ -370,3 +370,109 @@ def unheld(members: list[np.ndarray], held_ids: np.ndarray, min_held: int = 3) -
     owner = np.repeat(np.arange(n), [len(m) for m in ids])
     hit = np.isin(np.concatenate(ids), held)
     return np.bincount(owner[hit], minlength=n) < min_held
+
+
+def box_pairs(
+    b0: np.ndarray,
+    half0: np.ndarray,
+    b1: np.ndarray,
+    half1: np.ndarray,
+    R_C1_C0: np.ndarray,
+    t_C1_C0: np.ndarray,
+    margin_rad: float = 0.0,
+    compatible: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Box detections of two cameras that can be one obstacle: their centres' bearings satisfy the
+    epipolar constraint within the boxes' angular size, and their rays meet ahead of both cameras.
+
+    A box centre is not one physical point (each camera sees the lights, or the object, from its
+    own side), so the tolerance is the larger box's angular half-diagonal plus ``margin_rad``:
+        |b1 . n| / |n| < sin(max(half0, half1) + margin),  n = t_hat x R b0   (coplanarity)
+    Ahead: the closest points of the rays c0 + s R b0 and c1 + u b1 (in C1: c0 = t, c1 = 0) have
+    s >= 0 and u >= 0, with (d = R b0, c = d . b1)
+        s = (c (b1 . t) - d . t) / (1 - c^2),   u = b1 . t + s c;
+    near-parallel rays (1 - c^2 < 1e-12, an obstacle far beyond the baseline) count as ahead when
+    c > 0. A pair is kept when each box is the other's only candidate (an ambiguous pair links
+    nothing: two reports are better than one wrong merge).
+
+    Args:
+        b0: (N0, 3) unit centre bearings in C0; half0: (N0,) rad their boxes' angular half-diagonals.
+        b1: (N1, 3) unit centre bearings in C1; half1: (N1,) rad.
+        R_C1_C0 (3, 3), t_C1_C0 (3,) m: p_C1 = R p_C0 + t.
+        margin_rad: added to the tolerance (rad).
+        compatible: (N0, N1) bool, pairs whose labels / attributes agree (None: all).
+    Returns:
+        (i0 (K,), i1 (K,)) int row pairs.
+    """
+    b0 = np.asarray(b0, float).reshape(-1, 3)
+    b1 = np.asarray(b1, float).reshape(-1, 3)
+    e = np.zeros(0, np.intp)
+    if not len(b0) or not len(b1):
+        return e, e
+    R = np.asarray(R_C1_C0, float)
+    t = np.asarray(t_C1_C0, float).reshape(3)
+    d = b0 @ R.T  # (N0, 3) camera 0's rays in C1
+    tol = np.maximum(np.asarray(half0, float)[:, None], np.asarray(half1, float)[None, :]) + margin_rad
+    tn = np.linalg.norm(t)
+    if tn > 0:
+        n = np.cross(t / tn, d)
+        nn = np.linalg.norm(n, axis=1)
+        res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
+        res[nn <= 1e-9] = 0.0  # along the baseline: every plane holds it (the angle test decides)
+    else:
+        res = np.linalg.norm(np.cross(d[:, None, :], b1[None, :, :]), axis=2)  # rays equal
+    ok = res < np.sin(np.minimum(tol, np.pi / 2))
+    c = d @ b1.T  # (N0, N1) cosines between the rays
+    dt = d @ t  # (N0,)
+    bt = b1 @ t  # (N1,)
+    den = 1.0 - c * c
+    par = den < 1e-12
+    s = (c * bt[None, :] - dt[:, None]) / np.where(par, 1.0, den)
+    u = bt[None, :] + s * c
+    ok &= np.where(par, c > 0, (s >= 0) & (u >= 0))
+    if compatible is not None:
+        ok &= np.asarray(compatible, bool)
+    one0 = ok.sum(axis=1) == 1
+    one1 = ok.sum(axis=0) == 1
+    i0, i1 = np.nonzero(ok)
+    keep = one0[i0] & one1[i1]
+    return i0[keep], i1[keep]
+
+
+def boxes_compatible(attrs0: dict, attrs1: dict) -> bool:
+    """Whether two box detections' attributes can describe one obstacle: a ``heading`` (or
+    ``colour``) both give must agree, and lights (``red_uv`` / ``green_uv`` not None, navlights)
+    seen by both must share a colour (a lone red light is not a lone green one)."""
+    for key in ("heading", "colour"):
+        v0, v1 = attrs0.get(key), attrs1.get(key)
+        if v0 is not None and v1 is not None and v0 != v1:
+            return False
+    c0 = {k for k in ("red_uv", "green_uv") if attrs0.get(k) is not None}
+    c1 = {k for k in ("red_uv", "green_uv") if attrs1.get(k) is not None}
+    return not (c0 and c1 and not c0 & c1)
+
+
+class BoxStereo:
+    """Which box tracks of two cameras are one obstacle: a (track of camera 0, track of camera 1)
+    pair ``box_pairs`` keeps in ``frames`` consecutive updates is linked (a chance alignment of two
+    obstacles on one epipolar curve rarely lasts while they move).
+
+    Args:
+        frames: consecutive updates a pair must be kept in before it is linked (>= 1).
+    """
+
+    def __init__(self, frames: int = 2) -> None:
+        self.frames = int(frames)
+        self._run: dict[tuple[int, int], tuple[int, int]] = {}  # pair -> (last update, run length)
+        self._n = 0
+
+    def update(self, pairs: list[tuple[int, int]]) -> list[tuple[int, int]]:
+        """Record this update's kept pairs (track ids, camera 0's first); returns those linked now
+        (kept in ``frames`` consecutive updates, this one included)."""
+        self._n += 1
+        run = {}
+        for p in pairs:
+            last, k = self._run.get(p, (0, 0))
+            run[p] = (self._n, k + 1 if last == self._n - 1 else 1)
+        self._run = run  # a pair not kept this update starts again
+        return [p for p, (_, k) in run.items() if k >= self.frames]

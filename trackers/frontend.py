@@ -24,7 +24,16 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
-from trackers.association import consistent_pairs, klt_links, match_features, stereo_klt, unheld
+from trackers.association import (
+    BoxStereo,
+    box_pairs,
+    boxes_compatible,
+    consistent_pairs,
+    klt_links,
+    match_features,
+    stereo_klt,
+    unheld,
+)
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import FeatureTracker, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -271,6 +280,8 @@ class FrontEnd:
         self._follow_only: set[tuple[str, str]] = set()
         self._retry_rows: dict[tuple[str, str], np.ndarray] = {}
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
+        # box tracks of the reference camera and another linked as one obstacle (_associate_boxes)
+        self._box_stereo = {(rig.cameras[0].name, c.name): BoxStereo(2) for c in rig.cameras[1:]}
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
         # feature id -> the id it is reported under (the reference camera's matched feature, or a
         # fresh id once its link would have changed), and which of its features holds each ref id
@@ -400,6 +411,8 @@ class FrontEnd:
             self._prefetch_stereo(seen, greys, assoc_now)
         if assoc_now:
             absorbed = self._associate(seen, greys)
+        if len(self.cams) > 1 and self.boxers:  # box tracks: every frame (no features to match)
+            absorbed += self._associate_boxes(seen)
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
@@ -683,6 +696,86 @@ class FrontEnd:
                         self._gid[lid] = keep
                 self._gid[ta] = keep
                 self._gid[tb] = keep
+                if drop in self._reported:
+                    absorbed.append(drop)
+        return absorbed
+
+    def _box_fold(self, seen, a: tuple, b: tuple) -> tuple[int, int] | None:
+        """(kept, dropped) global ids when one side of a linked box pair is a box linked to a
+        feature track (``BoxTracker.links``) and the other a visible box whose camera already has a
+        track of that feature track's obstacle lying on the box (its bearing within the box's 3
+        sigma_rad + the BoxTracker's gate_rad): the box is folded into that obstacle (reported
+        once; the track listed first in that camera gives the view). Else None.
+        a, b: (camera, box track id, standing-for track id, global id)."""
+        for (_, tf_, lf, gf), (cv, tv, lv, gv) in ((a, b), (b, a)):
+            if lf == tf_ or lv != tv:
+                continue  # not (a box on a feature track, a visible box)
+            box = self.boxers[cv].tracks.get(tv)
+            if box is None:
+                continue
+            reach = 3.0 * box.sigma_rad + self.boxers[cv].gate_rad
+            for tr in seen.get(cv, ()):
+                if tr.id != tv and self._global(tr.id) == gf and float(tr.b_C @ box.b_C) >= np.cos(reach):
+                    return gf, gv
+        return None
+
+    def _associate_boxes(self, seen: dict[str, list[ObstacleTrack]]) -> list[int]:
+        """Link box tracks (BoxTracker) of another camera to the reference camera's (the rig's
+        first) that are one obstacle: box centres epipolar-consistent within the larger box's
+        angular half-diagonal (3 sigma_rad) plus ``association.epipolar_deg``, rays meeting ahead
+        of both cameras, the same label and compatible attributes (``boxes_compatible``), each box
+        the other's only candidate, in 2 consecutive frames (trackers/association.py ``box_pairs``,
+        ``BoxStereo``). A box linked to a feature track of its camera (``BoxTracker.links``) stands
+        for that track; a pair whose boxes are both so linked is left to ``_associate``; a visible
+        box whose partner stands for a feature track already seen in the box's camera is folded
+        into that obstacle when that track lies on the box (``_box_fold``). Box tracks
+        have no member features, so the two views carry no shared feature ids.
+
+        Returns the global ids absorbed into another this frame (to be reported lost once)."""
+        ref = self.rig.cameras[0].name
+        absorbed: list[int] = []
+        if ref not in self.boxers:
+            return absorbed
+        box_a = self.boxers[ref]
+        A = [t for t in box_a.tracks.values() if t.seen]
+        for b, box_b in self.boxers.items():
+            if b == ref:
+                continue
+            B = [t for t in box_b.tracks.values() if t.seen]
+            pairs: list[tuple[int, int]] = []
+            if A and B:
+                T = self._T_b_a[(ref, b)]  # T_Cb_Ca
+                comp = np.array(
+                    [[ta.label == tb.label and boxes_compatible(ta.attributes, tb.attributes) for tb in B]
+                     for ta in A]
+                )
+                i0, i1 = box_pairs(
+                    np.array([t.b_C for t in A]), np.array([3.0 * t.sigma_rad for t in A]),
+                    np.array([t.b_C for t in B]), np.array([3.0 * t.sigma_rad for t in B]),
+                    T.R, T.t, self.epipolar_rad, comp,
+                )
+                pairs = [(A[i].id, B[j].id) for i, j in zip(i0.tolist(), i1.tolist(), strict=True)]
+            for ta, tb in self._box_stereo[(ref, b)].update(pairs):
+                la, lb = box_a.links.get(ta, ta), box_b.links.get(tb, tb)
+                if la != ta and lb != tb:
+                    continue
+                ga, gb = self._global(la), self._global(lb)
+                if ga == gb:
+                    continue
+                keep, drop = self._survivor(ga, gb)
+                if ga in self._gids_in(b) or gb in self._gids_in(ref):
+                    # one box stands for a feature track whose obstacle already has a track in the
+                    # other box's camera: that box is a second report of it there when that track
+                    # lies on the box (within 3 sigma + the BoxTracker's gate): folded into it
+                    fold = self._box_fold(seen, (ref, ta, la, ga), (b, tb, lb, gb))
+                    if fold is None:
+                        continue  # linked to another track in that camera
+                    keep, drop = fold
+                for lid, g in list(self._gid.items()):
+                    if g == drop:
+                        self._gid[lid] = keep
+                self._gid[la] = keep
+                self._gid[lb] = keep
                 if drop in self._reported:
                     absorbed.append(drop)
         return absorbed
