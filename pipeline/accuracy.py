@@ -985,7 +985,7 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         if opts.quick:  # long enough for "after 1 s in view"
             scn = scn.model_copy(update={"duration_s": max(scn.duration_s, 2.0)})
         scene_parts = {"quick": bool(opts.quick), "duration_s": float(scn.duration_s),
-                       "scenario_yaml": yaml_path.read_text()}
+                       "scenario_yaml": yaml_path.read_text(), "render": render_key(scn)}
         sdir = _scene_dir(opts, root, name, scn, scene_parts, progress)
         truth = ScenarioTruth.load(sdir)
         rdir = root / "runs" / name
@@ -1130,14 +1130,24 @@ def render_cache_dir() -> Path:
     return Path(base) / "fisheye-des" / "accuracy"
 
 
+# the estimators modules a render goes through: pixels <-> bearings (cameras), the rig and its poses
+# (rig, se3), the trajectory (egomotion) and the written camchain.yaml (calibration)
+_RENDER_ESTIMATORS = ("cameras.py", "rig.py", "se3.py", "egomotion.py", "calibration.py")
+
+
 def _sim_hash() -> str:
-    """sha1 of the simulator's sources (pipeline/sim/*.py): a render is only as current as they are."""
+    """sha1 of the simulator's sources (pipeline/sim/*.py) and of the estimators modules it renders
+    through (``_RENDER_ESTIMATORS``): a render is only as current as they are."""
     import hashlib
 
     h = hashlib.sha1()
-    root = Path(__file__).resolve().parent / "sim"
-    for p in sorted(root.rglob("*.py")):
-        h.update(p.relative_to(root).as_posix().encode())
+    pkg = Path(__file__).resolve().parent
+    root = pkg / "sim"
+    est = pkg.parent / "estimators"
+    files = [(p.relative_to(root).as_posix(), p) for p in sorted(root.rglob("*.py"))]
+    files += [(f"estimators/{n}", est / n) for n in _RENDER_ESTIMATORS]
+    for name, p in files:
+        h.update(name.encode())
         h.update(p.read_bytes())
     return h.hexdigest()
 
@@ -1184,9 +1194,9 @@ def _cached_render(scn, progress) -> Path:
 
 def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: dict, progress) -> Path:
     """``root/scenes/<name>``, holding the render of ``scn``: an earlier run's own render there whose
-    scene key (``scene_parts``: --quick, length, scenario text) matches is used as it is; otherwise,
-    with ``opts.render_cache``, a link to the cached render (:func:`_cached_render`); without it, a
-    render made there."""
+    scene key (``scene_parts``: --quick, length, scenario text, render key) matches is used as it
+    is; otherwise, with ``opts.render_cache``, a link to the cached render (:func:`_cached_render`);
+    without it, a render made there."""
     import shutil
 
     sdir = root / "scenes" / name
@@ -1267,7 +1277,8 @@ def _key(obj) -> str:
 def frontend_key_parts(scene_parts: dict, cfg, scene_dir: str | Path | None = None) -> dict:
     """What a recording of the front end's observations depends on, by part: "trackers" (sha1 of
     trackers/*.py), "scene" (scene_parts: the --quick flag, the scene length in s, the scenario
-    YAML text) and "frontend config" (the sections of ``cfg``, a PipelineConfig, the front end
+    YAML text, the render key: a recording made on another render is stale) and "frontend config"
+    (the sections of ``cfg``, a PipelineConfig, the front end
     reads: rig, ego_motion, detector, tracker, inputs). With ``scene_dir`` (the folder the scene's
     inputs are read from), paths inside it are written relative to it ("<scene>/cam0.mkv"), so a
     copy of an output folder replays its recordings (the scene's content is in "scene")."""

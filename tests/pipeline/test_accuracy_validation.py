@@ -279,6 +279,21 @@ def test_render_cache_key_ignores_comments_and_follows_the_scenario(tmp_path):
     assert render_key(scn.model_copy(update={"seed": scn.seed + 1})) != render_key(scn)
 
 
+def test_render_key_follows_the_camera_code_a_render_goes_through(monkeypatch):
+    """The renderer turns pixels into bearings with estimators/cameras.py: a render made before a
+    change there must not be reused, so the key hashes it (and rig, se3, egomotion, calibration)."""
+    import pipeline.accuracy as acc
+    from pipeline.sim.scene import load_scenario
+
+    scn = load_scenario(SCEN / "ci_small.yaml")
+    full = acc.render_key(scn)
+    assert "cameras.py" in acc._RENDER_ESTIMATORS
+    rest = tuple(n for n in acc._RENDER_ESTIMATORS if n != "cameras.py")
+    monkeypatch.setattr(acc, "_RENDER_ESTIMATORS", rest)
+    assert acc.render_key(scn) != full
+
+
+
 def test_two_runs_share_one_cached_render(tmp_path, monkeypatch):
     """A scene rendered for one --out is linked, not rendered again, for another --out."""
     import pipeline.accuracy as acc
