@@ -212,6 +212,24 @@ def test_box_tracker_links_only_a_feature_track_on_the_box_that_moves_with_it():
     assert rad_px > 0
 
 
+def test_box_tracker_does_not_link_a_track_on_the_box_that_stays_still():
+    """The motion rule alone: a feature track that sits on the box in every frame (u = 164 +- 2, the
+    box's centre goes 160 -> 170 at 2 px a frame, so the track stays within its radius of ~6 + 3 px)
+    but does not move with it (4 px apart over link_frames 3 frames, link_tol_px 2) is never linked:
+    a drone passing in front of a textured obstacle must not be hidden behind that obstacle's track."""
+    model = equidistant()
+    cam = mono_forward_rig(model).cameras[0]
+    bt = BoxTracker(iter(range(1, 100)))
+    for k in range(6):
+        u0 = 160.0 + 2 * k
+        det = Detections(boxes=np.array([[u0 - 4, 116.0, u0 + 4, 124.0]]), labels=("drone",),
+                         attributes=({"heading": "away"},))
+        still, _ = model.pixel_to_bearing(np.array([[162.0, 119.0], [166.0, 121.0], [164.0, 120.0]]))
+        f_still = _ft(9, still)
+        seen, _ = bt.update(cam, det, [f_still])
+        assert len(seen) == 1 and bt.links == {} and "box_label" not in f_still.attributes
+
+
 @pytest.mark.parametrize("opts", [{"link_frames": 0}, {"link_tol_px": -1.0}, {"confirm_frames": 1.5},
                                   {"link_min_members": True}])
 def test_box_tracker_bad_options_are_config_errors(opts):
@@ -259,3 +277,20 @@ def test_navlights_a_lone_light_and_a_coloured_surface():
     hsv[..., 2] = rng.integers(150, 220, (60, 60))
     surf[90:150, 130:190] = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
     assert len(make_detector("navlights").detect(surf).boxes) == 0
+
+
+def test_navlights_takes_a_bool_mask_as_a_uint8_one():
+    """A lens mask given as bool (or 0/1) finds the same lights as the 0/255 uint8 one, and a mask
+    that hides the lights finds none (before: cv2.error on a bool mask)."""
+    img = sky()
+    img[119:121, 157:163] = (40, 40, 40)
+    draw_lights(img, (163, 120), (157, 120), radius=0)
+    det = make_detector("navlights")
+    on = np.zeros(img.shape[:2], np.uint8)
+    on[100:140, 140:180] = 255
+    want = det.detect(img, on).boxes
+    assert len(want) == 1
+    np.testing.assert_array_equal(make_detector("navlights").detect(img, on > 0).boxes, want)
+    off = np.ones(img.shape[:2], bool)
+    off[100:140, 140:180] = False
+    assert len(make_detector("navlights").detect(img, off).boxes) == 0

@@ -66,6 +66,12 @@ def _blobs(binary: np.ndarray, min_area: int, max_area: int) -> tuple[np.ndarray
     return c, np.stack([x, y, x + w - 1, y + h - 1], axis=1), area[ok].astype(float)
 
 
+def _u8(mask: np.ndarray) -> np.ndarray:
+    """A (H, W) mask as OpenCV's operation masks want it: uint8 as it is, any other dtype (bool, a 0/1
+    float) as uint8 of mask > 0."""
+    return mask if mask.dtype == np.uint8 else (mask > 0).astype(np.uint8)
+
+
 def _mask_box(mask: np.ndarray | None, shape_hw: tuple[int, int]) -> tuple[int, int, int, int]:
     """(x0, y0, x1, y1) px, the bounding box of ``mask`` > 0 (the whole frame when None)."""
     if mask is None:
@@ -203,7 +209,7 @@ class NavLightsDetector(Detector):
         cand = cv2.compare(v_rg, crop[:, :, 0], cv2.CMP_GE)
         cand &= cv2.compare(v_rg, self.min_value, cv2.CMP_GE)
         if mask is not None:
-            cand = cv2.bitwise_and(cand, cand, mask=mask[y0:y1, x0:x1])
+            cand = cv2.bitwise_and(cand, cand, mask=_u8(mask[y0:y1, x0:x1]))
         if cv2.countNonZero(cand) == 0:
             return Detections.empty()
         # the HSV test only in their box, grown by 8 px (the lone-light ring, the white light's window)
@@ -216,7 +222,7 @@ class NavLightsDetector(Detector):
         lit = cv2.inRange(hsv, (0, *lo), (90, *hi))
         lit |= cv2.inRange(hsv, (170, *lo), (179, *hi))
         if mask is not None:
-            lit = cv2.bitwise_and(lit, lit, mask=mask[y0:y1, x0:x1])
+            lit = cv2.bitwise_and(lit, lit, mask=_u8(mask[y0:y1, x0:x1]))
         if cv2.countNonZero(lit) == 0:
             return Detections.empty()
         # red and green, labelled into blobs, only in the box around the lit pixels
