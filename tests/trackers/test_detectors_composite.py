@@ -84,6 +84,9 @@ def test_any_keypoint_and_box_detector_combine_by_name():
         ("navlights+orb", {}, "gives no keypoints"),
         ("orb+orb", {}, "two different"),
         ("orb+nosuch", {}, "unknown detector"),
+        ("orb+", {}, "expected '<keypoint detector>\\+<box detector>'"),
+        ("+navlights", {}, "two names, one"),
+        ("orb+navlights+kornia", {}, "two names, one"),
         ("orb+navlights", {"orb": {"max_features": 0}}, "max_features"),
     ],
 )

@@ -197,10 +197,16 @@ def make_detector(name: str, **options: Any) -> Detector:
     factory = _REGISTRY.get(name)
     if factory is None and "+" in name and name not in _entry_points():
         # "<keypoint detector>+<box detector>": a composite of two registered detectors
-        kp, _, box = name.partition("+")
+        parts = [p.strip() for p in name.split("+")]
+        if len(parts) != 2 or not all(parts):
+            raise ConfigError(
+                f"detector {name!r}: expected '<keypoint detector>+<box detector>', e.g. 'orb+navlights' "
+                f"(two names, one '+'); installed detectors: {', '.join(available_detectors())}"
+            )
+        kp, box = parts
         from trackers.detectors.composite import CompositeDetector
 
-        det = CompositeDetector(kp.strip(), box.strip(), **options)
+        det = CompositeDetector(kp, box, **options)
         det.name = name
         return det
     if factory is None:
