@@ -62,9 +62,9 @@ def register(app: typer.Typer) -> None:
                 "fitted on), heldout (configs/scenarios/heldout_*.yaml, used to fit nothing), validation "
                 "(configs/scenarios/val_*.yaml and val2_*.yaml: 18 fresh-seed copies of the five held-out "
                 "scenes and mono_straight, moving_crossing, stereo_flying, turning; used to fit nothing; "
-                "pipeline mode, no --quick), both (tuned and heldout: each table, then side by side and "
-                "per scene) or all (tuned, heldout, validation). Pipeline mode also prints each set's "
-                "pooled range z^2 (median, mean without the top 1 %, share > 9) and its top 10 z^2 "
+                "no --quick scenes in pipeline mode), both (tuned and heldout: each table, then side by "
+                "side and per scene) or all (tuned, heldout, validation). Pipeline mode also prints each "
+                "set's pooled range z^2 (median, mean without the top 1 %, share > 9) and its top 10 z^2 "
                 "reports. With --out, a set other than tuned writes accuracy_<set>.json / .txt.",
             ),
         ] = "tuned",
