@@ -1039,14 +1039,15 @@ def scene_config(sdir: Path, overrides: tuple[str, ...] | list[str] = ()):
     (``section.key=value``, ``fisheye-des run --set``'s grammar and parser; a bad one is a
     ConfigError naming it as ``--override ITEM``)."""
     cams = sorted(p.name[: -len(".mkv")] for p in Path(sdir).glob("*.mkv"))
-    return _load_config(overrides, {
-        "inputs.videos": [str(sdir / f"{c}.mkv") for c in cams],
-        "rig.calibration": str(sdir / "camchain.yaml"),
-        "rig.cameras": None,
-        "ego_motion.trajectory": str(sdir / "trajectory.tum"),
-        "ego_motion.speed_mps": None,
-        "outputs.progress": False,
-    })
+    values = ([str(sdir / f"{c}.mkv") for c in cams], str(sdir / "camchain.yaml"), None,
+              str(sdir / "trajectory.tum"), None, False)
+    return _load_config(overrides, dict(zip(_SCENE_KEYS, values, strict=True)))
+
+
+# the config keys scene_config sets from each render (in its order): an --override of one would be
+# ignored, so settings_from_overrides refuses it
+_SCENE_KEYS = ("inputs.videos", "rig.calibration", "rig.cameras", "ego_motion.trajectory",
+               "ego_motion.speed_mps", "outputs.progress")
 
 
 def _load_config(overrides, cli: dict | None = None):
@@ -1091,6 +1092,12 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
     from estimators.errors import ConfigError
     from pipeline.config import _suggest
 
+    for item in overrides:
+        key = item.split("=", 1)[0].strip()
+        if key in _SCENE_KEYS:
+            raise ConfigError(f"--override {item}: {key} is set from each scene's render (its videos, "
+                              "calibration and trajectory) and cannot be overridden; expected a detector, "
+                              "tracker or fusion key")
     cfg = _load_config(overrides)
     for group, (mod, cls) in _TRACKER_GROUPS.items():
         given = getattr(cfg.tracker, group) or {}
@@ -1112,6 +1119,13 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
             given = [o for o in overrides
                      if o.split("=", 1)[0].strip().split(".")[0] in ("detector", "tracker")]
             raise ConfigError(f"--override {' '.join(given)}: the front end refuses it: {e}") from None
+        if cfg.tracker.boxes:  # built by the front end only for a box detector: check the values anyway
+            from trackers.grouping import BoxTracker
+
+            try:
+                BoxTracker(iter(()), **cfg.tracker.boxes)
+            except ConfigError as e:
+                raise ConfigError(f"--override tracker.boxes: {e}") from None
     kw = {k: getattr(cfg.fusion, k) for k in cfg.fusion.model_fields_set}
     if max_speed_mps is not None:
         kw["max_speed_mps"] = max_speed_mps

@@ -249,6 +249,9 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
                                               "expected float"]),
         ("link_px", ["--override 'link_px'", "expected section.key=value"]),
         ("tracker.features.max_features=2.5", ["tracker.features.max_features=2.5", "integer"]),
+        ("tracker.boxes.link_tol_px=-1", ["--override tracker.boxes", "link_tol_px"]),
+        ("ego_motion.speed_mps=3", ["--override ego_motion.speed_mps=3", "set from each scene's render"]),
+        ("rig.calibration=x.yaml", ["--override rig.calibration=x.yaml", "cannot be overridden"]),
     ],
 )
 def test_bad_override_is_a_clear_error_before_anything_runs(monkeypatch, item, expect):
