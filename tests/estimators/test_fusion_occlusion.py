@@ -34,11 +34,15 @@ def _bearing(cam, T_W_B, p_W):
     return p_C / np.linalg.norm(p_C)
 
 
-def _run(far_y: float, settings: FusionSettings | None = None, frames: int = 15):
-    """The far track's last report (three corners at (4, far_y, 0), (4, far_y, +-0.05)) and o."""
+def _run(far_y: float, settings: FusionSettings | None = None, frames: int = 15, hull_only: bool = False):
+    """The far track's last report (three corners at (4, far_y, 0), (4, far_y, +-0.05)) and o.
+    ``hull_only``: the camera-offset test off (offset 0, as on a mono rig whose camera sits at the
+    body origin), so only the convex-hull test can act."""
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(1.5)
     fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    if hull_only:
+        fus._cam_offset_m = 0.0
     far = [np.array([4.0, far_y, z]) for z in (-0.05, 0.0, 0.05)]
     for k in range(frames):
         t = k / FPS
@@ -76,3 +80,11 @@ def test_a_point_clear_of_the_nearer_track_keeps_its_sigma():
     r_off, _ = _run(-1.0, FusionSettings(occluder_min_members=0))
     assert r.range_m == pytest.approx(math.hypot(3.3, 1.0), rel=1e-3)
     assert r.range_sigma_m == r_off.range_sigma_m < 0.3
+
+
+def test_the_hull_test_alone_finds_the_plate_in_front_of_the_point():
+    # the body's line toward P crosses x = 2 at (y, z) = (0.394, 0): inside the plate's corners
+    # (y 0.25-0.45, z -0.1-0.1), so the hull test holds without the camera-offset test
+    r, o = _run(1.0, hull_only=True)
+    near = max(float(np.linalg.norm(p - o)) for p in PLATE)
+    assert r.range_sigma_m >= r.range_m - near
