@@ -282,7 +282,7 @@ class ObstacleGrouper:
         cos_link, cos_r = np.cos(self.link_rad), np.cos(self.max_radius_rad)
         R1 = R_C_Cprev.get(1) if R_C_Cprev else None
         self._remember_rotation(R1)
-        flow, fvalid, _ = self._flows(ft, t_s, R_C_Cprev)
+        flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
         fnorm = np.sqrt(np.einsum("ij,ij->i", flow, flow))
         b_prev, pvalid = ft.previous_bearing()
@@ -922,12 +922,12 @@ class ObstacleGrouper:
 
     def _flows(
         self, ft: FeatureTracker, t_s: float, R: dict[int, np.ndarray] | None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Per feature: flow (N,3) in rad/s = (b_now - R b_then) / dt over up to flow_frames frames,
-        whether it has one (N,) and that dt (N,) in s."""
+        and whether it has one (N,)."""
         n = len(ft.ids)
         if not n:
-            return np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0)
+            return np.zeros((0, 3)), np.zeros(0, bool)
         b_then, t_then, valid = ft.bearing_ago(self.flow_frames)
         if R:
             # b_then <- R_C_Cprev[k] b_then, k = frames back of each feature's sample (identity if absent)
@@ -941,7 +941,7 @@ class ObstacleGrouper:
         valid &= dt > 0
         flow = np.zeros((n, 3))
         flow[valid] = (ft.b_C[valid] - b_then[valid]) / dt[valid, None]
-        return flow, valid, dt
+        return flow, valid
 
     def _pieces(
         self,

@@ -211,7 +211,7 @@ def test_a_coasting_track_moves_on_with_its_flow(model):
     f = np.array([0.3, 0.0, 0.0])  # tangent at +z, rad/s
     tr = ObstacleTrack(1, "cam0", np.zeros(0, np.int64), unit([0, 0, 1]), flow_rad_s=f, status="confirmed")
     gr.tracks = {1: tr}
-    gr._flows = lambda *a, **k: (np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0))
+    gr._flows = lambda *a, **k: (np.zeros((0, 3)), np.zeros(0, bool))
     gr.update(ft, 0.0)
     np.testing.assert_allclose(tr.b_C, [0, 0, 1], atol=1e-12)  # first frame: no dt yet
     gr.update(ft, 0.1)
