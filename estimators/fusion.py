@@ -39,11 +39,7 @@ Measurements
       physical points), each shared feature is triangulated from its two rays of this frame and
       the fix is the point on the first camera's representative ray at their median range
       (``_feature_stereo``); it is fused as a point (never the second camera's representative
-      bearing, which lies on another part of the object: the ghost of centroid stereo). A fix
-      further than 3 joint sigmas from the median of the track's own static member points of the
-      frame (``_features_batch``'s least-squares points, >= 2) is refused and counted (``gated``):
-      shared ids that name different points in the two views (a repeated texture) meet short of
-      the object (val2_heldout_stereo_flying tracks 142, 249: 1.35 m on a sphere at 3.5 m). Without
+      bearing, which lies on another part of the object: the ghost of centroid stereo). Without
       shared ids the representative bearings are triangulated, as follows.
     * Stereo: when two cameras see the track in one frame, ``geometry.triangulate`` gives a point.
       It initialises the track (moving hypothesis) and switches a mono-initialised track to the
@@ -1200,22 +1196,6 @@ class ObstacleFusion:
             if abs(r_st - z) > 3.0 * math.hypot(sz, s_st):
                 stereo = None
                 tr.gated += 1
-        if (stereo is not None and tr.feature_stereo is not None and not tr.vel_moving
-                and self._members_ls is not None and tr.id in self._gidx):
-            # a feature stereo fix against the track's own static member points of this frame
-            # (their least-squares points over both cameras' rays of earlier frames): when they
-            # disagree beyond 3 joint sigmas, the shared ids' two rays are different points of the
-            # two views (a cross-camera id mismatch on a repeated texture meets short), not a range
-            g_m, r_m, _b_m, s_m = self._members_ls
-            mk = g_m == self._gidx[tr.id]
-            if int(mk.sum()) >= 2:
-                r_med = float(np.median(r_m[mk]))
-                s_med = math.sqrt(0.5 * math.pi * float(np.median(s_m[mk] ** 2)) / int(mk.sum()))
-                r_st = float(np.linalg.norm(stereo[0] - sg.o_W))
-                s_st = tr.feature_stereo[1]
-                if abs(r_st - r_med) > 3.0 * math.hypot(s_st, s_med):
-                    stereo = None
-                    tr.gated += 1
         init_pair = None
         if (stereo is None and not tr.moving and tr.feature_range is None
                 and len(sg.views[0].feature_ids) >= s.feature_min_count):
