@@ -577,16 +577,7 @@ class KannalaBrandt(_ThetaModel):
         with np.errstate(divide="ignore", invalid="ignore"):
             for _ in range(2):
                 t2 = theta * theta
-                # f = theta (1 + t2 (k1 + t2 (k2 + t2 (k3 + t2 k4))))
-                f = t2 * k4
-                f += k3
-                f *= t2
-                f += k2
-                f *= t2
-                f += k1
-                f *= t2
-                f += 1
-                f *= theta
+                f = self._theta_d_in_place(theta, t2)
                 # df = 1 + t2 (3 k1 + t2 (5 k2 + t2 (7 k3 + t2 9 k4)))
                 df = t2 * 9
                 df *= k4
@@ -606,22 +597,28 @@ class KannalaBrandt(_ThetaModel):
         nan = np.isnan(theta)
         if nan.any():
             theta[nan] = 0.0
-        t2 = theta * theta
-        f = t2 * k4
-        f += k3
-        f *= t2
-        f += k2
-        f *= t2
-        f += k1
-        f *= t2
-        f += 1
-        f *= theta
+        f = self._theta_d_in_place(theta, theta * theta)
         f -= target
         np.abs(f, out=f)
         miss = np.flatnonzero(f > 1e-13 * np.maximum(1.0, target))
         if miss.size:
             theta[miss] = self._theta_safeguarded(target[miss])
         return theta
+
+    def _theta_d_in_place(self, theta, t2):
+        """theta_d(theta) = theta (1 + t2 (k1 + t2 (k2 + t2 (k3 + t2 k4)))) for theta (N,) rad with
+        t2 = theta^2 (N,): _theta_d's value with the same operations in the same order (so the same
+        numbers), in place on one new array."""
+        f = t2 * self.k4
+        f += self.k3
+        f *= t2
+        f += self.k2
+        f *= t2
+        f += self.k1
+        f *= t2
+        f += 1
+        f *= theta
+        return f
 
     def _theta_safeguarded(self, target):
         # Safeguarded Newton on f(theta) = theta_d(theta) - target over the monotonic range
