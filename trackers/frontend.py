@@ -691,13 +691,7 @@ class FrontEnd:
                 # the surviving id: the one the reference camera (the rig's first) tracks, else the
                 # one confirmed for longer, so the id downstream filters know carries on
                 keep, drop = self._survivor(ga, gb)
-                for lid, g in list(self._gid.items()):
-                    if g == drop:
-                        self._gid[lid] = keep
-                self._gid[ta] = keep
-                self._gid[tb] = keep
-                if drop in self._reported:
-                    absorbed.append(drop)
+                self._merge_gids(keep, drop, (ta, tb), absorbed)
         return absorbed
 
     def _box_fold(self, seen, a: tuple, b: tuple) -> tuple[int, int] | None:
@@ -771,13 +765,7 @@ class FrontEnd:
                     if fold is None:
                         continue  # linked to another track in that camera
                     keep, drop = fold
-                for lid, g in list(self._gid.items()):
-                    if g == drop:
-                        self._gid[lid] = keep
-                self._gid[la] = keep
-                self._gid[lb] = keep
-                if drop in self._reported:
-                    absorbed.append(drop)
+                self._merge_gids(keep, drop, (la, lb), absorbed)
         return absorbed
 
     def link_features(self, camera: str, ref_ids: np.ndarray, ids: np.ndarray) -> None:
@@ -813,6 +801,17 @@ class FrontEnd:
             elif claim.get(cur) == f:  # the link would change partner: a fresh id instead
                 del claim[cur]
                 pid[f] = next(self._feature_ids)
+
+    def _merge_gids(self, keep: int, drop: int, lids: tuple, absorbed: list[int]) -> None:
+        """One obstacle from two: every local track id mapped to global id ``drop`` and the pair's
+        local ids ``lids`` map to ``keep``; ``drop`` goes to ``absorbed`` when it was reported."""
+        for lid, g in list(self._gid.items()):
+            if g == drop:
+                self._gid[lid] = keep
+        for lid in lids:
+            self._gid[lid] = keep
+        if drop in self._reported:
+            absorbed.append(drop)
 
     def _survivor(self, ga: int, gb: int) -> tuple[int, int]:
         """(kept, dropped) of two global ids being merged (see _associate)."""
