@@ -145,7 +145,9 @@ class FusionSettings:
         bearing_sigma_floor_rad: smallest bearing sigma used (rad), whatever the front end says.
             Default 5e-4 (about 0.2 px of a 195-degree 1280-px fisheye).
         gate_probability: chi-square gate probability for bearing / stereo updates. Default 0.999.
-        min_parallax_rad: parallax needed to initialise a mono track (rad). Default 1 degree.
+        min_parallax_rad: parallax needed to initialise a mono track from two sightings (rad), and
+            for a member feature's point to count on a stereo rig (on a mono rig that floor is 10
+            feature_sigma_rad: _features_batch). Default 1 degree.
         stereo_max_rel_sigma: a stereo triangulation is used only when range_sigma / range is at
             most this (else its two bearings are fused instead). Default 0.3.
         mono_init_max_rel_sigma: a mono track is initialised only from a triangulation with
