@@ -57,7 +57,7 @@ __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", 
            "summarize", "format_table", "format_scenes", "format_compare", "format_scene_rows",
            "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "SET_GROUPS", "PIPELINE_SCENES",
            "PIPELINE_SCENES_HELDOUT", "PIPELINE_SCENES_VALIDATION", "range_z2_reports", "z2_stats",
-           "settings_from_overrides", "render_cache_dir"]
+           "settings_from_overrides", "render_cache_dir", "scored_ranges", "format_scored"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -716,7 +716,8 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
             rng = np.random.default_rng(opts.seed)
             samples, per_scene = _run_bearings_set(opts, scenes_of[set_name], rng, progress)
         else:
-            samples, per_scene = _run_pipeline(opts, out_dir, progress, names=scenes_of[set_name])
+            samples, per_scene, rows_by_scene = _run_pipeline(opts, out_dir, progress,
+                                                              names=scenes_of[set_name])
         metrics = summarize(samples)
         if opts.mode == "pipeline":  # obstacle-frames the mono / stereo metric could score, ranged share
             metrics.update(pool_coverage(per_scene))
@@ -725,14 +726,17 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
             metrics["range_z2_top"] = z2_rows[:10]
             for rig in ("mono", "stereo"):
                 metrics[f"{rig}_uncovered"] = pool_uncovered(per_scene, rig)
+            metrics["scored_ranges"] = scored_ranges(rows_by_scene)
         title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
                  f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
         if set_name != "tuned" or len(set_names) > 1:
             title += f"; {SET_TITLES[set_name]}"
         table = format_table(metrics, title)
-        halves = _halves(samples, per_scene) if opts.mode == "pipeline" and set_name == "validation" else {}
+        halves = (_halves(samples, per_scene, rows_by_scene)
+                  if opts.mode == "pipeline" and set_name == "validation" else {})
         if opts.mode == "pipeline":
-            table += "\n" + format_pooled(metrics, halves) + "\n" + format_scenes(per_scene)
+            table += ("\n" + format_scored(metrics, halves) + "\n" + format_pooled(metrics, halves) + "\n"
+                      + format_scenes(per_scene))
         tables.append(table)
         sets[set_name] = {"metrics": metrics, "per_scene": per_scene}
         if halves:
@@ -793,9 +797,9 @@ def z2_stats(z2: list[float]) -> dict:
             "range_z2_gt9_share": float((v > 9.0).mean())}
 
 
-def _halves(samples: list[Sample], per_scene: dict) -> dict:
-    """The validation set's two halves (val_*, val2_*) scored on their own (``summarize`` and
-    ``pool_coverage``): session 6's figures were per half."""
+def _halves(samples: list[Sample], per_scene: dict, rows_by_scene: dict | None = None) -> dict:
+    """The validation set's two halves (val_*, val2_*) scored on their own (``summarize``,
+    ``pool_coverage`` and ``scored_ranges``): session 6's figures were per half."""
     out = {}
     for prefix in ("val_", "val2_"):
         if not any(k.startswith(prefix) for k in per_scene):
@@ -803,8 +807,67 @@ def _halves(samples: list[Sample], per_scene: dict) -> dict:
         ss = [s for s in samples if s.scene.startswith(prefix)]
         m = summarize(ss)
         m.update(pool_coverage({k: v for k, v in per_scene.items() if k.startswith(prefix)}))
+        m["scored_ranges"] = scored_ranges({k: v for k, v in (rows_by_scene or {}).items()
+                                            if k.startswith(prefix)})
         out[prefix.rstrip("_")] = m
     return out
+
+
+# scored_ranges' groups: (key, label)
+SCORED_GROUPS = (("all", "all obstacles"), ("stationary", "stationary obstacles"),
+                 ("moving_mono_rig", "moving obstacles, mono rig"),
+                 ("moving_stereo_rig", "moving obstacles, stereo rig"))
+
+
+# format_compare's rows of scored_ranges: (label, group, range_metrics key)
+_SCORED_COMPARE = (
+    ("confirmed, any age, all: p90 rel err", "all", "rel_err_p90"),
+    ("confirmed, any age, all: within 10 %", "all", "within_10pct"),
+    ("confirmed, any age, moving mono rig: median", "moving_mono_rig", "rel_err_median"),
+    ("confirmed, any age, moving mono rig: p90", "moving_mono_rig", "rel_err_p90"),
+    ("confirmed, any age, moving stereo rig: median", "moving_stereo_rig", "rel_err_median"),
+    ("confirmed, any age, moving stereo rig: p90", "moving_stereo_rig", "rel_err_p90"),
+)
+
+
+def scored_ranges(rows_by_scene: dict[str, tuple[str, list]]) -> dict[str, dict]:
+    """Range errors of every report ``fisheye-des demo`` scores (confirmed tracks' reports whose
+    bearing hits an obstacle, of ANY age: ``pipeline.evaluate.scored_range_metrics``), pooled over
+    scenes. ``rows_by_scene``: scene name -> (rig kind "mono" | "stereo", the evaluator's rows of that
+    scene, ``pipeline.evaluate.score_reports``). Returns ``pipeline.evaluate.range_metrics`` dicts
+    ("ranged", "rel_err_median", "rel_err_p90", "within_10pct", ...; relative errors as fractions)
+    for "all", "stationary", "moving" (every rig), "moving_mono_rig" and "moving_stereo_rig" (the
+    moving obstacles of the mono-rig and of the stereo-rig scenes). Informational: the verdict
+    metrics of ``summarize`` count only some of these (mono: stationary, >= 1 s in view; stereo
+    velocity: >= 1 s), so a change that hurts young or moving obstacles' ranges shows only here."""
+    from pipeline.evaluate import scored_range_metrics
+
+    g = scored_range_metrics([r for _rig, rows in rows_by_scene.values() for r in rows])
+    out = {"all": g["confirmed"], "stationary": g["stationary"], "moving": g["moving"]}
+    for rig in ("mono", "stereo"):
+        sel = [r for k, rows in rows_by_scene.values() if k == rig for r in rows]
+        out[f"moving_{rig}_rig"] = scored_range_metrics(sel)["moving"]
+    return out
+
+
+def format_scored(m: dict, halves: dict | None = None) -> str:
+    """The informational lines of ``m["scored_ranges"]`` (:func:`scored_ranges`; and of each
+    validation half): per group, ranged reports, median and p90 relative range error, share within
+    10 %. No verdicts: the issue sets no target on these populations."""
+    sr = m.get("scored_ranges") or {}
+    lines = ["range error of every confirmed report on an obstacle, any age (as fisheye-des demo scores "
+             "them; informational, no target):"]
+    for key, label in SCORED_GROUPS:
+        g = sr.get(key) or {}
+        lines.append(f"  {label:30s} ranged {g.get('ranged', 0):6d}  median "
+                     f"{_fmt(g.get('rel_err_median'), True):>8s}  p90 {_fmt(g.get('rel_err_p90'), True):>8s}"
+                     f"  within 10 % {_fmt(g.get('within_10pct'), True):>8s}")
+    for name, h in (halves or {}).items():
+        hs = h.get("scored_ranges") or {}
+        lines.append(f"  half {name}_*: " + "; ".join(
+            f"{label} p90 {_fmt((hs.get(key) or {}).get('rel_err_p90'), True)}"
+            for key, label in SCORED_GROUPS))
+    return "\n".join(lines)
 
 
 def format_pooled(m: dict, halves: dict | None = None) -> str:
@@ -879,6 +942,11 @@ def format_compare(metrics_by_set: dict[str, dict]) -> str:
     if any("range_z2_gt9_share" in m for m in ms):
         lines.append(f"{'range z^2 > 9 share (Gaussian 0.27 %)':52s} "
                      + " ".join(f"{_fmt(m.get('range_z2_gt9_share'), True):>16s}" for m in ms))
+    if any("scored_ranges" in m for m in ms):  # informational (format_scored)
+        for label, grp, key in _SCORED_COMPARE:
+            lines.append(f"{label:52s} " + " ".join(
+                f"{_fmt(((m.get('scored_ranges') or {}).get(grp) or {}).get(key), True):>16s}" for m in ms)
+                + f" {'info':>10s}")
     for label, key in (("samples", "n_samples"), ("mono samples", "mono_n"), ("stereo <=3 m samples",
                        "stereo_3m_n"), ("stereo <=8 m samples", "stereo_8m_n"),
                        ("bounded moving reports", "bounds_n"), ("stereo moving reports >= 1 s",
@@ -957,7 +1025,7 @@ SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
 
 
 def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
-                  names: tuple[str, ...]) -> tuple[list[Sample], dict]:
+                  names: tuple[str, ...]) -> tuple[list[Sample], dict, dict]:
     """Render (or reuse) each scene, run ``pipeline.run`` (front end + this fusion), score with
     ``pipeline.evaluate.score_reports`` (truth along each report's bearing), and build Samples.
 
@@ -968,7 +1036,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     Each run also keeps the front end's observations (``runs/<name>/observations.pkl``); with
     ``opts.reuse_frontend`` the fusion is replayed over them instead of running the front end.
     names: the scenes (preset names).
-    ``opts.scenes`` is applied by ``run_accuracy`` (``_pipeline_names``), not here."""
+    ``opts.scenes`` is applied by ``run_accuracy`` (``_pipeline_names``), not here.
+    Returns (samples, per-scene metrics, scene name -> (rig kind, the evaluator's rows): the input
+    of :func:`scored_ranges`)."""
     import tempfile
 
     from estimators.fusion import ObstacleFusion
@@ -979,6 +1049,7 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
     samples: list[Sample] = []
     per_scene: dict = {}
+    rows_by_scene: dict[str, tuple[str, list]] = {}
     for name in names:
         yaml_path = scenarios_dir() / f"{name}.yaml"
         scn = load_scenario(yaml_path)
@@ -1027,10 +1098,12 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         kinds = {int(o.id): str(o.kind) for o in truth.scn.obstacles}
         per_scene[name]["mono_uncovered"] = _uncovered(rows, elig, cov, kinds)
         per_scene[name]["stereo_uncovered"] = _uncovered(rows, elig_s, cov_s, kinds)
+        rows_by_scene[name] = (str(truth.scn.rig.kind), rows)
+        per_scene[name]["scored_ranges"] = scored_ranges({name: rows_by_scene[name]})
         samples.extend(ss)
         if progress:
             progress(f"{name}: {len(ss)} scored reports")
-    return samples, per_scene
+    return samples, per_scene, rows_by_scene
 
 
 def scene_config(sdir: Path, overrides: tuple[str, ...] | list[str] = ()):

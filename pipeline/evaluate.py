@@ -396,6 +396,25 @@ def range_metrics(rows: list[Row], surface: str = "obstacle") -> dict:
     return out
 
 
+def scored_reports(rows: list[Row]) -> list[Row]:
+    """The reports ``fisheye-des demo`` scores: those of **confirmed** tracks whose bearing hits an
+    obstacle (``hit == "obstacle"``; truth: the depth of that hit), of any age. Tentative tracks'
+    reports and near misses (the ray passes beside the obstacle) are left out."""
+    return [r for r in rows if r.status == "confirmed" and r.obstacle_id is not None and r.hit == "obstacle"]
+
+
+def scored_range_metrics(rows: list[Row]) -> dict[str, dict]:
+    """:func:`range_metrics` of :func:`scored_reports` (``rows``: :func:`score_reports`' rows), as
+    ``fisheye-des demo``'s summary gives them: {"confirmed": all of them, "stationary": those on
+    stationary obstacles, "moving": those on moving obstacles}."""
+    on = scored_reports(rows)
+    return {
+        "confirmed": range_metrics(on),
+        "stationary": range_metrics([r for r in on if r.moving is False]),
+        "moving": range_metrics([r for r in on if r.moving is True]),
+    }
+
+
 def obstacle_metrics(
     truth: ScenarioTruth, frames: list[dict], rows: list[Row], settle_s: float = 0.5
 ) -> dict:

@@ -60,7 +60,14 @@ def run_demo(
     """
     from estimators.errors import ConfigError
     from pipeline.config import find_preset, load_config, scenarios_dir
-    from pipeline.evaluate import evaluate, format_table, range_metrics, write_outputs
+    from pipeline.evaluate import (
+        evaluate,
+        format_table,
+        range_metrics,
+        scored_range_metrics,
+        scored_reports,
+        write_outputs,
+    )
     from pipeline.run import run, wants_grey
     from pipeline.sim.scene import load_scenario
     from pipeline.sim.writer import VIDEO_EXT, simulate
@@ -111,7 +118,7 @@ def run_demo(
     m = ev.metrics
     rows = ev.rows  # every non-lost report inside the scenario's time span
     conf = [r for r in rows if r.status == "confirmed"]
-    on_obstacle = [r for r in conf if r.obstacle_id is not None and r.hit == "obstacle"]
+    on_obstacle = scored_reports(rows)
     near = [r for r in conf if r.obstacle_id is not None and r.hit == "near"]
     counts = {
         "reports": len(rows),
@@ -148,9 +155,7 @@ def run_demo(
         "wall": wall,
         "scored": "confirmed tracks' reports whose bearing hits an obstacle (renderer ray cast)",
         "counts": counts,
-        "confirmed": range_metrics(on_obstacle),
-        "stationary": range_metrics([r for r in on_obstacle if r.moving is False]),
-        "moving": range_metrics([r for r in on_obstacle if r.moving is True]),
+        **scored_range_metrics(rows),  # "confirmed", "stationary", "moving"
         "near_miss": range_metrics(near),
         "by_obstacle": obstacles,
         "ground": m.get("ground", {}),

@@ -150,7 +150,7 @@ def _canned(monkeypatch, calls):
                            range_max_m=None, source="mono")
             ss.append(s)
             per[n] = acc.summarize([s])
-        return ss, per
+        return ss, per, {}
 
     monkeypatch.setattr(acc, "_run_pipeline", fake)
 

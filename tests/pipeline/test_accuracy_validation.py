@@ -95,7 +95,7 @@ def _canned(monkeypatch, calls):
                            source="mono", obstacle=1)
             ss.append(s)
             per[n] = acc.summarize([s])
-        return ss, per
+        return ss, per, {}
 
     monkeypatch.setattr(acc, "_run_pipeline", fake)
 

@@ -1,0 +1,154 @@
+"""The accuracy harness's informational rows on every report ``fisheye-des demo`` scores
+(``scored_ranges``, ``format_scored``, and their place in ``run_accuracy``'s output), and the
+evaluator's ``scored_reports`` / ``scored_range_metrics`` the demo and the harness share.
+
+Expected values are worked by hand from made-up evaluator rows (relative errors chosen to be exact
+in binary-free terms: 2 %, 5 %, 20 %; percentiles by linear interpolation, numpy's default)."""
+
+from __future__ import annotations
+
+import pytest
+
+
+def _row(scene="s", t=1.0, track=1, status="confirmed", hit="obstacle", oid=1, moving=False,
+         true=10.0, rng=None):
+    from pipeline.evaluate import Row
+
+    return Row(scenario=scene, frame=0, t_s=t, track_id=track, status=status, hit=hit,
+               obstacle_id=oid, moving=moving, range_true_m=true, range_m=rng, range_sigma_m=None,
+               range_min_m=None, range_max_m=None, v_est_W=None, v_true_W=None, nis=None, nis_dim=None)
+
+
+def _rows(scene="s"):
+    """Three scored ranged reports (stationary 5 % and 2 % off, moving 20 % off), one scored report
+    without a range, and four the demo does not score (tentative, near miss, ground, sky)."""
+    return [
+        _row(scene, rng=10.5),                       # stationary, +5 %
+        _row(scene, track=2, rng=9.8),               # stationary, -2 %
+        _row(scene, track=3, oid=2, moving=True, true=5.0, rng=6.0),  # moving, +20 %
+        _row(scene, track=4, oid=2, moving=True, true=5.0, rng=None),  # moving, unranged
+        _row(scene, track=5, status="tentative", oid=2, moving=True, true=5.0, rng=10.0),
+        _row(scene, track=6, hit="near", oid=2, moving=True, true=5.0, rng=10.0),
+        _row(scene, track=7, hit="ground", oid=None, moving=None, true=3.0, rng=9.0),
+        _row(scene, track=8, hit="sky", oid=None, moving=None, true=None, rng=9.0),
+    ]
+
+
+def test_scored_reports_are_confirmed_reports_hitting_an_obstacle():
+    from pipeline.evaluate import scored_reports
+
+    assert [r.track_id for r in scored_reports(_rows())] == [1, 2, 3, 4]
+
+
+def test_scored_range_metrics_by_hand():
+    from pipeline.evaluate import scored_range_metrics
+
+    g = scored_range_metrics(_rows())
+    a = g["confirmed"]
+    assert (a["reports"], a["ranged"]) == (4, 3)
+    # |errors| 0.05, 0.02, 0.20: median 0.05; p90 at rank 0.9 * 2 = 1.8: 0.05 + 0.8 * 0.15 = 0.17
+    assert a["rel_err_median"] == pytest.approx(0.05)
+    assert a["rel_err_p90"] == pytest.approx(0.17)
+    assert a["within_10pct"] == pytest.approx(2 / 3)
+    assert g["stationary"]["rel_err_median"] == pytest.approx(0.035)
+    assert (g["moving"]["reports"], g["moving"]["ranged"]) == (2, 1)
+    assert g["moving"]["rel_err_p90"] == pytest.approx(0.20)
+
+
+def test_scored_ranges_pools_scenes_and_splits_moving_by_rig():
+    from pipeline.accuracy import scored_ranges
+
+    mono = _rows("m")
+    stereo = [_row("st", oid=3, moving=True, true=4.0, rng=4.32),  # +8 %
+              _row("st", track=2, oid=3, moving=True, true=4.0, rng=3.8),  # -5 %
+              _row("st", track=3, oid=1, rng=12.0)]                # stationary, +20 %
+    sr = scored_ranges({"m": ("mono", mono), "st": ("stereo", stereo)})
+    # all: 0.05 0.02 0.20 | 0.08 0.05 0.20 -> sorted 0.02 0.05 0.05 0.08 0.20 0.20: median 0.065,
+    # p90 at rank 4.5: 0.20; within 10 %: 4 of 6
+    assert sr["all"]["ranged"] == 6
+    assert sr["all"]["rel_err_median"] == pytest.approx(0.065)
+    assert sr["all"]["rel_err_p90"] == pytest.approx(0.20)
+    assert sr["all"]["within_10pct"] == pytest.approx(4 / 6)
+    assert sr["moving_mono_rig"]["ranged"] == 1
+    assert sr["moving_mono_rig"]["rel_err_median"] == pytest.approx(0.2)
+    # stereo moving: 0.08, 0.05 -> median 0.065, p90 0.05 + 0.9 * 0.03 = 0.077
+    assert sr["moving_stereo_rig"]["ranged"] == 2
+    assert sr["moving_stereo_rig"]["rel_err_median"] == pytest.approx(0.065)
+    assert sr["moving_stereo_rig"]["rel_err_p90"] == pytest.approx(0.077)
+    assert sr["moving"]["ranged"] == 3 and sr["stationary"]["ranged"] == 3
+    empty = scored_ranges({})
+    assert empty["all"] == {"reports": 0, "ranged": 0}
+
+
+def test_format_scored_lines():
+    from pipeline.accuracy import format_scored, scored_ranges
+
+    m = {"scored_ranges": scored_ranges({"m": ("mono", _rows("m"))})}
+    lines = format_scored(m).splitlines()
+    assert lines[0].startswith("range error of every confirmed report on an obstacle, any age")
+    assert "informational, no target" in lines[0]
+    all_line = next(ln for ln in lines if ln.strip().startswith("all obstacles"))
+    assert "ranged      3" in all_line and "median   5.00 %" in all_line and "p90  17.00 %" in all_line
+    assert "within 10 %  66.67 %" in all_line
+    stereo = next(ln for ln in lines if "moving obstacles, stereo rig" in ln)
+    assert "ranged      0" in stereo and stereo.count("n/a") == 3
+    assert not any("PASS" in ln or "FAIL" in ln for ln in lines)
+
+
+def _canned(monkeypatch, calls):
+    """_run_pipeline replaced: one verdict sample per scene and the evaluator rows of _rows(), the
+    held-out scenes' moving report 40 % off instead of 20 %; every scene a stereo rig."""
+    import pipeline.accuracy as acc
+
+    def fake(opts, out_dir, progress, names=None):
+        calls.append(names)
+        ss, per, rows = [], {}, {}
+        for n in names:
+            s = acc.Sample(scene=n, rig="mono", track=1, t_s=2.0, in_view_s=1.5, moving=False,
+                           speed_true=0.0, max_speed=5.0, off_axis_deg=30.0, range_true=10.0, n_views=1,
+                           range_m=10.1, range_sigma_m=0.2, range_min_m=None, range_max_m=None,
+                           source="mono", obstacle=1)
+            ss.append(s)
+            per[n] = acc.summarize([s])
+            r = _rows(n)
+            if n.startswith("heldout_"):
+                r[2].range_m = 7.0
+            rows[n] = ("stereo", r)
+            per[n]["scored_ranges"] = acc.scored_ranges({n: rows[n]})
+        return ss, per, rows
+
+    monkeypatch.setattr(acc, "_run_pipeline", fake)
+
+
+def test_every_pipeline_set_prints_and_writes_the_scored_rows(monkeypatch, tmp_path):
+    import json
+
+    from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+    calls = []
+    _canned(monkeypatch, calls)
+    res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
+    t = res["table"]
+    assert t.count("range error of every confirmed report on an obstacle, any age") == 2  # each set
+    # 5 scenes pooled: the moving stereo rig group is 5 reports 20 % (tuned) or 40 % (held-out) off
+    m = res["sets"]["heldout"]["metrics"]["scored_ranges"]
+    assert m["moving_stereo_rig"]["ranged"] == 5
+    assert m["moving_stereo_rig"]["rel_err_p90"] == pytest.approx(0.4)
+    assert m["moving_mono_rig"] == {"reports": 0, "ranged": 0}
+    side = [ln for ln in t.splitlines() if ln.startswith("confirmed, any age, moving stereo rig: p90")]
+    assert len(side) == 1 and "20.00 %" in side[0] and "40.00 %" in side[0] and "info" in side[0]
+    saved = json.loads((tmp_path / "accuracy_both.json").read_text())
+    # tuned, 5 scenes: 5 x (0.02, 0.05, 0.20): p90 at rank 12.6 of 0..14 is 0.20; median 0.05
+    tuned = saved["sets"]["tuned"]["metrics"]["scored_ranges"]["all"]
+    assert tuned["rel_err_p90"] == pytest.approx(0.20) and tuned["rel_err_median"] == pytest.approx(0.05)
+    assert saved["sets"]["tuned"]["per_scene"]["mono_straight"]["scored_ranges"]["all"]["ranged"] == 3
+
+
+def test_validation_halves_get_the_scored_rows(monkeypatch, tmp_path):
+    from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+    _canned(monkeypatch, [])
+    res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="validation"), tmp_path)
+    halves = res["sets"]["validation"]["halves"]
+    assert halves["val"]["scored_ranges"]["all"]["ranged"] == 27  # 9 scenes x 3
+    assert "  half val2_*: all obstacles p90 20.00 %" in res["table"]
