@@ -99,6 +99,30 @@ class Detections:
             attributes=self.attributes,
         )
 
+    def scaled(self, factor: float) -> Detections:
+        """The detections of this frame as found on the frame resized by ``factor`` (e.g. a
+        1920x1080 frame's boxes on the 1280x720 frame the front end tracks, factor 2/3).
+
+        Keypoints and box corners (pixels, integer = pixel centre) map as the camera model's
+        principal point does (``CameraModel.scaled``): ``p' = (p + 0.5) * factor - 0.5``.
+        Descriptors, scores, labels and attributes are unchanged: pixel positions in the attributes
+        (navlights' ``red_uv``...) stay in this frame's pixels, those of ``CameraView.uv``.
+        """
+        f = float(factor)
+        if not np.isfinite(f) or f <= 0:
+            raise InputError(f"Detections.scaled: expected a finite factor > 0, got {factor!r}")
+        if f == 1.0:
+            return self
+        return Detections(
+            keypoints=((self.keypoints.astype(np.float64) + 0.5) * f - 0.5).astype(np.float32),
+            scores=self.scores,
+            descriptors=self.descriptors,
+            boxes=(self.boxes + 0.5) * f - 0.5,  # p' = (p + 0.5) f - 0.5
+            box_scores=self.box_scores,
+            labels=self.labels,
+            attributes=self.attributes,
+        )
+
     @property
     def box_centres(self) -> np.ndarray:
         """(M, 2) pixel centres of the boxes."""
