@@ -80,6 +80,19 @@ def test_scored_ranges_pools_scenes_and_splits_moving_by_rig():
     assert empty["all"] == {"reports": 0, "ranged": 0}
 
 
+def test_scored_ranges_are_strict_json():
+    """Bounds without an upper end have an infinite median width: written null, as metrics.json does."""
+    import json
+
+    from pipeline.accuracy import scored_ranges
+
+    r = _row(rng=10.5)
+    r.range_min_m = 2.0
+    sr = scored_ranges({"s": ("mono", [r])})
+    assert sr["all"]["bounds_coverage"] == 1.0 and sr["all"]["bounds_width_median_m"] is None
+    json.dumps(sr, allow_nan=False)
+
+
 def test_format_scored_lines():
     from pipeline.accuracy import format_scored, scored_ranges
 
