@@ -57,7 +57,8 @@ __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", 
            "summarize", "format_table", "format_scenes", "format_compare", "format_scene_rows",
            "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "SET_GROUPS", "PIPELINE_SCENES",
            "PIPELINE_SCENES_HELDOUT", "PIPELINE_SCENES_VALIDATION", "range_z2_reports", "z2_stats",
-           "settings_from_overrides", "render_cache_dir", "scored_ranges", "format_scored"]
+           "settings_from_overrides", "render_cache_dir", "scored_ranges", "format_scored",
+           "PIPELINE_SCENES_DEMO", "demo_render"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -109,7 +110,8 @@ class AccuracyOptions:
     set left with none is not run); a name in no chosen set is a ConfigError listing the valid ones.
     In pipeline mode a set's valid names are its scenes and its --quick scenes; "validation" (the
     ``val_*`` / ``val2_*`` presets: fresh seeds of nine tuned and held-out scenes, used to fit
-    nothing) has no --quick scenes; "all" = tuned, heldout and validation. overrides (pipeline
+    nothing) has no --quick scenes, nor has "demo" (the scene of ``fisheye-des demo``, rendered as the
+    demo renders it: :func:`demo_render`); "all" = tuned, heldout, validation and demo. overrides (pipeline
     mode): ``section.key=value`` strings applied to each scene's run config exactly like ``fisheye-des
     run --set`` (``pipeline.config.load_config``); front-end sections change the recording key, so
     ``reuse_frontend`` re-records. Fusion overrides reach ``settings`` through
@@ -706,7 +708,7 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         from estimators.errors import ConfigError
 
         raise ConfigError(f"accuracy --set {opts.scene_set} --quick: the set has no --quick scenes in "
-                          f"{opts.mode} mode (the validation set is 18 full scenes); drop --quick")
+                          f"{opts.mode} mode (the validation and demo sets have none); drop --quick")
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
@@ -1013,17 +1015,36 @@ _VAL_FAMILIES = ("heldout_fast_18mps", "heldout_mono_straight", "heldout_moving"
                  "heldout_stereo_hover", "mono_straight", "moving_crossing", "stereo_flying", "turning")
 PIPELINE_SCENES_VALIDATION = (tuple(f"val_{f}" for f in _VAL_FAMILIES)
                               + tuple(f"val2_{f}" for f in _VAL_FAMILIES))
+# The scene of `fisheye-des demo` (the README's first command; configs/scenarios/demo.yaml), rendered
+# as the demo renders it (see demo_render): its summary's numbers are the harness's scored_ranges there
+PIPELINE_SCENES_DEMO = ("demo",)
 # scene set -> (pipeline scenes, pipeline --quick scenes)
 SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "tuned": (PIPELINE_SCENES, PIPELINE_SCENES_QUICK),
     "heldout": (PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_HELDOUT_QUICK),
     "validation": (PIPELINE_SCENES_VALIDATION, ()),
+    "demo": (PIPELINE_SCENES_DEMO, ()),
 }
 # --set names that stand for several sets (run in this order, each scored on its own)
-SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation")}
+SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation", "demo")}
 SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
               "heldout": "held-out: scenes no setting was fitted on",
-              "validation": "validation: 18 fresh-seed copies of 9 scenes, used to fit nothing"}
+              "validation": "validation: 18 fresh-seed copies of 9 scenes, used to fit nothing",
+              "demo": "demo: the scene of fisheye-des demo, rendered as the demo renders it"}
+
+
+def demo_render(name: str, overrides: tuple[str, ...] | list[str] = ()) -> dict:
+    """``pipeline.sim.writer.simulate``'s keywords that render scene ``name`` as ``fisheye-des demo``
+    renders its scene: for the demo's scene (``PIPELINE_SCENES_DEMO``) its resolution
+    (``pipeline.commands.demo.DEFAULT_RESOLUTION``) and grey videos when the run's detector works on
+    grey (``pipeline.run.wants_grey`` of the config after ``overrides``); {} (the scenario's own
+    resolution, colour, as always) for every other scene. Part of the render key when not {}."""
+    if name not in PIPELINE_SCENES_DEMO:
+        return {}
+    from pipeline.commands.demo import DEFAULT_RESOLUTION
+    from pipeline.run import wants_grey
+
+    return {"resolution": list(DEFAULT_RESOLUTION), "grey": bool(wants_grey(_load_config(overrides)))}
 
 
 def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
@@ -1057,9 +1078,10 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         scn = load_scenario(yaml_path)
         if opts.quick:  # long enough for "after 1 s in view"
             scn = scn.model_copy(update={"duration_s": max(scn.duration_s, 2.0)})
+        how = demo_render(name, opts.overrides)
         scene_parts = {"quick": bool(opts.quick), "duration_s": float(scn.duration_s),
-                       "scenario_yaml": yaml_path.read_text(), "render": render_key(scn)}
-        sdir = _scene_dir(opts, root, name, scn, scene_parts, progress)
+                       "scenario_yaml": yaml_path.read_text(), "render": render_key(scn, how)}
+        sdir = _scene_dir(opts, root, name, scn, scene_parts, progress, how)
         truth = ScenarioTruth.load(sdir)
         rdir = root / "runs" / name
         cfg = scene_config(sdir, opts.overrides)
@@ -1241,25 +1263,31 @@ def _sim_hash() -> str:
     return h.hexdigest()
 
 
-def render_key(scn) -> str:
+def render_key(scn, how: dict | None = None) -> str:
     """16 hex digits naming a render of scenario ``scn`` (a ``pipeline.sim.scene.Scenario``, after any
     --quick length change): sha1 of the parsed scenario (so comments and layout of its YAML do not
-    matter) and of the simulator's sources."""
-    return _key({"scenario": scn.model_dump(mode="json"), "simulator": _sim_hash()})[:16]
+    matter), of the simulator's sources and of ``how`` (``simulate``'s keywords, :func:`demo_render`;
+    left out when empty, so the keys of plain renders are what they were)."""
+    parts = {"scenario": scn.model_dump(mode="json"), "simulator": _sim_hash()}
+    if how:
+        parts["simulate"] = dict(how)
+    return _key(parts)[:16]
 
 
 RENDER_DONE_NAME = "render_key.json"  # written last into a cached render: it is complete
 
 
-def _cached_render(scn, progress) -> Path:
-    """The render of ``scn`` in :func:`render_cache_dir`, rendered there first when missing (into a
-    private folder renamed into place, so concurrent runs never see half a render)."""
+def _cached_render(scn, progress, how: dict | None = None) -> Path:
+    """The render of ``scn`` in :func:`render_cache_dir` (made with ``simulate``'s keywords ``how``,
+    :func:`demo_render`), rendered there first when missing (into a private folder renamed into
+    place, so concurrent runs never see half a render)."""
     import os
     import shutil
 
     from pipeline.sim.writer import simulate
 
-    d = render_cache_dir() / f"{scn.name}-{render_key(scn)}"
+    how = dict(how or {})
+    d = render_cache_dir() / f"{scn.name}-{render_key(scn, how)}"
     if (d / RENDER_DONE_NAME).is_file():
         return d
     d.parent.mkdir(parents=True, exist_ok=True)
@@ -1267,9 +1295,10 @@ def _cached_render(scn, progress) -> Path:
     shutil.rmtree(tmp, ignore_errors=True)
     if progress:
         progress(f"{scn.name}: rendering into {d}")
-    simulate(scn, tmp)
+    simulate(scn, tmp, **_simulate_kw(how))
     (tmp / RENDER_DONE_NAME).write_text(json.dumps({"scene": scn.name, "render_key": d.name.rsplit("-", 1)[1],
-                                                    "simulator_sha1": _sim_hash()}) + "\n")
+                                                    "simulator_sha1": _sim_hash()}
+                                                   | ({"simulate": how} if how else {})) + "\n")
     try:
         os.rename(tmp, d)
     except OSError:  # another run put it there first (or an incomplete copy is in the way)
@@ -1281,11 +1310,18 @@ def _cached_render(scn, progress) -> Path:
     return d
 
 
-def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: dict, progress) -> Path:
-    """``root/scenes/<name>``, holding the render of ``scn``: an earlier run's own render there whose
-    scene key (``scene_parts``: --quick, length, scenario text, render key) matches is used as it
-    is; otherwise, with ``opts.render_cache``, a link to the cached render (:func:`_cached_render`);
-    without it, a render made there."""
+def _simulate_kw(how: dict) -> dict:
+    """:func:`demo_render`'s JSON-friendly keywords as ``simulate`` takes them (resolution a tuple)."""
+    return {k: tuple(v) if k == "resolution" else v for k, v in how.items()}
+
+
+def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: dict, progress,
+               how: dict | None = None) -> Path:
+    """``root/scenes/<name>``, holding the render of ``scn`` (with ``simulate``'s keywords ``how``,
+    :func:`demo_render`): an earlier run's own render there whose scene key (``scene_parts``:
+    --quick, length, scenario text, render key) matches is used as it is; otherwise, with
+    ``opts.render_cache``, a link to the cached render (:func:`_cached_render`); without it, a
+    render made there."""
     import shutil
 
     sdir = root / "scenes" / name
@@ -1302,10 +1338,10 @@ def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: d
 
         if sdir.is_symlink():
             sdir.unlink()
-        simulate(scn, sdir)
+        simulate(scn, sdir, **_simulate_kw(dict(how or {})))
         key_path.write_text(scene_key + "\n")
         return sdir
-    c = _cached_render(scn, progress)
+    c = _cached_render(scn, progress, how)
     if sdir.is_symlink() and sdir.resolve() == c.resolve():
         return sdir
     sdir.parent.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,8 @@ in binary-free terms: 2 %, 5 %, 20 %; percentiles by linear interpolation, numpy
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 
@@ -165,3 +167,47 @@ def test_validation_halves_get_the_scored_rows(monkeypatch, tmp_path):
     halves = res["sets"]["validation"]["halves"]
     assert halves["val"]["scored_ranges"]["all"]["ranged"] == 27  # 9 scenes x 3
     assert "  half val2_*: all obstacles p90 20.00 %" in res["table"]
+
+
+# ------------------------------------------------------------------------- the demo's scene (--set demo)
+def test_set_demo_is_the_demo_scenario_and_all_ends_with_it():
+    from pipeline.accuracy import SCENE_SETS, SET_GROUPS
+    from pipeline.commands.demo import DEFAULT_SCENARIO
+
+    assert SCENE_SETS["demo"] == ((DEFAULT_SCENARIO.removesuffix(".yaml"),), ())
+    assert SET_GROUPS["all"][-1] == "demo" and "demo" not in SET_GROUPS["both"]
+
+
+def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
+    """The demo renders at 640x360 (its --resolution default) and grey for ORB (a grey detector),
+    colour for navlights (a colour one); every other scene as before (no keywords, same key)."""
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.config import scenarios_dir
+    from pipeline.sim.scene import load_scenario
+
+    assert acc.demo_render("demo") == {"resolution": [640, 360], "grey": True}
+    assert acc.demo_render("demo", ("detector.name=navlights",)) == {"resolution": [640, 360], "grey": False}
+    assert acc.demo_render("mono_straight") == {}
+    scn = load_scenario(scenarios_dir() / "demo.yaml")
+    assert acc.render_key(scn, {}) == acc.render_key(scn)
+    keys = {acc.render_key(scn), acc.render_key(scn, acc.demo_render("demo")),
+            acc.render_key(scn, {"resolution": [640, 360], "grey": False})}
+    assert len(keys) == 3
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    calls = []
+
+    def fake_simulate(scn, out, **kw):
+        calls.append(kw)
+        Path(out).mkdir(parents=True)
+        (Path(out) / "gt.jsonl").write_text("{}\n")
+
+    monkeypatch.setattr(writer, "simulate", fake_simulate)
+    how = acc.demo_render("demo")
+    on = acc.AccuracyOptions(mode="pipeline")
+    d = acc._scene_dir(on, tmp_path / "out", "demo", scn, {"x": 1}, None, how)
+    assert calls == [{"resolution": (640, 360), "grey": True}]
+    assert d.resolve().name == f"demo-{acc.render_key(scn, how)}"
+    off = acc.AccuracyOptions(mode="pipeline", render_cache=False)
+    acc._scene_dir(off, tmp_path / "out2", "demo", scn, {"x": 1}, None, how)
+    assert calls[-1] == {"resolution": (640, 360), "grey": True}

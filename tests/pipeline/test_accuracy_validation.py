@@ -119,7 +119,7 @@ def test_set_validation_runs_the_18_and_prints_verdicts_pooled_figures_halves_an
     assert (tmp_path / "accuracy_validation.json").is_file()
 
 
-def test_set_all_is_tuned_heldout_validation_and_both_is_unchanged(monkeypatch, tmp_path):
+def test_set_all_is_tuned_heldout_validation_demo_and_both_is_unchanged(monkeypatch, tmp_path):
     from pipeline.accuracy import (
         PIPELINE_SCENES_HELDOUT,
         PIPELINE_SCENES_VALIDATION,
@@ -130,8 +130,8 @@ def test_set_all_is_tuned_heldout_validation_and_both_is_unchanged(monkeypatch, 
     calls = []
     _canned(monkeypatch, calls)
     res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="all"), tmp_path)
-    assert calls == [TUNED, PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_VALIDATION]
-    assert list(res["sets"]) == ["tuned", "heldout", "validation"]
+    assert calls == [TUNED, PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_VALIDATION, ("demo",)]
+    assert list(res["sets"]) == ["tuned", "heldout", "validation", "demo"]
     assert "range z^2 mean without the top 1 %" in res["table"]  # side by side
     calls.clear()
     run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
