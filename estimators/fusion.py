@@ -103,6 +103,7 @@ time, so the widest motion allowance, but also the longest baseline).
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections import deque
 from dataclasses import dataclass, field, fields
@@ -425,6 +426,12 @@ def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
 _ZEROS = {k: np.zeros(k) for k in (1, 2, 3)}
 for _z in _ZEROS.values():
     _z.setflags(write=False)
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
+# the 2x2 / 3x3 inverse filterpy's ExtendedKalmanFilter.update uses (its module's linalg.inv):
+# ``_ekf_update`` repeats that update's operations, so it must invert the same way
+_FILTERPY_INV = sys.modules[ExtendedKalmanFilter.__module__].linalg.inv
+_CHI2_PPF: dict[tuple[float, int], float] = {}  # (probability, dof) -> chi2_ppf, ``_chi2_gate``
 
 
 def tangent_basis(u: np.ndarray) -> np.ndarray:
@@ -1812,17 +1819,19 @@ class ObstacleFusion:
         t_s = work[0][1].t_s
         order = np.argsort(gg, kind="stable")
         gs = gg[order]
-        cuts = np.flatnonzero(np.diff(gs)) + 1
+        starts = np.flatnonzero(np.diff(gs, prepend=-1))  # each track's run in order
+        ends = np.append(starts[1:], len(gs))
         lag = s.feature_velocity_lag_s
-        for idx in np.split(order, cuts):
-            tr = work[int(gg[idx[0]])][0]
+        for gi, a0, a1 in zip(gs[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):
+            tr = work[gi][0]
             ref = tr.vel_ref
             # (a reference sharing a single id is replaced by a later frame sharing more: the first
             # frames of a stereo track often share one)
             new_ref = (ref is None or t_s - ref[0] > 3.0 * lag
-                       or (len(ref[1]) < 2 and len(idx) > len(ref[1])))
+                       or (len(ref[1]) < 2 and a1 - a0 > len(ref[1])))
             if not new_ref and t_s - ref[0] < lag - 1e-9:
                 continue  # (not due yet: nothing to sort)
+            idx = order[a0:a1]
             f = fid[idx]
             o = np.argsort(f)
             idx = idx[o]
@@ -1869,8 +1878,12 @@ class ObstacleFusion:
     def _chi2_gate(self, k: int) -> float:
         """chi2_k(gate_probability), cached per degrees of freedom k >= 1."""
         g = self._chi2_gates.get(k)
-        if g is None:
-            g = self._chi2_gates[k] = chi2_ppf(self.settings.gate_probability, max(int(k), 1))
+        if g is None:  # (chi2_ppf bisects: ~2 ms; kept per process, for every fusion of a run)
+            key = (self.settings.gate_probability, max(int(k), 1))
+            g = _CHI2_PPF.get(key)
+            if g is None:
+                g = _CHI2_PPF[key] = chi2_ppf(*key)
+            self._chi2_gates[k] = g
         return g
 
     def _velocity_evidence(self, tr: _Track, v: np.ndarray, R: np.ndarray, t_s: float) -> None:
@@ -1882,12 +1895,17 @@ class ObstacleFusion:
             x, P = v, R
         else:
             x0 = tr.vel_acc[0]
-            P0 = self._evidence_now([tr], t_s)[0][0]  # (grown to t_s)
+            P0 = self._evidence_P(tr, t_s)  # (grown to t_s)
             K = P0 @ np.linalg.inv(P0 + R)  # x = x0 + K (v - x0), P = (I - K) P0
             x = x0 + K @ (v - x0)
             P = P0 - K @ P0
             P = 0.5 * (P + P.T)
         tr.vel_acc = (x, P, t_s)
+
+    def _evidence_P(self, tr: _Track, t_s: float) -> np.ndarray:
+        """``_evidence_now``'s P(t_s) (3, 3) of one track (the same arithmetic, without the test)."""
+        q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
+        return tr.vel_acc[1] + _EYE3 * (q * max(t_s - tr.vel_acc[2], 0.0))
 
     def _evidence_now(self, trs: list[_Track], t_s: float) -> tuple[np.ndarray, list[bool]]:
         """The velocity evidence ``vel_acc`` = (v, P, t_e) of each track in trs (all with one)
@@ -2099,7 +2117,7 @@ class ObstacleFusion:
             Q.setflags(write=False)
             FQ = self._FQ_cache[key] = (F, Q)
         tr.kf.F, tr.kf.Q = FQ
-        tr.kf.predict()
+        _ekf_predict(tr.kf)
         tr.t_kf = t_s
 
     def _gated_update(self, tr: _Track, y: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
@@ -2110,8 +2128,7 @@ class ObstacleFusion:
         x0, P0 = kf.x, kf.P  # (filterpy's update binds new arrays: these stay the prior)
         # filterpy EKF update with the residual already formed about the linearisation point:
         # z = y, h(x) = 0 (bearing) / the same residual for a linear measurement.
-        zero = _ZEROS[len(y)]
-        kf.update(y, HJacobian=lambda _x: H, Hx=lambda _x: zero, R=R)
+        _ekf_update(kf, y, H, R)
         yv = kf.y
         nis = float(yv @ kf.SI @ yv)
         if not math.isfinite(nis) or nis > gate:
@@ -2190,7 +2207,7 @@ class ObstacleFusion:
         position-velocity correlation."""
         kf = tr.kf
         if tr.vel_acc is not None:
-            v, P = tr.vel_acc[0], self._evidence_now([tr], tr.t_kf)[0][0]
+            v, P = tr.vel_acc[0], self._evidence_P(tr, tr.t_kf)
         else:
             v, P = meas
         kf.x = kf.x.copy()
@@ -2220,8 +2237,7 @@ class ObstacleFusion:
         H[0, :3] = d / r  # d|p - o|/dp
         R = np.array([[(self.settings.bounds_pseudo_sigma_frac * max(target, 1e-3)) ** 2]])
         y = np.array([target - r])
-        zero = np.zeros(1)
-        tr.kf.update(y, HJacobian=lambda _x: H, Hx=lambda _x: zero, R=R)
+        _ekf_update(tr.kf, y, H, R)
         tr.bounded_now = True
 
     # ---------------------------------------------------------------------------------- report
@@ -2455,17 +2471,22 @@ class ObstacleFusion:
         # pre-selection by track (K x tracks, not K x points): each track's points' mean direction
         # c_g, angular radius rho_g about it and nearest range; a pair (report j, track g) can
         # hold a point inside the hull or within the offset of u_j only when angle(u_j, c_g) <=
-        # rho_g + asin(offset / min r) and min r < r_j
-        order = np.argsort(g, kind="stable")
-        g, r, b, sr = g[order], r[order], b[order], sr[order]
-        ug, gstart, gcnt = np.unique(g, return_index=True, return_counts=True)
+        # rho_g + asin(offset / min r), and a nearer point beyond the noise (below) only when
+        # min r < r_j - 3 sqrt(var0_j) (<= r_j - 3 sqrt(var0_j + s_i^2) for every point i)
+        if len(g) > 1 and (g[1:] < g[:-1]).any():  # (each part is sorted by track already)
+            order = np.argsort(g, kind="stable")
+            g, r, b, sr = g[order], r[order], b[order], sr[order]
+        gstart = np.flatnonzero(np.diff(g, prepend=-1))  # (np.unique of the sorted g, cheaper)
+        gcnt = np.diff(np.append(gstart, len(g)))
+        ug = g[gstart]
         cg = np.add.reduceat(b, gstart, axis=0)
         cg /= np.maximum(np.sqrt(_dot_rows(cg, cg)), 1e-12)[:, None]
         cos_b = np.clip(_dot_rows(b, cg[np.repeat(np.arange(len(ug)), gcnt)]), -1.0, 1.0)
         cos_min = np.minimum.reduceat(cos_b, gstart)
         rmin = np.minimum.reduceat(r, gstart)
         reach = np.arccos(cos_min) + np.arcsin(np.minimum(off / np.maximum(rmin, 1e-9), 1.0))
-        pair = ((u @ cg.T) >= np.cos(np.minimum(reach, math.pi))[None, :]) & (rmin[None, :] < rng[:, None])
+        near = rng - 3.0 * np.sqrt(var0)
+        pair = ((u @ cg.T) >= np.cos(np.minimum(reach, math.pi))[None, :]) & (rmin[None, :] < near[:, None])
         pair &= ug[None, :] != own[:, None]
         pj, pg = np.nonzero(pair)
         if not len(pj):
@@ -2583,6 +2604,33 @@ def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
     bounds (CONVENTIONS.md)."""
     return _SOURCE_NAMES[(mono, stereo, bounds)]
 
+
+
+def _ekf_predict(kf: ExtendedKalmanFilter) -> None:
+    """``kf.predict()`` (filterpy's ExtendedKalmanFilter, no control input) with the same operations
+    in the same order, without its bookkeeping copies (x_prior, P_prior: nothing here reads them):
+        x = F x + B u,   P = F P F^T + Q."""
+    dot = np.dot
+    kf.x = dot(kf.F, kf.x) + dot(kf.B, 0)
+    kf.P = dot(kf.F, kf.P).dot(kf.F.T) + kf.Q
+
+
+def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+    """``kf.update(y, HJacobian=lambda x: H, Hx=lambda x: 0, R=R)`` (filterpy's
+    ExtendedKalmanFilter: residual y = z - h(x) already formed, (k,); H (k, 6); R (k, k)) with the
+    same operations in the same order, so the same bits, without its bookkeeping (deep copy of z,
+    x_post, P_post, likelihood resets: nothing here reads them). Sets S, SI (its inverse, filterpy's
+    own ``linalg.inv``), K, y, and the Joseph-form update
+        x = x + K y,   P = (I - K H) P (I - K H)^T + K R K^T."""
+    dot = np.dot
+    PHT = dot(kf.P, H.T)
+    kf.S = dot(H, PHT) + R
+    kf.SI = _FILTERPY_INV(kf.S)
+    kf.K = PHT.dot(kf.SI)
+    kf.y = np.subtract(y, _ZEROS[len(y)])
+    kf.x = kf.x + dot(kf.K, kf.y)
+    I_KH = kf._I - dot(kf.K, H)
+    kf.P = dot(I_KH, kf.P).dot(I_KH.T) + dot(kf.K, R).dot(kf.K.T)
 
 
 def _posterior_sigma(sig_r: np.ndarray, chi: np.ndarray, n: np.ndarray, k: float) -> np.ndarray:
