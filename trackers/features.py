@@ -93,6 +93,21 @@ def lens_mask(model, margin_px: float = 3.0) -> np.ndarray:
     return m
 
 
+def _median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` of a non-empty 1-D float array, the same number for a fraction of the
+    call (~20 us instead of ~80-120 us for 600 float32 values): the middle element of a partition, or
+    the mean of the two middle ones as np.median takes it (their sum in x's dtype, halved in it); a
+    NaN anywhere (np.median's answer is then NaN) goes to np.median itself."""
+    n = len(x)
+    k = n // 2
+    part = np.partition(x, k if n % 2 else (k - 1, k))
+    if np.isnan(part[k:]).any():  # (a NaN sorts last)
+        return float(np.median(x))
+    if n % 2:
+        return float(part[k])
+    return float((part[k - 1] + part[k]) / 2)  # numpy scalars: x's dtype throughout, as np.mean
+
+
 def _check_int(name: str, value) -> None:
     """Raise ConfigError unless ``value`` is an integer (int or numpy integer, not a bool)."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
@@ -670,7 +685,7 @@ class FeatureTracker:
             # deviation in the previous frame), so good features on textured obstacles are kept:
             # bound = max(max_residual, 3 median(err), texture_k MAD(patch)); the patch term is only
             # needed (and computed) where err exceeds the first two
-            base = max(self.max_residual, 3.0 * float(np.median(err[ok])))
+            base = max(self.max_residual, 3.0 * _median(err[ok]))
             over = np.flatnonzero(ok & (err > base))
             if len(over):
                 tex = self._texture(prev, p0[over]) if self.texture_k > 0 else np.zeros(len(over))
@@ -680,8 +695,10 @@ class FeatureTracker:
         # inside the frame (a NaN position compares false, so this also asks for finite ones) and
         # inside the lens mask
         ok &= (u1 >= 0) & (u1 <= w - 1) & (v1 >= 0) & (v1 <= h - 1)
-        ui = np.clip(np.round(u1).astype(np.intp), 0, w - 1)
-        vi = np.clip(np.round(v1).astype(np.intp), 0, h - 1)
+        # (np.rint: np.round's numbers (half to even) without its wrapper; clipped by two ufuncs, as
+        # np.clip's integers)
+        ui = np.minimum(np.maximum(np.rint(u1).astype(np.intp), 0), w - 1)
+        vi = np.minimum(np.maximum(np.rint(v1).astype(np.intp), 0), h - 1)
         ok &= self.mask[vi, ui] > 0
         n_ok = int(np.count_nonzero(ok))
         n_lk = int(np.count_nonzero(lk_ok))
@@ -711,8 +728,8 @@ class FeatureTracker:
         hw = self.win[0] // 2
         d = np.arange(-hw, hw + 1)
         h, w = image.shape[:2]
-        ui = np.clip(np.round(p[:, 0]).astype(np.intp)[:, None] + d[None, :], 0, w - 1)
-        vi = np.clip(np.round(p[:, 1]).astype(np.intp)[:, None] + d[None, :], 0, h - 1)
+        ui = np.minimum(np.maximum(np.rint(p[:, 0]).astype(np.intp)[:, None] + d[None, :], 0), w - 1)
+        vi = np.minimum(np.maximum(np.rint(p[:, 1]).astype(np.intp)[:, None] + d[None, :], 0), h - 1)
         patch = image[vi[:, :, None], ui[:, None, :]].reshape(len(p), -1).astype(np.float32)
         return np.mean(np.abs(patch - patch.mean(axis=1, keepdims=True)), axis=1)
 

@@ -450,3 +450,26 @@ def test_append_without_enough_free_slots_keeps_the_first_rows(model):
     assert ft._h_n[[3, 7]].tolist() == [0, 0]
     np.testing.assert_array_equal(ft.uv, uv[:2])
     assert next(ft._ids) == start + 5 and ft._free == []
+
+
+def test_median_is_np_median_bit_for_bit():
+    """_median (the residual test's frame median, without np.median's call overhead) must give
+    exactly float(np.median(x)) (numpy is the independent reference): odd and even lengths, ties,
+    float32 and float64, infinities, a NaN (np.median's answer is then NaN)."""
+    from trackers.features import _median
+
+    rng = np.random.default_rng(7)
+    for t in range(3000):
+        n = int(rng.integers(1, 400))
+        x = (rng.random(n) * rng.choice([1.0, 1e3, 1e30])).astype([np.float32, np.float64][t % 2])
+        if t % 3 == 0:
+            x = np.round(x * 4) / 4  # ties between the two middle values
+        if t % 11 == 0:
+            x[rng.integers(0, n)] = np.inf
+        if t % 13 == 0:
+            x[rng.integers(0, n)] = np.nan
+        want = float(np.median(x))
+        got = _median(x)
+        assert got == want or (np.isnan(got) and np.isnan(want)), (n, x.dtype, got, want)
+    assert _median(np.array([1.0, 2.0], np.float32)) == 1.5
+    assert _median(np.array([5.0, 1.0, 3.0])) == 3.0
