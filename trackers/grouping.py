@@ -70,6 +70,17 @@ def _normalise(v: np.ndarray) -> np.ndarray:
     return v / np.where(n > 0, n, 1.0)
 
 
+_SECTOR_MID = -np.pi + (np.arange(8) + 0.5) * (np.pi / 4.0)  # middle directions of 8 sectors (rad)
+_SECTOR_COS, _SECTOR_SIN = np.cos(_SECTOR_MID), np.sin(_SECTOR_MID)
+_ARANGE12 = np.arange(12)
+_N_OF_SUMS = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])  # N = [[n, x, y], [x, xx, xy], [y, xy, yy]] sums
+
+
+def _vnorm(v: np.ndarray) -> np.ndarray:
+    """Norms (...) of vectors v (..., 3): np.linalg.norm(v, axis=-1)'s own formula, without its overhead."""
+    return np.sqrt(np.add.reduce(v * v, axis=-1))
+
+
 def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
     normalised (ref the z axis, or x near it), e2 = rep x e1."""
@@ -284,7 +295,8 @@ class ObstacleGrouper:
         self._remember_rotation(R1)
         flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
-        fnorm = np.sqrt(np.einsum("ij,ij->i", flow, flow))
+        f2 = np.einsum("ij,ij->i", flow, flow)
+        fnorm = np.sqrt(f2)
         b_prev, pvalid = ft.previous_bearing()
         tracks = list(self.tracks.values())
         T = len(tracks)
@@ -292,6 +304,8 @@ class ObstacleGrouper:
         tflow = np.array([t.flow_rad_s for t in tracks], float).reshape(T, 3)
         hits = np.array([t.hits for t in tracks], np.int64)
         conf = np.array([t.status == "confirmed" for t in tracks], bool).reshape(T)
+        km = self._keep_min()
+        need_t = np.array([t.keep_min or km for t in tracks], np.int64).reshape(T)  # members to stay seen
         owner = self._owners(ids, tracks)
         self._frame += 1
         bg = self._background(ids)
@@ -300,14 +314,15 @@ class ObstacleGrouper:
         if len(r):
             far = np.einsum("ij,ij->i", b[r], rep[owner[r]]) < cos_r
             owner[r[far]] = -1
+        sel = np.flatnonzero((owner >= 0) & fvalid)  # members with a flow
+        o, f_sel, fn_sel = owner[sel], flow[sel], fnorm[sel]
         for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
-            tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
-            sel = np.flatnonzero((owner >= 0) & fvalid)
+            tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
             if len(sel):
-                o = owner[sel]
-                bad = ~self._agree(flow[sel], fnorm[sel], tflow[o], loose) & has_flow[o]
-                owner[sel[bad]] = -1
-        tflow, has_flow = self._track_flow(owner, flow, fvalid, tflow, T)
+                good = self._agree(f_sel, fn_sel, tflow[o], loose, _vnorm(tflow)[o]) | ~has_flow[o]
+                owner[sel[~good]] = -1
+                sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
+        tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         # 2. unassigned features with a flow join the track of their nearest member (features
         # marked as extended texture too: they start no new group, but may move with a track)
         free = np.flatnonzero((owner < 0) & fvalid)
@@ -315,14 +330,14 @@ class ObstacleGrouper:
         if len(free) and len(memb):
             cosd = b[free] @ b[memb].T
             j = np.argmax(cosd, axis=1)
-            t_of = owner[memb[j]]
-            ok = cosd[np.arange(len(free)), j] > cos_link
-            ok &= np.einsum("ij,ij->i", b[free], rep[t_of]) > cos_r
-            ok &= self._agree(flow[free], fnorm[free], tflow[t_of])  # (the last known flow if < 3 members)
-            owner[free[ok]] = t_of[ok]
+            k = np.flatnonzero(cosd[np.arange(len(free)), j] > cos_link)
+            fk, t_of = free[k], owner[memb[j[k]]]
+            ok = np.einsum("ij,ij->i", b[fk], rep[t_of]) > cos_r
+            # (the last known flow if < 3 members)
+            ok &= self._agree(flow[fk], fnorm[fk], tflow[t_of], 1.0, _vnorm(tflow)[t_of])
+            owner[fk[ok]] = t_of[ok]
         # 2b. a track short of members (coasting, or its features replaced) takes the free features
         # within link_rad of where it was predicted to be that move like it
-        need_t = np.array([t.keep_min or self._keep_min() for t in tracks], np.int64).reshape(T)
         cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
         short = np.flatnonzero((cnt_now < need_t) & (hits > 0))
         free = np.flatnonzero((owner < 0) & fvalid)
@@ -343,7 +358,7 @@ class ObstacleGrouper:
             fresh_short = np.zeros(0, np.intp)
         # 3. new groups from the rest: revive a memberless track where it was predicted, else new
         free = np.flatnonzero((owner < 0) & fvalid & ~bg)
-        pieces, small = self._pieces(free, b, flow, fvalid, ft.age, cos_link)
+        pieces, small = self._pieces(free, b, flow, fvalid, ft.age, cos_link, f2)
         K = len(pieces)
         fresh = np.zeros(T + K, bool)  # its members are all new this frame (no motion to follow)
         keep1 = np.zeros(T + K, bool)  # a small isolated obstacle: one member keeps it seen
@@ -352,8 +367,9 @@ class ObstacleGrouper:
             rows_all = np.concatenate(pieces)
             piece_of = np.repeat(np.arange(K), [len(p) for p in pieces])
             cnt_p = np.bincount(piece_of, minlength=K)
-            pc = _normalise(np.stack([np.bincount(piece_of, b[rows_all, k], K) for k in range(3)], 1))
-            pf = np.stack([np.bincount(piece_of, flow[rows_all, k], K) for k in range(3)], 1) / cnt_p[:, None]
+            b_p, f_p = b[rows_all], flow[rows_all]
+            pc = _normalise(np.stack([np.bincount(piece_of, b_p[:, k], K) for k in range(3)], 1))
+            pf = np.stack([np.bincount(piece_of, f_p[:, k], K) for k in range(3)], 1) / cnt_p[:, None]
             tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
             cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
             cand = np.flatnonzero((cnt_now < need_t) & (hits > 0))
@@ -362,18 +378,19 @@ class ObstacleGrouper:
                 pred = rep[cand] @ R1.T if R1 is not None else rep[cand]
                 pred = _normalise(pred + tflow[cand] * dt_s) if self.coast_predict else pred
                 cs = pc @ pred.T  # (K, C)
-                pfn = np.linalg.norm(pf, axis=1)
-                agree = self._agree(pf[:, None, :], pfn[:, None], tflow[cand][None, :, :])
-                cs = np.where((cs > cos_r) & agree, cs, -2.0)
-                pi, ci = np.nonzero(cs > -2.0)
-                used_p, used_c = np.zeros(K, bool), np.zeros(len(cand), bool)
-                for k in np.argsort(-cs[pi, ci], kind="stable"):  # closest pairs first
-                    p, c = pi[k], ci[k]
-                    if not (used_p[p] or used_c[c]):
-                        used_p[p] = used_c[c] = True
-                        tgt[p] = cand[c]
-                        rep[cand[c]] = pc[p]
-                        fresh[cand[c]] = cnt_now[cand[c]] == 0
+                pi, ci = np.nonzero(cs > cos_r)
+                agree = self._agree(pf[pi], _vnorm(pf)[pi], tflow[cand[ci]])
+                pi, ci = pi[agree], ci[agree]
+                used_p, used_c = set(), set()
+                order = np.argsort(-cs[pi, ci], kind="stable")  # closest pairs first
+                for p, c in zip(pi[order].tolist(), ci[order].tolist(), strict=True):
+                    if p not in used_p and c not in used_c:
+                        used_p.add(p)
+                        used_c.add(c)
+                        tc = int(cand[c])
+                        tgt[p] = tc
+                        rep[tc] = pc[p]
+                        fresh[tc] = cnt_now[tc] == 0
             fresh[T:] = True
             keep1[tgt] = small
             owner[rows_all] = tgt[piece_of]
@@ -421,18 +438,20 @@ class ObstacleGrouper:
         own = np.flatnonzero(owner >= 0)
         o = owner[own]
         cnt = np.bincount(o, minlength=TK)
-        mean_c = _normalise(np.stack([np.bincount(o, b[own, k], TK) for k in range(3)], 1))
-        per = own[pvalid[own] & ~fresh[o]]
-        po = owner[per]
+        b_own = b[own]
+        mean_c = _normalise(np.stack([np.bincount(o, b_own[:, k], TK) for k in range(3)], 1))
+        m_per = pvalid[own] & ~fresh[o]
+        po = o[m_per]
         pcnt = np.bincount(po, minlength=TK)
-        dsum = np.stack([np.bincount(po, b[per, k] - b_prev[per, k], TK) for k in range(3)], 1)
+        d_per = b_own[m_per] - b_prev[own[m_per]]
+        dsum = np.stack([np.bincount(po, d_per[:, k], TK) for k in range(3)], 1)
         # move with the members present in both frames: b_rep += mean(b_now - b_prev), then a
         # gentle pull towards the member mean (gain centre_gain)
         moved = _normalise(rep + dsum / np.maximum(pcnt, 1)[:, None])
         moved = _normalise(moved + self.centre_gain * (mean_c - moved))
         use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
         new_rep = np.where(use_moved[:, None], moved, mean_c)
-        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b[own], new_rep[o]), -1.0, 1.0))
+        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b_own, new_rep[o]), -1.0, 1.0))
         order_o = np.argsort(o, kind="stable")
         srt = own[order_o]  # member rows grouped by track
         starts = np.concatenate([[0], np.cumsum(cnt)])
@@ -443,8 +462,8 @@ class ObstacleGrouper:
         reach = np.zeros(TK)  # farthest member's angle from the representative bearing
         if len(ne):
             reach[ne] = np.maximum.reduceat(ang[order_o], starts[ne])
-        need = np.full(TK, self._keep_min())
-        need[:T] = [t.keep_min or self._keep_min() for t in tracks]
+        need = np.full(TK, km)
+        need[:T] = need_t
         need[keep1] = 1
         alive = cnt >= need
         # 5. extended texture
@@ -693,6 +712,8 @@ class ObstacleGrouper:
         judged = (cnt >= 4) & (taken[:T] < 0)
         sel = judged[o]
         rows, o = rows[sel], o[sel]
+        srt = np.argsort(o, kind="stable")  # rows grouped by track (blocks), in row order within
+        rows, o = rows[srt], o[srt]
         found = np.zeros(T, bool)
         if len(rows):
             b_then, t_then, _ = ft.bearing_ago(L)
@@ -723,16 +744,14 @@ class ObstacleGrouper:
             rows, o, xy, fn, dt = rows[sel], o[sel], xy[sel], fn[sel], dt[sel]
             bj = ft.b_C[rows]
             m = len(rows)
-            # member pairs of one track (rows are sorted by track: blocks), within link_rad
-            srt = np.argsort(o, kind="stable")
-            rows, o, xy, fn, bj, dt = rows[srt], o[srt], xy[srt], fn[srt], bj[srt], dt[srt]
+            # member pairs (i < j) of one track (rows sorted by track: blocks), within link_rad;
+            # every test below is symmetric in i and j, so one direction of each pair is enough
             cnt_o = np.bincount(o, minlength=T)
-            first = np.concatenate([[0], np.cumsum(cnt_o)])[o]  # block start of each row
-            reps_n = cnt_o[o]
+            reps_n = np.cumsum(cnt_o)[o] - np.arange(1, m + 1)  # rows after i in its block
             ei = np.repeat(np.arange(m), reps_n)
-            ej = first[ei] + (np.arange(len(ei)) - np.repeat(np.cumsum(reps_n) - reps_n, reps_n))
-            keep = (ei != ej) & (np.einsum("ij,ij->i", bj[ei], bj[ej]) > np.cos(self.link_rad))
-            ei, ej = ei[keep], ej[keep]  # both directions of every near pair
+            ej = ei + 1 + (np.arange(len(ei)) - np.repeat(np.cumsum(reps_n) - reps_n, reps_n))
+            keep = np.einsum("ij,ij->i", bj[ei], bj[ej]) > np.cos(self.link_rad)
+            ei, ej = ei[keep], ej[keep]
             dd = np.hypot(*(xy[ei] - xy[ej]).T)  # |window flow difference| (rad/s)
             thr = self.split_min_px * rad_px / np.minimum(dt[ei], dt[ej])
             thr = thr + self.split_rel * np.maximum(fn[ei], fn[ej])
@@ -740,21 +759,22 @@ class ObstacleGrouper:
             # only tracks with a near pair that does not link can fall apart
             loose = np.bincount(o[ei[~linked]], minlength=T) > 0
             if not np.any(loose):
-                ei = ej = dd = np.zeros(0, np.intp)
-                linked = np.zeros(0, bool)
-            li, lj = ei[linked], ej[linked]  # links, sorted by li
-            # connected components by min-label propagation over the links (as in _pieces)
+                for t in range(T):  # no candidate this frame: the count restarts
+                    tracks[t].split_n = 0
+                return out_rows, out_tgt
+            li, lj = ei[linked], ej[linked]  # links (one direction each)
+            # connected components: each end of a link takes the smaller label of the two, then
+            # labels jump to their label's label, until nothing changes (the component's least row)
             labels = np.arange(m)
-            if len(li):
-                st = np.flatnonzero(np.r_[True, li[1:] != li[:-1]])
-                heads = li[st]
-                for _ in range(m):
-                    nxt = labels.copy()
-                    nxt[heads] = np.minimum(labels[heads], np.minimum.reduceat(labels[lj], st))
-                    nxt = nxt[nxt]
-                    if np.array_equal(nxt, labels):
-                        break
-                    labels = nxt
+            while len(li):
+                lo = np.minimum(labels[li], labels[lj])
+                nxt = labels.copy()
+                np.minimum.at(nxt, li, lo)
+                np.minimum.at(nxt, lj, lo)
+                nxt = nxt[nxt]
+                if np.array_equal(nxt, labels):
+                    break
+                labels = nxt
             size = np.bincount(labels, minlength=m)
             ids = ft.ids
             # tracks with two parts of 2 or more members (a part lies in one track: links do)
@@ -770,7 +790,8 @@ class ObstacleGrouper:
             in_a = labels == a_lab[o]
             # a step, not a gradient: the flow jumps across part A's boundary by split_step times
             # what it changes between neighbours within the parts, and by the floor (per track:
-            # lower medians over its near pairs)
+            # lower medians over its near pairs; each pair once, which leaves a lower median as
+            # over both directions)
             pe = is_multi[o[ei]]
             cross = pe & (in_a[ei] != in_a[ej])
             inner = pe & ~cross
@@ -883,11 +904,13 @@ class ObstacleGrouper:
         out[has] = vals[order][start[has] + (cnt[has] - 1) // 2]
         return out
 
-    def _agree(self, f: np.ndarray, fn: np.ndarray, g: np.ndarray, loose: float = 1.0) -> np.ndarray:
-        """Flows f (..., 3) (norms fn (...)) and g (..., 3) agree (rad/s):
-        ``|f - g| < loose (flow_abs + flow_rel max(|f|, |g|))``."""
-        d = np.linalg.norm(f - g, axis=-1)
-        return d < loose * (self.flow_abs + self.flow_rel * np.maximum(fn, np.linalg.norm(g, axis=-1)))
+    def _agree(
+        self, f: np.ndarray, fn: np.ndarray, g: np.ndarray, loose: float = 1.0, gn: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Flows f (..., 3) (norms fn (...)) and g (..., 3) (norms gn (...), computed when None)
+        agree (rad/s): ``|f - g| < loose (flow_abs + flow_rel max(|f|, |g|))``."""
+        gn = _vnorm(g) if gn is None else gn
+        return _vnorm(f - g) < loose * (self.flow_abs + self.flow_rel * np.maximum(fn, gn))
 
     @staticmethod
     def _owners(ids: np.ndarray, tracks: list[ObstacleTrack]) -> np.ndarray:
@@ -907,6 +930,15 @@ class ObstacleGrouper:
         ok = sids[k] == mem
         owner[order[k[ok]]] = mem_t[ok]
         return owner
+
+    @staticmethod
+    def _mean_flow(o: np.ndarray, f: np.ndarray, old: np.ndarray, T: int) -> tuple[np.ndarray, np.ndarray]:
+        """Mean flow per track (T,3) of the members with a flow (track index o (S,), flow f (S,3))
+        where >= 3 members have one (else ``old`` (T,3)), and that mask (T,): as ``_track_flow``."""
+        cnt = np.bincount(o, minlength=T)
+        sums = np.stack([np.bincount(o, f[:, k], T) for k in range(3)], 1) if T else np.zeros((0, 3))
+        has = cnt >= 3
+        return np.where(has[:, None], sums / np.maximum(cnt, 1)[:, None], old), has
 
     @staticmethod
     def _track_flow(
@@ -939,8 +971,8 @@ class ObstacleGrouper:
             b_then = np.einsum("nij,nj->ni", Rs[np.maximum(n_back, 0)], b_then)
         dt = t_s - t_then
         valid &= dt > 0
-        flow = np.zeros((n, 3))
-        flow[valid] = (ft.b_C[valid] - b_then[valid]) / dt[valid, None]
+        flow = (ft.b_C - b_then) / np.where(valid, dt, 1.0)[:, None]
+        flow[~valid] = 0.0
         return flow, valid
 
     def _pieces(
@@ -951,6 +983,7 @@ class ObstacleGrouper:
         fvalid: np.ndarray,
         age: np.ndarray,
         cos_link: float,
+        f2_all: np.ndarray,
     ) -> tuple[list[np.ndarray], np.ndarray]:
         """Connected components of the free features (rows (m,) into the live features; graph:
         within link_rad and flows agreeing), cut to max_radius_rad pieces: the pieces (rows) that
@@ -958,12 +991,13 @@ class ObstacleGrouper:
         min_features features, at least min_features_isolated, all isolated_min_age frames old,
         and no other live feature within link_rad of any of them unless it has a flow (fvalid
         (N,)) that disagrees with theirs (a small obstacle moving against the background; a
-        component set apart by its motion only needs two features at least)."""
+        component set apart by its motion only needs two features at least). f2_all (N,): the
+        squared norms of ``flow`` (rad^2/s^2)."""
         m = len(free)
         if m == 0:
             return [], np.zeros(0, bool)
         bf, ff = b[free], flow[free]
-        f2 = np.einsum("ij,ij->i", ff, ff)
+        f2 = f2_all[free]
         fn = np.sqrt(f2)
         # |f_i - f_j|^2 = |f_i|^2 + |f_j|^2 - 2 f_i.f_j;  agree: |f_i - f_j| < abs + rel max(|f_i|, |f_j|)
         d2 = f2[:, None] + f2[None, :] - 2.0 * (ff @ ff.T)
@@ -984,26 +1018,33 @@ class ObstacleGrouper:
         out: list[np.ndarray] = []
         small: list[bool] = []
         # small components: judged as a whole (isolated, old enough)
-        cand = (sz < self.min_features) & (sz >= self.min_features_isolated)
-        if np.any(cand):
+        cand = np.flatnonzero((sz < self.min_features) & (sz >= self.min_features_isolated))
+        if len(cand):
             ok_f = age[free] >= self.isolated_min_age
             # isolated: a member's live neighbours (itself included) are all members, or move
             # unlike it (a small obstacle crossing the background: its motion sets it apart)
-            near = bf[cand] @ b.T > cos_link  # (C, N)
+            ci, nj = np.nonzero(bf[cand] @ b.T > cos_link)  # (candidate, live feature) pairs near
             fc = ff[cand]
-            g2 = np.einsum("ij,ij->i", flow, flow)
-            dd = f2[cand][:, None] + g2[None, :] - 2.0 * (fc @ flow.T)
-            th = self.flow_abs + self.flow_rel * np.maximum(fn[cand][:, None], np.sqrt(g2)[None, :])
-            unlike = fvalid[None, :] & (dd > 4.0 * th * th)  # twice the grouping tolerance
-            n_near = (near & ~unlike).sum(axis=1)
-            n_any = near.sum(axis=1)
+            g2 = f2_all[nj]
+            dd = (f2[cand][ci] + g2) - 2.0 * (fc @ flow.T)[ci, nj]
+            th = self.flow_abs + self.flow_rel * np.maximum(fn[cand][ci], np.sqrt(g2))
+            unlike = fvalid[nj] & (dd > 4.0 * th * th)  # twice the grouping tolerance
+            n_near = np.bincount(ci[~unlike], minlength=len(cand))
+            n_any = np.bincount(ci, minlength=len(cand))
             # set apart by motion only (live neighbours that move unlike it): two features at least
-            ok_f[cand] &= (n_near <= sz[cand]) & ((n_any <= sz[cand]) | (sz[cand] >= 2))
-            bad = np.bincount(labels[cand & ~ok_f], minlength=m) > 0
-            for r in np.unique(labels[cand]):
-                if not bad[r]:
-                    out.append(free[labels == r])
-                    small.append(True)
+            szc = sz[cand]
+            ok_f[cand] &= (n_near <= szc) & ((n_any <= szc) | (szc >= 2))
+            bad = np.bincount(labels[cand[~ok_f[cand]]], minlength=m) > 0
+            lab_c = labels[cand]
+            keep = ~bad[lab_c]
+            if np.any(keep):
+                # the kept components' features, grouped by label (ascending), in row order
+                rows_k, lab_k = cand[keep], lab_c[keep]
+                o_k = np.argsort(lab_k, kind="stable")
+                rows_k, lab_k = rows_k[o_k], lab_k[o_k]
+                cut = np.flatnonzero(lab_k[1:] != lab_k[:-1]) + 1
+                out.extend(np.split(free[rows_k], cut))
+                small.extend([True] * (len(cut) + 1))
         # components of min_features or more: cut to max_radius pieces
         cos_r = np.cos(self.max_radius_rad)
         for r in np.flatnonzero(size >= self.min_features):
@@ -1026,7 +1067,6 @@ class ObstacleGrouper:
                     small.append(False)
                 comp = comp[~inside] if np.any(inside) else comp[comp != far]
         return out, np.array(small, bool)
-
     def _embedded(
         self,
         rep: np.ndarray,
@@ -1065,9 +1105,8 @@ class ObstacleGrouper:
         occ = np.zeros((A, 8), bool)
         occ[ti, sec] = True
         # a sector is visible when the point at `outer` in its middle direction is inside the lens
-        mid = -np.pi + (np.arange(8) + 0.5) * (np.pi / 4.0)
         z = np.cos(outer)[:, None] * rep[:, 2:3] + np.sin(outer)[:, None] * (
-            np.cos(mid)[None, :] * e1[:, 2:3] + np.sin(mid)[None, :] * e2[:, 2:3]
+            _SECTOR_COS[None, :] * e1[:, 2:3] + _SECTOR_SIN[None, :] * e2[:, 2:3]
         )
         vis = z > np.cos(model.max_angle_rad)
         surrounded = ((occ & vis).sum(1) >= 4) & ((vis & ~occ).sum(1) <= 8 - self.extended_sectors)
@@ -1078,24 +1117,22 @@ class ObstacleGrouper:
         # affine flow field of the neighbours: f(x, y) = c0 + c1 x + c2 y per tangent component,
         # least squares (normal equations, a small ridge on the slopes); at the track: c0
         s = self.link_rad
-        rows = np.stack([np.ones_like(x), x / s, y / s], 1)  # (P, 3), slopes per link_rad
-        fxy = np.stack([np.einsum("ij,ij->i", flow[i], e1[ti]), np.einsum("ij,ij->i", flow[i], e2[ti])], 1)
-        # per track sums by bincount over (track, entry) (a ufunc.at is ten times slower)
-        key = ti[:, None] * 9 + np.arange(9)[None, :]
-        N = np.bincount(key.ravel(), (rows[:, :, None] * rows[:, None, :]).reshape(-1), A * 9).reshape(
-            A, 3, 3
+        xs, ys = x / s, y / s  # slopes per link_rad
+        fx, fy = np.einsum("ij,ij->i", flow[i], e1[ti]), np.einsum("ij,ij->i", flow[i], e2[ti])
+        # N = sum r r^T, rhs = sum r f^T with r = (1, x, y): per track sums of these 12 products
+        # by one bincount over (track, product) (a ufunc.at is ten times slower)
+        w = np.stack(
+            [np.ones_like(x), xs, ys, xs * xs, xs * ys, ys * ys, fx, fy, xs * fx, xs * fy, ys * fx, ys * fy],
+            1,
         )
-        key = ti[:, None] * 6 + np.arange(6)[None, :]
-        rhs = np.bincount(key.ravel(), (rows[:, :, None] * fxy[:, None, :]).reshape(-1), A * 6).reshape(
-            A, 3, 2
-        )
+        sums = np.bincount((ti[:, None] * 12 + _ARANGE12).ravel(), w.ravel(), A * 12).reshape(A, 12)
+        N = sums[:, _N_OF_SUMS].reshape(A, 3, 3)
+        rhs = sums[:, 6:].reshape(A, 3, 2)
         N += np.diag([1e-9, 1e-3, 1e-3]) * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
         c0 = np.linalg.solve(N[surrounded], rhs[surrounded])[:, 0, :]  # (S, 2)
         tf = np.stack([np.einsum("ij,ij->i", tflow, e1), np.einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
-        gap = np.linalg.norm(c0 - tf, axis=1)
-        thr = self.flow_abs + self.flow_rel * np.maximum(
-            np.linalg.norm(c0, axis=1), np.linalg.norm(tf, axis=1)
-        )
+        gap = _vnorm(c0 - tf)
+        thr = self.flow_abs + self.flow_rel * np.maximum(_vnorm(c0), _vnorm(tf))
         out[surrounded] = gap < thr
         return out
 
