@@ -616,10 +616,14 @@ def _set_names(opts: AccuracyOptions) -> tuple[str, ...]:
     if opts.scene_set in SET_GROUPS:
         return SET_GROUPS[opts.scene_set]
     if opts.scene_set not in SCENE_SETS:
+        import difflib
+
         from estimators.errors import ConfigError
 
-        raise ConfigError(f"accuracy --set: expected one of {', '.join([*SCENE_SETS, *SET_GROUPS])}, "
-                          f"got {opts.scene_set!r}")
+        names = [*SCENE_SETS, *SET_GROUPS]
+        close = difflib.get_close_matches(str(opts.scene_set), names, n=1, cutoff=0.6)
+        raise ConfigError(f"accuracy --set: expected one of {', '.join(names)}, got {opts.scene_set!r}"
+                          + (f"; did you mean {close[0]!r}?" if close else ""))
     return (opts.scene_set,)
 
 
@@ -656,13 +660,28 @@ def _check_scenes(opts: AccuracyOptions, valid: dict[str, list[str]]) -> None:
     known = {n for names in valid.values() for n in names}
     unknown = [n for n in dict.fromkeys(opts.scenes or ()) if n not in known]
     if unknown:
+        import difflib
+
         from estimators.errors import ConfigError
 
+        # a name of another set: say which; else the nearest name of any set, if one is near
+        other = {n: k for k, v in SCENE_SETS.items() if k not in valid for n in _all_pipeline_names(k)}
+        hints = []
+        for n in unknown:
+            if n in other:
+                hints.append(f"{n!r} is in the {other[n]} set (--set {other[n]} or a group holding it: "
+                             + ", ".join(g for g, v in SET_GROUPS.items() if other[n] in v) + ")")
+            else:
+                close = difflib.get_close_matches(n, sorted(known | set(other)), n=1, cutoff=0.6)
+                if close:
+                    hints.append(f"{n!r}: did you mean {close[0]!r}"
+                                 + (f" (the {other[close[0]]} set)" if close[0] in other else "") + "?")
         listed = "; ".join(f"{k}: {', '.join(v)}" for k, v in valid.items())
         raise ConfigError(
-            f"accuracy --scene: {', '.join(map(repr, unknown))} is in no chosen scene set "
+            f"accuracy --scene: {', '.join(map(repr, unknown))} {'is' if len(unknown) == 1 else 'are'} "
+            "in no chosen scene set "
             f"(--set {opts.scene_set}, {opts.mode} mode{', --quick' if opts.quick else ''}); "
-            f"expected one of {listed}")
+            + "".join(f"{h}; " for h in hints) + f"expected one of {listed}")
 
 
 def _run_bearings_set(opts: AccuracyOptions, scenes: list, rng, progress) -> tuple[list[Sample], dict]:
@@ -1098,13 +1117,14 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
                 progress(f"{name}: fusion replayed over {obs_path}{note}")
         else:
             if stale and progress:
-                progress(f"{name}: not replaying {obs_path}: recorded with another "
-                         f"{', '.join(stale)}; running the front end again")
+                why = ("it cannot be read (cut short?)" if stale == [UNREADABLE]
+                       else f"recorded with another {', '.join(stale)}")
+                progress(f"{name}: not replaying {obs_path}: {why}; running the front end again")
             rec = _RecordingFusion(fusion)
             run(cfg, rdir, rig=rig, egomotion=ego, fusion=rec)
-            obs_path.write_bytes(pickle.dumps({"trackers_hash": parts["trackers"], "key": _key(parts),
-                                               "key_parts": {k: _key(v) for k, v in parts.items()},
-                                               "frames": rec.frames}))
+            _write_atomic(obs_path, pickle.dumps({"trackers_hash": parts["trackers"], "key": _key(parts),
+                                                  "key_parts": {k: _key(v) for k, v in parts.items()},
+                                                  "frames": rec.frames}))
             lines = (rdir / "tracks.jsonl").read_text().splitlines()
             frames = [json.loads(line) for line in lines if line.strip()]
         rows = score_reports(truth, frames)
@@ -1291,6 +1311,10 @@ def _cached_render(scn, progress, how: dict | None = None) -> Path:
     if (d / RENDER_DONE_NAME).is_file():
         return d
     d.parent.mkdir(parents=True, exist_ok=True)
+    for old in d.parent.glob(f".{d.name}.part-*"):  # left by an interrupted render of this key
+        pid = old.name.rsplit("-", 1)[1]
+        if pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
     tmp = d.parent / f".{d.name}.part-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     if progress:
@@ -1308,6 +1332,19 @@ def _cached_render(scn, progress, how: dict | None = None) -> Path:
             shutil.rmtree(d, ignore_errors=True)
             os.rename(tmp, d)
     return d
+
+
+def _pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists on this machine (a render in progress there)."""
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # (PermissionError: it exists, someone else's)
+        return True
+    return True
 
 
 def _simulate_kw(how: dict) -> dict:
@@ -1424,12 +1461,32 @@ def _under(obj, prefix: str):
     return obj
 
 
+UNREADABLE = "recording (unreadable)"  # _stale_parts' answer for a recording it cannot read
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file renamed into place: a run interrupted while
+    writing leaves the previous file (or none), never a truncated one."""
+    import os
+
+    tmp = path.with_name(f".{path.name}.part-{os.getpid()}")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
 def _stale_parts(path: Path, parts: dict, legacy: dict | None = None) -> list[str]:
     """The parts (names of ``frontend_key_parts``) that differ from the recording at ``path``; []
     when it matches ``parts`` or ``legacy`` (the same parts with absolute scene paths, the way
     recordings were keyed before the paths became relative to the scene folder). A recording
-    without a key (older harness) differs in every part."""
-    rec = pickle.loads(path.read_bytes())
+    without a key (older harness) differs in every part; one that cannot be read (cut short by an
+    interrupted run before recordings were written atomically, or not a recording) is
+    [UNREADABLE], so it is recorded again instead of stopping the run."""
+    try:
+        rec = pickle.loads(path.read_bytes())
+        if not isinstance(rec, dict):
+            raise ValueError("not a recording")
+    except Exception:  # noqa: BLE001 (a truncated pickle raises EOFError, UnpicklingError, ValueError, ...)
+        return [UNREADABLE]
     if rec.get("key") == _key(parts) or (legacy is not None and rec.get("key") == _key(legacy)):
         return []
     old = rec.get("key_parts") or {}
