@@ -114,6 +114,7 @@ def _lk_part(
     level: int,
     crit: tuple,
     reach_px: float,
+    box_prev: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``cv2.calcOpticalFlowPyrLK`` from ``p_prev`` (K, 1, 2) float32 in grey_prev, starting at
     ``p_next`` (K, 1, 2) float32 in grey_next, on the parts of the two images the search can read.
@@ -127,6 +128,11 @@ def _lk_part(
     level samples the full image's own grid: inside the box every pixel LK reads equals the whole
     image's. A point that would travel farther than ``reach_px`` may be lost (status 0).
 
+    ``box_prev``: (J, 2) float32 points (a superset of ``p_prev``, also the starts) whose boxes
+    make the parts instead of ``p_prev``'s and ``p_next``'s: each point's answer depends on the
+    parts' origin (LK works in the part's float32 pixels), so a call on fewer points keeps the
+    numbers of a call on all of them (None: the boxes of ``p_prev`` and ``p_next``).
+
     Returns:
         (p_next (K, 1, 2) float32 result in grey_next, status (K,) uint8).
     """
@@ -136,8 +142,8 @@ def _lk_part(
         return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit)
     m = (win_px // 2 + 6) * 2.0**level
     al = 2**level
-    a = _lk_box(p_prev.reshape(-1, 2), m, grey_prev.shape, al)
-    b = _lk_box(p_next.reshape(-1, 2), m + reach_px, grey_next.shape, al)
+    a = _lk_box((p_prev if box_prev is None else box_prev).reshape(-1, 2), m, grey_prev.shape, al)
+    b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
     # one box for both (LK's two images have one size): the union
     x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
     o = np.array([x0, y0], np.float32)
@@ -280,19 +286,25 @@ def stereo_klt(
     chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()
     chk |= ~own[idx]
     chk |= own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
+    # the lens and epipolar tests of the forward results first (row by row: the same numbers on
+    # the rows KLT found as on all), so the backward check runs only on rows that can pass them
+    box = chk & good  # the rows to check: their box makes the backward call's parts
+    g = np.flatnonzero(good)
+    bb = np.zeros((len(idx), 3))
+    bb_g, okb = model_b.pixel_to_bearing(uv_b[g])
+    bb[g] = bb_g
+    good[g] = okb & (epipolar_residual(b_a[idx[g]], bb_g, R_b_a, t_b_a) < np.sin(epipolar_rad))
     ci = np.flatnonzero(chk & good)
     if len(ci):
-        # backward: from the forward result in b, starting at the same pixel in a
+        # backward: from the forward result in b, starting at the same pixel in a (in the parts of
+        # the images all rows to check would read: the same numbers as a call on all of them)
         reach = (win_px // 2) * 2.0 ** (levels + 1)
-        p0r, st2 = _lk_part(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach) if crop else (
-            _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
-        )
+        p0r, st2 = _lk_part(
+            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach, box_prev=p1[box]
+        ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         good[ci] &= (st2 == 1) & (
             np.linalg.norm((p0r - p0[ci]).reshape(-1, 2), axis=1) <= fb_max_px
         )
-    bb, okb = model_b.pixel_to_bearing(uv_b)
-    good &= okb
-    good &= epipolar_residual(b_a[idx], bb, R_b_a, t_b_a) < np.sin(epipolar_rad)
     return StereoKLT(idx[good], uv_b[good], bb[good], chk[good])
 
 

@@ -10,7 +10,6 @@ reference-camera (the rig's first) feature is reported under that feature's id (
 
 from __future__ import annotations
 
-import copy
 import itertools
 import time
 from collections import deque
@@ -121,6 +120,32 @@ def _sample_index(mask: np.ndarray) -> np.ndarray:
     w = mask.shape[1]
     ys, xs = np.nonzero(mask[::8, ::8] > 0)
     return (ys * 8 * w + xs * 8).astype(np.intp)
+
+
+def _shallow_copy(obj):
+    """``copy.copy`` of a plain (dict-based) object such as ObstacleTrack: a new instance sharing
+    the attribute values, without the reduce protocol's overhead."""
+    new = object.__new__(type(obj))
+    new.__dict__.update(obj.__dict__)
+    return new
+
+
+def _count_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> dict[tuple[int, int], int]:
+    """Votes per (a's track id, b's track id) pair: {pair: count}, pairs in the order of their
+    first vote (the order ``_associate``'s best-partner choice breaks ties by).
+
+    Args:
+        ids_a, ids_b: (K,) int track ids (>= 0, < 2^31), row-paired, one vote per row.
+    """
+    ia = np.asarray(ids_a, np.int64)
+    if not len(ia):
+        return {}
+    key = (ia << 32) | np.asarray(ids_b, np.int64)
+    uk, first, cnt = np.unique(key, return_index=True, return_counts=True)
+    o = np.argsort(first, kind="stable")
+    uk, cnt = uk[o], cnt[o]
+    pairs = zip((uk >> 32).tolist(), (uk & 0xFFFFFFFF).tolist(), strict=True)
+    return dict(zip(pairs, cnt.tolist(), strict=True))
 
 
 class FrontEnd:
@@ -289,6 +314,12 @@ class FrontEnd:
         self._follow_only: set[tuple[str, str]] = set()
         self._retry_rows: dict[tuple[str, str], np.ndarray] = {}
         self._gid: dict[int, int] = {}  # local (per-camera) track id -> global track id
+        # _merge_gids' count (a merge re-maps global ids) and this frame's _unviewed_in_ref lists
+        # per (camera, that count), reset each frame by _prefetch_stereo
+        self._gid_version = 0
+        self._unviewed: dict[tuple[str, int], tuple] = {}
+        # per camera, this frame's (live feature ids, their stable argsort, the sorted ids) (_rows)
+        self._id_order: dict[str, tuple] = {}
         # box tracks of the reference camera and another linked as one obstacle (_associate_boxes)
         self._box_stereo = {(rig.cameras[0].name, c.name): BoxStereo(2) for c in rig.cameras[1:]}
         # physical-point feature ids (ARCHITECTURE "Stage interfaces"): per other camera, its
@@ -476,15 +507,18 @@ class FrontEnd:
     def _global(self, tid: int) -> int:
         return self._gid.get(tid, tid)
 
-    @staticmethod
-    def _rows(ft: FeatureTracker, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _rows(self, ft: FeatureTracker, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(rows (K,) into ft's live features, which (K,) indices into ``ids``) of the live ones
-        among feature ids ``ids`` (N,)."""
+        among feature ids ``ids`` (N,). The sort of ft's ids is kept for the frame (``_id_order``,
+        while ``ft.ids`` is the same array)."""
         ids = np.asarray(ids, np.int64)
         if not len(ids) or not len(ft.ids):
             return np.zeros(0, np.intp), np.zeros(0, np.intp)
-        order = np.argsort(ft.ids, kind="stable")
-        sids = ft.ids[order]
+        c = self._id_order.get(id(ft))
+        if c is None or c[0] is not ft.ids:
+            order = np.argsort(ft.ids, kind="stable")
+            c = self._id_order[id(ft)] = (ft.ids, order, ft.ids[order])
+        _, order, sids = c
         k = np.minimum(np.searchsorted(sids, ids), len(sids) - 1)
         which = np.flatnonzero(sids[k] == ids)
         return order[k[which]], which
@@ -581,6 +615,8 @@ class FrontEnd:
         ``_add_found_members`` (members of confirmed reference tracks with >= 3 members) will ask
         ``_stereo`` for: LK rebuilds both images' pyramids on every call (the Python binding takes
         no prebuilt pyramids), so one call per pair and frame instead of up to three."""
+        self._unviewed.clear()  # this frame's lists (_unviewed_in_ref) and sorts (_rows)
+        self._id_order.clear()
         ref = self.rig.cameras[0].name
         names = [n for n in self.cams if n in greys and n in self.trackers and seen.get(n)]
         # reverse views: a full search (a retry) on association frames, else last frame's matches
@@ -652,14 +688,12 @@ class FrontEnd:
             T_b_a = self._T_b_a[(a, b)]  # T_Cb_Ca = T_Cb_B T_B_Ca
             ba, da, oa, fa = data[a]
             bb, db, ob, fb = data[b]
-            pairs: dict[tuple[int, int], int] = {}
-            # votes 1: ORB descriptors of members matched under the epipolar constraint
+            # votes 1: ORB descriptors of members matched under the epipolar constraint (one vote
+            # per match to the pair (a's owner track, b's owner track))
             m = match_features(ba, da, bb, db, T_b_a.R, T_b_a.t, self.epipolar_rad, self.max_hamming)
             ref_a = a == self.rig.cameras[0].name
             link_a, link_b = [fa[m[:, 0]]], [fb[m[:, 1]]]  # physical-point links (ref id, b's id)
-            for i, j in m:
-                key = (int(oa[i]), int(ob[j]))
-                pairs[key] = pairs.get(key, 0) + 1
+            vote_a, vote_b = [oa[m[:, 0]]], [ob[m[:, 1]]]
             # votes 2: a's members found in b's image by KLT from their infinite-depth projection;
             # the vote goes to b's track whose member is nearest (within the grouping link distance)
             ua, ub = members[a], members[b]
@@ -672,15 +706,15 @@ class FrontEnd:
                 d2 = du * du + dv * dv
                 j = np.argmin(d2, axis=1)
                 near = d2[np.arange(len(idx)), j] <= self.groupers[b].link_px ** 2
-                for i, jj in zip(idx[near], j[near], strict=True):
-                    key = (int(ua[2][i]), int(ub[2][jj]))
-                    pairs[key] = pairs.get(key, 0) + 1
+                vote_a.append(ua[2][idx[near]])
+                vote_b.append(ub[2][j[near]])
                 if ref_a:
                     ia, ib = klt_links(d2, self.klt_link_px)
                     link_a.append(self.trackers[a].ids[ua[0][idx[ia]]])
                     link_b.append(self.trackers[b].ids[ub[0][ib]])
             if ref_a:
                 self.link_features(b, *consistent_pairs(np.concatenate(link_a), np.concatenate(link_b)))
+            pairs = _count_pairs(np.concatenate(vote_a), np.concatenate(vote_b))
             if not pairs:
                 continue
             best_a: dict[int, tuple[int, int]] = {}
@@ -820,6 +854,7 @@ class FrontEnd:
     def _merge_gids(self, keep: int, drop: int, lids: tuple, absorbed: list[int]) -> None:
         """One obstacle from two: every local track id mapped to global id ``drop`` and the pair's
         local ids ``lids`` map to ``keep``; ``drop`` goes to ``absorbed`` when it was reported."""
+        self._gid_version += 1
         for lid, g in list(self._gid.items()):
             if g == drop:
                 self._gid[lid] = keep
@@ -881,11 +916,12 @@ class FrontEnd:
             if b == ref or b not in greys or not seen.get(ref):
                 continue
             self._add_found_members(seen, ref, b)
-            have = {self._global(t.id) for t in seen.get(b, [])}
+            gid = self._gid.get
+            have = {gid(t.id, t.id) for t in seen.get(b, [])}
             todo = [
                 t
                 for t in seen[ref]
-                if t.status == "confirmed" and self._global(t.id) not in have and len(t.members) >= 3
+                if t.status == "confirmed" and gid(t.id, t.id) not in have and len(t.members) >= 3
             ]
             for v in self._views_found(ref, b, todo, None):
                 out.setdefault(b, []).append(v)
@@ -904,20 +940,29 @@ class FrontEnd:
     def _unviewed_in_ref(self, seen: dict[str, list[ObstacleTrack]], b: str) -> list[ObstacleTrack]:
         """Camera b's own confirmed grouper tracks (>= 3 members) whose global id has no track in
         the reference camera's ``seen`` list this frame."""
+        key = (b, self._gid_version)
+        hit = self._unviewed.get(key)
+        if hit is not None and hit[0] is seen:
+            return hit[1]
         ref = self.rig.cameras[0].name
         grouper = self.groupers.get(b)
         if grouper is None or not seen.get(b):
             return []
-        have_ref = {self._global(t.id) for t in seen.get(ref, [])}
-        return [
+        gid = self._gid.get
+        label = self.label
+        own_tracks = grouper.tracks
+        have_ref = {gid(t.id, t.id) for t in seen.get(ref, [])}
+        out = [
             t
             for t in seen[b]
             if t.status == "confirmed"
-            and t.label == self.label
+            and t.label == label
             and len(t.members) >= 3
-            and grouper.tracks.get(t.id) is t
-            and self._global(t.id) not in have_ref
+            and own_tracks.get(t.id) is t
+            and gid(t.id, t.id) not in have_ref
         ]
+        self._unviewed[key] = (seen, out)
+        return out
 
     def _views_found(
         self, a: str, b: str, todo: list[ObstacleTrack], pid: dict[int, int] | None
@@ -945,21 +990,24 @@ class FrontEnd:
         R_b_a = self._T_b_a[(a, b)].R
         ba_found = ft.b_C[rows[idx]]
         reps = np.empty((len(good), 3))
-        for k, ti in enumerate(good.tolist()):
-            lo, hi = ends[ti] - cnt[ti], ends[ti]
-            # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a)))
-            reps[k] = bb[lo:hi].mean(0) + R_b_a @ (todo[ti].b_C - ba_found[lo:hi].mean(0))
+        gl, los, his = good.tolist(), (ends - cnt)[good].tolist(), ends[good].tolist()
+        add = np.add.reduce
+        for k, (ti, lo, hi) in enumerate(zip(gl, los, his, strict=True)):
+            # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a))); a mean is the sum / n
+            n_f = hi - lo
+            reps[k] = add(bb[lo:hi], 0) / n_f + R_b_a @ (todo[ti].b_C - add(ba_found[lo:hi], 0) / n_f)
         reps /= np.linalg.norm(reps, axis=1, keepdims=True)
         uv, okp = self.cams[b].model.bearing_to_pixel(reps)
+        found = mem[idx]
+        if pid:  # under their physical-point ids
+            fl = found.tolist()
+            found = np.fromiter(map(pid.get, fl, fl), np.int64, len(fl))
         out = []
-        for k, ti in enumerate(good.tolist()):
+        for k, (ti, lo, hi) in enumerate(zip(gl, los, his, strict=True)):
             if not okp[k]:
                 continue
             tr = todo[ti]
-            lo, hi = ends[ti] - cnt[ti], ends[ti]
-            ids = mem[idx[lo:hi]]
-            if pid:
-                ids = np.fromiter(map(pid.get, ids.tolist(), ids.tolist()), np.int64, len(ids))
+            ids = found[lo:hi]
             v = ObstacleTrack(
                 tr.id,
                 b,
@@ -985,15 +1033,18 @@ class FrontEnd:
         grouper = self.groupers.get(b)
         if grouper is None or not seen.get(b):
             return
+        gid = self._gid.get
+        label = self.label
         refs: dict[int, ObstacleTrack] = {}
         for t in seen[ref]:
-            if t.status == "confirmed" and t.label == self.label and len(t.members) >= 3:
-                refs.setdefault(self._global(t.id), t)
+            if t.status == "confirmed" and t.label == label and len(t.members) >= 3:
+                refs.setdefault(gid(t.id, t.id), t)
+        own_tracks = grouper.tracks
         slots = [
             (k, tb, refs[g])
             for k, tb in enumerate(seen[b])
-            if (g := self._global(tb.id)) in refs
-            and grouper.tracks.get(tb.id) is tb
+            if (g := gid(tb.id, tb.id)) in refs
+            and own_tracks.get(tb.id) is tb
             and len(tb.member_b_C) == len(tb.members)
         ]
         if not slots:
@@ -1030,7 +1081,7 @@ class FrontEnd:
             lo, hi = end_b[si] - n_b[si], end_b[si]
             flo, fhi = end_f[si] - cnt_f[si], end_f[si]
             keep = keep_all[lo:hi]
-            v = copy.copy(tb)
+            v = _shallow_copy(tb)
             v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
             v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
             seen[b][k] = v

@@ -494,3 +494,33 @@ def test_stereo_klt_checks_a_followed_match_that_lands_off_its_guess():
     odd = r.idx % 2 == 1
     assert np.sum(~odd) >= 0.4 * len(b_a) / 2 and not r.checked[~odd].any()
     assert np.sum(odd) >= 0.4 * len(b_a) / 2 and r.checked[odd].all()
+
+
+def test_lk_part_on_fewer_points_keeps_the_numbers_of_all_with_their_box():
+    """LK works in the float32 pixels of the part it is given, so a point's answer depends on the
+    part's origin: a backward-check call (from b's pixels, starting at the same pixels in a) on a
+    few points far from the others lands them (bit for bit) where the call on all points does when
+    given all points' box (``box_prev``, as stereo_klt's backward check does after the epipolar
+    test), and only to 1e-3 px (not bit for bit) on its own smaller box. Camera turned 3 degrees
+    about y over a world at infinity: the answers sit on a's features."""
+    import cv2
+
+    from trackers.association import _lk_part
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    cv2.setNumThreads(1)
+    in_b, _ = model.bearing_to_pixel(ft.b_C @ R_b_a.T)
+    p = in_b.reshape(-1, 1, 2).astype(np.float32)
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
+    q_all, st_all = _lk_part(img_b, img_a, p, p, 11, 2, crit, 40.0)
+    # the rows farthest from the points' top-left corner: their own box starts elsewhere
+    far = np.argsort(-in_b.sum(axis=1))[:5]
+    q_box, st_box = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit, 40.0, box_prev=p)
+    q_own, _ = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit, 40.0)
+    ok = st_all[far] == 1
+    assert ok.sum() >= 4
+    np.testing.assert_array_equal(st_box, st_all[far])
+    np.testing.assert_array_equal(q_box[ok], q_all[far][ok])
+    np.testing.assert_allclose(q_own[ok], q_all[far][ok], atol=1e-3)
+    assert not np.array_equal(q_own[ok], q_all[far][ok])  # the origin matters (why box_prev exists)
+    assert np.median(np.linalg.norm(q_box[ok].reshape(-1, 2) - ft.uv[far][ok], axis=1)) < 0.3
