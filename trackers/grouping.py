@@ -268,6 +268,7 @@ class ObstacleGrouper:
         self._frame = 0
         self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
         self.splits = 0  # tracks split by step 3c so far (a diagnostic count)
+        self._need_t = np.zeros(0, np.int64)  # this frame's members each track needs to stay seen
 
     # ---------------------------------------------------------------------------------- api
     def update(
@@ -306,6 +307,7 @@ class ObstacleGrouper:
         conf = np.array([t.status == "confirmed" for t in tracks], bool).reshape(T)
         km = self._keep_min()
         need_t = np.array([t.keep_min or km for t in tracks], np.int64).reshape(T)  # members to stay seen
+        self._need_t = need_t  # (for _inherit and _revive this frame)
         owner = self._owners(ids, tracks)
         self._frame += 1
         bg = self._background(ids)
@@ -478,7 +480,9 @@ class ObstacleGrouper:
                 new_rep[a_idx], reach[a_idx], tflow[a_idx], a_idx, b, flow, fvalid, owner, ft.model
             )
         # 6. the tracks' new state, the life cycle (array work first, then one pass over tracks)
-        new_ids = [next(self._ids) if alive[ti] and not ext[ti] else -1 for ti in range(T, TK)]
+        # (python lists: the loop below reads them one element at a time)
+        alive_l, ext_l, taken_l = alive.tolist(), ext.tolist(), taken.tolist()
+        new_ids = [next(self._ids) if alive_l[ti] and not ext_l[ti] else -1 for ti in range(T, TK)]
         show = np.flatnonzero(alive)
         uv_all = np.zeros((TK, 2))
         if len(show):
@@ -495,13 +499,13 @@ class ObstacleGrouper:
         for ti in range(TK):
             if ti < T:
                 tr = tracks[ti]
-                if taken[ti] >= 0:  # taken over by an older track of the same obstacle
+                if taken_l[ti] >= 0:  # taken over by an older track of the same obstacle
                     tr.status, tr.seen = "lost", False
                     tr.members, tr.member_b_C = empty_i, empty_b
                     del self.tracks[tr.id]
                     lost.append(tr)
                     continue
-                if not alive[ti]:  # unseen: coast on the predicted bearing
+                if not alive_l[ti]:  # unseen: coast on the predicted bearing
                     tr.seen = False
                     tr.members, tr.member_b_C = empty_i, empty_b
                     tr.b_C = coast_b[ti]
@@ -511,7 +515,7 @@ class ObstacleGrouper:
                         del self.tracks[tr.id]
                         lost.append(tr)
                     continue
-                tr.extended = tr.extended + 1 if ext[ti] else 0
+                tr.extended = tr.extended + 1 if ext_l[ti] else 0
                 if tr.extended >= self.extended_frames and tr.status == "tentative":
                     tr.status, tr.seen = "lost", False
                     tr.members, tr.member_b_C = empty_i, empty_b
@@ -520,9 +524,9 @@ class ObstacleGrouper:
                     lost.append(tr)
                     continue
             else:
-                if not alive[ti]:
+                if not alive_l[ti]:
                     continue
-                if ext[ti]:  # a piece of extended texture: no track
+                if ext_l[ti]:  # a piece of extended texture: no track
                     to_bg.append(srt[st[ti] : st[ti + 1]])
                     continue
                 tid = new_ids[ti - T]
@@ -630,11 +634,10 @@ class ObstacleGrouper:
         if T == 0:
             return out
         cnt = np.bincount(owner[owner >= 0], minlength=TK)
-        need = np.array([t.keep_min or self._keep_min() for t in tracks] + [self._keep_min()] * (TK - T))
-        alive = cnt >= need
-        dying = [i for i in np.flatnonzero(~alive[:T] & conf[:T]) if len(tracks[i].member_b_C)]
+        dying = [i for i in np.flatnonzero((cnt[:T] < self._need_t) & conf[:T]) if len(tracks[i].member_b_C)]
         if not dying:
             return out
+        alive = cnt >= np.concatenate([self._need_t, np.full(TK - T, self._keep_min())])
         used = np.zeros(TK, bool)
         fn = np.linalg.norm(tflow, axis=1)
         for i in dying:
@@ -842,7 +845,7 @@ class ObstacleGrouper:
             return
         T = len(tracks)
         cnt_all = np.bincount(owner[owner >= 0], minlength=T)[:T]
-        need = np.array([tr.keep_min or self._keep_min() for tr in tracks])
+        need = self._need_t
         hits = np.array([tr.hits for tr in tracks])
         cand = np.flatnonzero((cnt_all < need) & (taken[:T] < 0) & (hits > 0))
         if not len(cand):
