@@ -555,20 +555,29 @@ class _FeatureRays:
         np.add.at). memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
         (exponential forgetting: a tracked corner drifts over the object, so old rays stop meeting
         the point it tracks now)."""
+        f = None
         if memory_s > 0:  # forget old rays: w = exp(-(t - t_last) / memory_s)
             f = np.exp(-(t_s - self.last_t[rows]) / memory_s)
-            self.A[rows] *= f[:, None, None]
-            self.y[rows] *= f[:, None]
-            self.cc[rows] *= f
-            self.bc[rows] *= f[:, None]
-            self.bcc[rows] *= f
-            self.n[rows] *= f
+            if not unique:
+                self.A[rows] *= f[:, None, None]
+                self.y[rows] *= f[:, None]
+                self.cc[rows] *= f
+                self.bc[rows] *= f[:, None]
+                self.bcc[rows] *= f
+                self.n[rows] *= f
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
         Pc = np.einsum("kij,kj->ki", Pm, c_W)
         cPc = np.sum(Pc * c_W, axis=1)
         bdc = np.sum(b_W * c_W, axis=1)  # b_i . c_i
         bbc = b_W * bdc[:, None]
-        if unique:
+        if unique and f is not None:  # (one read and one write per array: the same w s + new)
+            self.A[rows] = self.A[rows] * f[:, None, None] + Pm
+            self.y[rows] = self.y[rows] * f[:, None] + Pc
+            self.cc[rows] = self.cc[rows] * f + cPc
+            self.bc[rows] = self.bc[rows] * f[:, None] + bbc
+            self.bcc[rows] = self.bcc[rows] * f + bdc * bdc
+            self.n[rows] = self.n[rows] * f + 1.0
+        elif unique:
             self.A[rows] += Pm
             self.y[rows] += Pc
             self.cc[rows] += cPc
@@ -993,24 +1002,26 @@ class ObstacleFusion:
             c_W[k] = T_W_B.R @ T_B_C.t + T_W_B.t
         c_rows = list(c_W)  # one (3,) array per camera, shared by its views
         c_tup = [tuple(c.tolist()) for c in c_rows]
-        vs_l, b_l, cam_l, fid_l, fb_l, trk_l = [], [], [], [], [], []
+        vs_l, b_l, cam_l, fid_l, fb_l, trk_l, n_l, first_view = [], [], [], [], [], [], [], []
         order = cam_index.__getitem__
         for i, (_tr, obs) in enumerate(todo):
             vs = obs.views
             if len(vs) > 1:
                 vs = sorted(vs, key=lambda w: order(w.camera))
             vs_l.append(vs)
+            first_view.append(len(b_l))
             for v in vs:
                 b_l.append(v.b_C)
                 cam_l.append(order(v.camera))
                 fid_l.append(v.feature_ids)
+                n_l.append(len(v.feature_ids))
                 fb_l.append(v.feature_b_C)
                 trk_l.append(i)
         if not todo:
             return [], None
         B = np.array(b_l)  # (V, 3) camera bearings
         vcam = np.array(cam_l, dtype=np.int64)
-        fcnt = np.fromiter((len(f) for f in fid_l), dtype=np.int64, count=len(fid_l))
+        fcnt = np.array(n_l, dtype=np.int64)
         M = int(fcnt.sum())
         B = _rotate_rows(B, vcam, R_W_C)
         B /= np.sqrt(B[:, 0] * B[:, 0] + B[:, 1] * B[:, 1] + B[:, 2] * B[:, 2])[:, None]
@@ -1021,11 +1032,10 @@ class ObstacleFusion:
             FB = np.concatenate(fb_l)
             fcam = np.repeat(vcam, fcnt)
             FB = _rotate_rows(FB, fcam, R_W_C)
-            first_view = np.flatnonzero(np.diff(np.array(trk_l, dtype=np.int64), prepend=-1))
             feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam,
                      B[first_view])
         offs = (np.cumsum(fcnt) - fcnt).tolist()
-        cnts = fcnt.tolist()
+        cnts = n_l
         o_W = T_W_B.t
         work = []
         j = 0
@@ -1309,11 +1319,14 @@ class ObstacleFusion:
         vb = sg.views[0]
         cb = sg.c0
         hist = tr.history
-        C = np.array([h.c0 for h in hist])  # the longest baseline: largest |c - c_b|^2 (first of ties)
-        d2 = (C[:, 0] - cb[0]) ** 2 + (C[:, 1] - cb[1]) ** 2 + (C[:, 2] - cb[2]) ** 2
-        kbest = int(np.argmax(d2))
-        best = hist[kbest]
-        best_b2 = float(d2[kbest])
+        # the longest baseline: largest |c - c_b|^2 (first of ties; Python floats, no arrays)
+        x, y, z = cb
+        best, best_b2 = None, -math.inf
+        for h in hist:
+            c = h.c0
+            d2 = (c[0] - x) ** 2 + (c[1] - y) ** 2 + (c[2] - z) ** 2
+            if d2 > best_b2:
+                best, best_b2 = h, d2
         va = best.views[0]
         cos_par = float(va.b_W @ vb.b_W)  # cheap pre-check of the parallax before triangulating
         if cos_par > math.cos(self.settings.min_parallax_rad) and best_b2 > 1e-18:
@@ -2341,7 +2354,7 @@ class ObstacleFusion:
                     kw["ttc_s"] = -rwj / wwj
                 srcs = tr.sources
                 kw["source"] = _source_name("mono" in srcs, "stereo" in srcs, tr.bounded_now)
-                out[k] = _new_report(kw)
+                out[k] = _new_full_report(kw)
         if without:
             trs = [items[k][0] for k in without]
             b_B = np.array([tr.last_views[0].b_W for tr in trs]) @ R_B_W.T
@@ -2353,7 +2366,7 @@ class ObstacleFusion:
                     why = f"moving obstacle seen by one camera for > {hold:g} s (range unobservable)"
                 kw.update(bearing_body=b_B[j], unobservable_reason=why,
                           source="bounds" if tr.bounds is not None else "")
-                out[k] = _new_report(kw)
+                out[k] = _new_full_report(kw)
         return out  # type: ignore[return-value]
 
     def _member_spread(self, trs: list[_Track], rng: np.ndarray, u: np.ndarray,
@@ -2410,7 +2423,10 @@ class ObstacleFusion:
             s_l.append(mem[3][m])
         if not jj_l:
             return out
-        jj, r, b, sr = np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l), np.concatenate(s_l)
+        if len(jj_l) == 1:
+            jj, r, b, sr = jj_l[0], r_l[0], b_l[0], s_l[0]
+        else:
+            jj, r, b, sr = np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l), np.concatenate(s_l)
         if not len(jj):
             return out
         cos = _dot_rows(b, u[jj])
@@ -2461,10 +2477,13 @@ class ObstacleFusion:
         parts = [m for m in (self._members_ls, self._members_st) if m is not None and len(m[0])]
         if not parts:
             return out
-        g = np.concatenate([m[0] for m in parts])
-        r = np.concatenate([m[1] for m in parts])
-        b = np.concatenate([m[2] for m in parts])
-        sr = np.concatenate([m[3] for m in parts])
+        if len(parts) == 1:
+            g, r, b, sr = parts[0]
+        else:
+            g = np.concatenate([m[0] for m in parts])
+            r = np.concatenate([m[1] for m in parts])
+            b = np.concatenate([m[2] for m in parts])
+            sr = np.concatenate([m[3] for m in parts])
         gidx = self._gidx
         own = np.array([gidx.get(tr.id, -1) for tr in trs], dtype=np.int64)
         off = self._cam_offset_m
@@ -2481,7 +2500,7 @@ class ObstacleFusion:
         ug = g[gstart]
         cg = np.add.reduceat(b, gstart, axis=0)
         cg /= np.maximum(np.sqrt(_dot_rows(cg, cg)), 1e-12)[:, None]
-        cos_b = np.clip(_dot_rows(b, cg[np.repeat(np.arange(len(ug)), gcnt)]), -1.0, 1.0)
+        cos_b = np.clip(_dot_rows(b, np.repeat(cg, gcnt, axis=0)), -1.0, 1.0)
         cos_min = np.minimum.reduceat(cos_b, gstart)
         rmin = np.minimum.reduceat(r, gstart)
         reach = np.arccos(cos_min) + np.arcsin(np.minimum(off / np.maximum(rmin, 1e-9), 1.0))
@@ -2501,8 +2520,13 @@ class ObstacleFusion:
         if not keep.any():
             return out
         jj, mm, cos_jm = jj[keep], mm[keep], cos_jm[keep]
-        key = jj * (int(g.max()) + 1) + g[mm]
-        ukey, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+        key = jj * (int(g.max()) + 1) + g[mm]  # (non-decreasing: pairs in (report, track) order)
+        first_q = np.empty(len(key), dtype=bool)  # np.unique(key, return_inverse, return_counts)
+        first_q[0] = True
+        np.not_equal(key[1:], key[:-1], out=first_q[1:])
+        inv = np.cumsum(first_q) - 1
+        q0 = np.flatnonzero(first_q)
+        ukey, cnt = key[q0], np.diff(np.append(q0, len(key)))
         n_q = len(ukey)
         q_rep = ukey // (int(g.max()) + 1)  # each (report, track) pair's report
         # (a) the hull test, all pairs at once: the polar angle of each point about u_j in the
@@ -2545,19 +2569,22 @@ class ObstacleFusion:
 
     @staticmethod
     def _report_common(tr: _Track, status: str) -> dict:
+        """A report's fields that do not depend on its range, over every field's default (the
+        dict ``_new_full_report`` takes)."""
         b = tr.bounds
-        return dict(
-            id=tr.id,
-            status=status,
-            camera=tr.cameras[0] if len(tr.cameras) == 1 else list(tr.cameras),
-            range_min_m=None if b is None else b.range_min_m,
-            range_max_m=None if b is None else b.range_max_m,
-            label=tr.label,
-            gated=tr.gated,
-            nis=tr.nis,
-            innovation=tr.innovation,
-            attributes=tr.attributes,
-        )
+        return {
+            **_REPORT_DEFAULTS,
+            "id": tr.id,
+            "status": status,
+            "camera": tr.cameras[0] if len(tr.cameras) == 1 else list(tr.cameras),
+            "range_min_m": None if b is None else b.range_min_m,
+            "range_max_m": None if b is None else b.range_max_m,
+            "label": tr.label,
+            "gated": tr.gated,
+            "nis": tr.nis,
+            "innovation": tr.innovation,
+            "attributes": tr.attributes,
+        }
 
 
 def _report_maker():
@@ -2565,15 +2592,19 @@ def _report_maker():
     sets its 19 fields one by one through object.__setattr__ (~4x the cost of the rest of a report);
     when it has no __post_init__ (nothing to validate) and keeps its fields in __dict__, the report
     is built by filling __dict__ with the defaults and the given fields (the same object as
-    TrackReport(**kw); tests compare them). Otherwise the constructor itself is used."""
+    TrackReport(**kw); tests compare them). Otherwise the constructor itself is used.
+
+    Returns (make(kw), make_full(d), defaults): make_full takes a dict that already holds every
+    field (``defaults``, the fields with a plain default, updated with the others: what
+    ``_report_common`` starts from), so it skips make's key check and defaults."""
     import dataclasses
 
     flds = dataclasses.fields(TrackReport)
+    defaults = {f.name: f.default for f in flds if f.default is not dataclasses.MISSING}
     if (hasattr(TrackReport, "__post_init__") or hasattr(TrackReport, "__slots__")
             or any(f.default is dataclasses.MISSING and f.default_factory is not dataclasses.MISSING
                    and f.name != "attributes" for f in flds)):
-        return lambda kw: TrackReport(**kw)
-    defaults = {f.name: f.default for f in flds if f.default is not dataclasses.MISSING}
+        return (lambda kw: TrackReport(**kw)), (lambda d: TrackReport(**d)), defaults
     required = tuple(f.name for f in flds if f.default is dataclasses.MISSING)
     new = object.__new__
 
@@ -2588,10 +2619,15 @@ def _report_maker():
         d.update(kw)
         return rep
 
-    return make
+    def make_full(d: dict) -> TrackReport:
+        rep = new(TrackReport)
+        rep.__dict__.update(d)
+        return rep
+
+    return make, make_full, defaults
 
 
-_new_report = _report_maker()
+_new_report, _new_full_report, _REPORT_DEFAULTS = _report_maker()
 
 _SOURCE_NAMES = {
     (m, st, b): "+".join(x for x, on in (("mono", m), ("stereo", st), ("bounds", b)) if on)

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from estimators.fusion import (
+    _REPORT_DEFAULTS,
     _adjugate_det3,
     _FeatureRays,
     _largest_depth_cluster,
+    _new_full_report,
     _new_report,
     _noisy_bound_rays_batch,
     _ray_covariance,
@@ -90,6 +92,11 @@ def test_fast_report_equals_the_constructor():
     assert type(fast) is TrackReport
     assert fast.to_json() == ref.to_json()
     assert set(vars(fast)) == set(vars(ref))
+    # the hot path's: a dict of every field (the defaults updated with the given ones)
+    full = _new_full_report({**_REPORT_DEFAULTS, **kw})
+    assert type(full) is TrackReport
+    assert full == ref and full.to_json() == ref.to_json()
+    assert set(vars(full)) == set(vars(ref))
 
 
 # ----------------------------------------------------------------- feature_point (closed form)
