@@ -1375,6 +1375,8 @@ def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: d
 
         if sdir.is_symlink():
             sdir.unlink()
+        elif sdir.is_dir():  # this harness's own stale or half-written render: none of its files may
+            shutil.rmtree(sdir)  # stay (scene_config reads every cam*.mkv there)
         simulate(scn, sdir, **_simulate_kw(dict(how or {})))
         key_path.write_text(scene_key + "\n")
         return sdir

@@ -100,3 +100,29 @@ def test_an_interrupted_renders_folder_is_removed_by_the_next_render(tmp_path, m
     d = acc._cached_render(scn, None)
     assert (d / acc.RENDER_DONE_NAME).is_file()
     assert sorted(p.name for p in cache.iterdir()) == sorted([name, live.name, other.name])
+
+
+def test_no_render_cache_rerender_leaves_no_file_of_the_old_render(tmp_path, monkeypatch):
+    """--no-render-cache: a stale render in --out/scenes (another scenario text, or cut short before
+    its key was written) is replaced whole; a stale cam1.mkv would be read as a second camera."""
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.config import scenarios_dir
+    from pipeline.sim.scene import load_scenario
+
+    def fake_simulate(scn, out, **kw):
+        Path(out).mkdir(parents=True, exist_ok=True)
+        (Path(out) / "gt.jsonl").write_text("{}\n")
+        (Path(out) / "cam0.mkv").write_bytes(b"new")
+
+    monkeypatch.setattr(writer, "simulate", fake_simulate)
+    scn = load_scenario(scenarios_dir() / "ci_small.yaml")
+    sdir = tmp_path / "out" / "scenes" / "ci_small"
+    sdir.mkdir(parents=True)
+    for f in ("gt.jsonl", "cam0.mkv", "cam1.mkv"):
+        (sdir / f).write_text("old")
+    (sdir / acc.SCENE_KEY_NAME).write_text("another key\n")
+    off = acc.AccuracyOptions(mode="pipeline", render_cache=False)
+    assert acc._scene_dir(off, tmp_path / "out", "ci_small", scn, {"x": 1}, None) == sdir
+    assert sorted(p.name for p in sdir.iterdir()) == ["cam0.mkv", "gt.jsonl", acc.SCENE_KEY_NAME]
+    assert (sdir / "cam0.mkv").read_bytes() == b"new"
