@@ -35,6 +35,7 @@ frame without candidates costs three elementwise passes over the lens box.
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any
 
 import cv2
@@ -102,6 +103,13 @@ class NavLightsDetector(Detector):
             quarter of that ring has its hue, saturated). A drone seen from the side shows one
             wingtip light (tuned scenes wide_angle_beyond90, stereo_hover: the other is behind the
             body). Score 0.3, ``heading`` None.
+        scan_every: ``detect_boxes`` (the front end's per-frame call) searches the whole lens every
+            this many frames of a camera and, in between, only around the boxes it found in the last
+            ``scan_every`` frames; 1: the whole lens every frame. ``detect`` always searches it all.
+            With 3 a drone that comes into view is found at most 2 frames (67 ms at 30 fps) later,
+            inside the half second the coverage target allows, and one already found is looked for in
+            every frame; at 720p navlights' CPU goes from ~1.6 to ~0.6 ms a frame (bench clip), but a
+            dim, flickering drone is lost for longer (noisy_1080p's drone 1.000 -> 0.979 of frames).
     """
 
     produces_keypoints = False
@@ -121,6 +129,7 @@ class NavLightsDetector(Detector):
         box_margin_px: float = 3.0,
         single_lights: bool = True,
         single_max_area_px: int = 200,
+        scan_every: int = 1,
     ) -> None:
         for nm, v, lo, hi in (
             ("min_value", min_value, 0, 255),
@@ -130,6 +139,8 @@ class NavLightsDetector(Detector):
         ):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
                 raise ConfigError(f"navlights: {nm} expected an integer in [{lo}, {hi}], got {v!r}")
+        if isinstance(scan_every, bool) or not isinstance(scan_every, (int, np.integer)) or scan_every < 1:
+            raise ConfigError(f"navlights: scan_every expected an integer >= 1 (frames), got {scan_every!r}")
         for nm, v in (("min_area_px", min_area_px), ("max_area_px", max_area_px),
                       ("single_max_area_px", single_max_area_px)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -154,6 +165,10 @@ class NavLightsDetector(Detector):
         self.box_margin_px = float(box_margin_px)
         self.single_lights = bool(single_lights)
         self.single_max_area_px = int(single_max_area_px)
+        self.scan_every = int(scan_every)
+        # detect_boxes' sequences, one per mask object (one per camera): (the mask, kept referenced
+        # so that its id is not reused; calls so far; the boxes of the last scan_every calls)
+        self._seq: dict[int, tuple[np.ndarray | None, list[int], deque]] = {}
         self._box_cache: dict[int, tuple[np.ndarray, tuple[int, ...], tuple[int, int, int, int]]] = {}
 
     # ------------------------------------------------------------------------------ colour
@@ -190,15 +205,63 @@ class NavLightsDetector(Detector):
         return hit[2]
 
     # ------------------------------------------------------------------------------ detect
-    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
-        """See Detector.detect. ``image`` must be (H, W, 3) BGR: grey frames carry no colour."""
+    def _check(self, image: np.ndarray, mask: np.ndarray | None) -> None:
         if image.ndim != 3 or image.shape[2] != 3:
             raise InputError(
                 f"navlights: expected a (H, W, 3) BGR frame (colour is needed), got {image.shape}"
             )
         if mask is not None and mask.shape != image.shape[:2]:
             raise InputError(f"navlights: mask shape {mask.shape} != frame shape {image.shape[:2]}")
-        x0, y0, x1, y1 = self._crop_box(mask, image.shape[:2])
+
+    def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """See Detector.detect. ``image`` must be (H, W, 3) BGR: grey frames carry no colour."""
+        self._check(image, mask)
+        return self._find(image, mask, self._crop_box(mask, image.shape[:2]))
+
+    def detect_boxes(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
+        """The front end's call, once per frame of a camera's sequence (cameras told apart by their
+        mask object): ``detect`` on the whole lens every ``scan_every``-th call, and in between only
+        around the boxes found in the last ``scan_every`` calls (each grown by its own size + 16 px:
+        a drone's lights, its white light's window and the lone-light ring stay inside). A drone that
+        appears is found up to ``scan_every - 1`` frames later; one already found is looked for in
+        every frame. ``scan_every`` 1: ``detect`` every frame."""
+        self._check(image, mask)
+        lens = self._crop_box(mask, image.shape[:2])
+        if self.scan_every == 1:
+            return self._find(image, mask, lens)
+        key = id(mask)
+        st = self._seq.get(key)
+        if st is None or st[0] is not mask:
+            if len(self._seq) > 16:
+                self._seq.clear()
+            st = (mask, [0], deque(maxlen=self.scan_every))
+            self._seq[key] = st
+        n = st[1][0]
+        st[1][0] += 1
+        recent = [b for boxes in st[2] for b in boxes]
+        if n % self.scan_every == 0:
+            region = lens
+        elif not recent:
+            st[2].append([])
+            return Detections.empty()
+        else:
+            bx = np.array(recent, float)
+            grow = 16.0 + np.maximum(bx[:, 2] - bx[:, 0], bx[:, 3] - bx[:, 1])
+            region = (
+                max(lens[0], int(np.floor((bx[:, 0] - grow).min()))),
+                max(lens[1], int(np.floor((bx[:, 1] - grow).min()))),
+                min(lens[2], int(np.ceil((bx[:, 2] + grow).max())) + 1),
+                min(lens[3], int(np.ceil((bx[:, 3] + grow).max())) + 1),
+            )
+        det = self._find(image, mask, region)
+        st[2].append(det.boxes.tolist())
+        return det
+
+    def _find(
+        self, image: np.ndarray, mask: np.ndarray | None, region: tuple[int, int, int, int]
+    ) -> Detections:
+        """The lights in ``region`` (x0, y0, x1, y1) px of ``image`` (inside ``mask``)."""
+        x0, y0, x1, y1 = region
         if x1 <= x0 or y1 <= y0:
             return Detections.empty()
         # a red, green or white light's HSV V is max(G, R) >= B: pixels that fail this or V >=
@@ -251,7 +314,7 @@ class NavLightsDetector(Detector):
             i, j = int(ii[k]), int(jj[k])
             if i in used_r or j in used_g:
                 continue
-            w_uv = self._white_between(hsv, x0, y0, rc[i], gc[j])
+            w_uv = self._white_between(image, rc[i], gc[j])
             if w_uv is None and self.require_white:
                 continue
             used_r.add(i)
@@ -327,28 +390,27 @@ class NavLightsDetector(Detector):
         alike = (dh <= 15) & (hr[:, 1] >= self.min_saturation // 2)
         return float(np.mean(alike)) < 0.25
 
-    def _white_between(
-        self, hsv: np.ndarray, x0: int, y0: int, r: np.ndarray, g: np.ndarray
-    ) -> np.ndarray | None:
+    def _white_between(self, image: np.ndarray, r: np.ndarray, g: np.ndarray) -> np.ndarray | None:
         """Frame pixel (2,) of the white light between the red light ``r`` and the green ``g``
         (frame px), or None.
 
         Looked for in the square around the pair's midpoint of half-size half the separation + 2 px
-        (``hsv``: the HSV crop whose origin is frame pixel (x0, y0)): the brightest unsaturated
-        pixel (S <= max_white_saturation) that is at least ``white_contrast`` above the square's
-        median V and at least ``min_value``, whose projection on the red-green segment lies in its
-        middle 80 %.
+        (of ``image``, the (H, W, 3) BGR frame, converted to HSV here: the square is the same whatever
+        part of the frame was searched for the lights): the brightest unsaturated pixel
+        (S <= max_white_saturation) that is at least ``white_contrast`` above the square's median V
+        and at least ``min_value``, whose projection on the red-green segment lies in its middle 80 %.
         """
         mid = (r + g) / 2
         seg = g - r
         L = float(np.hypot(*seg))
         h = int(np.ceil(L / 2)) + 2
-        cx, cy = int(round(mid[0])) - x0, int(round(mid[1])) - y0
-        ya, yb = max(cy - h, 0), min(cy + h + 1, hsv.shape[0])
-        xa, xb = max(cx - h, 0), min(cx + h + 1, hsv.shape[1])
+        cx, cy = int(round(mid[0])), int(round(mid[1]))
+        ya, yb = max(cy - h, 0), min(cy + h + 1, image.shape[0])
+        xa, xb = max(cx - h, 0), min(cx + h + 1, image.shape[1])
         if yb <= ya or xb <= xa:
             return None
-        win = hsv[ya:yb, xa:xb]
+        x0 = y0 = 0  # the square's pixels below are frame pixels
+        win = cv2.cvtColor(image[ya:yb, xa:xb], cv2.COLOR_BGR2HSV)
         s, v = win[:, :, 1].astype(np.int32), win[:, :, 2].astype(np.int32)
         need = max(self.min_value, int(np.median(v)) + self.white_contrast)
         ok = (s <= self.max_white_saturation) & (v >= need)
