@@ -2275,14 +2275,16 @@ class ObstacleFusion:
         # obstacle), so none is reported while its filter waits for the next stereo fix
         hold = s.moving_mono_max_s
         t_now = fc.t_s
-        stale = [tr.kf is not None and tr.moving and t_now - tr.t_ranged > hold for tr, _st in items]
-        with_kf = [k for k, (tr, _st) in enumerate(items) if tr.kf is not None and not stale[k]]
-        without = [k for k, (tr, _st) in enumerate(items) if tr.kf is None or stale[k]]
+        with_kf: list[int] = []
+        without: list[int] = []
+        for k, (tr, _st) in enumerate(items):
+            stale = tr.kf is not None and tr.moving and t_now - tr.t_ranged > hold
+            (with_kf if tr.kf is not None and not stale else without).append(k)
         R_B_W = fc.R_B_W
         if with_kf:
             trs = [items[k][0] for k in with_kf]
             X = np.array([tr.kf.x for tr in trs]).reshape(len(trs), 6)
-            Ppp = np.array([tr.kf.P[:3, :3] for tr in trs])
+            Ppp = np.ascontiguousarray(np.array([tr.kf.P for tr in trs])[:, :3, :3])  # (no slice per track)
             r_W = X[:, :3] - fc.o_W
             w = X[:, 3:] - fc.v_drone_W
             rng = np.sqrt(_dot_rows(r_W, r_W))
