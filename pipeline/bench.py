@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from estimators.errors import ConfigError, FisheyeDesError, InputError, SourceError
+from pipeline.sources import is_grey_video
 
 SCHEMA = "fisheye-des-bench/1"
 
@@ -322,21 +323,6 @@ def _open(path: str | Path, raw: bool = False):
     return cap
 
 
-def is_grey_video(path: str | Path) -> bool:
-    """Whether ``path``'s stream decodes to one (H, W) uint8 plane without colour conversion (the
-    simulator's ``--grey`` FFV1): its first frame read with ``CAP_PROP_CONVERT_RGB`` off is 2-D with the
-    container's width and height."""
-    import cv2
-
-    cap = _open(path, raw=True)
-    try:
-        ok, img = cap.read()
-        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    finally:
-        cap.release()
-    return bool(ok) and img is not None and img.ndim == 2 and img.dtype == np.uint8 and img.shape == (h, w)
-
-
 @dataclass
 class DecodedFrame:
     """One step of a multi-camera video: ``images`` maps camera name -> (H, W) uint8 grey."""
@@ -621,6 +607,15 @@ def _egomotion(task: Mapping[str, Any]):
     return ConstantVelocity(float(obs.get("speed_mps", 0.0)), start=Pose(R0, p0))
 
 
+def detector_section(task: Mapping[str, Any]) -> dict[str, Any]:
+    """A task's ``detector`` config section: its ``detector`` name (else the pipeline's default) and
+    ``detector_options``."""
+    sec: dict[str, Any] = {"options": dict(task.get("detector_options") or {})}
+    if task.get("detector"):
+        sec["name"] = task["detector"]
+    return sec
+
+
 def pipeline_config(task: Mapping[str, Any]):
     """The ``PipelineConfig`` of a pipeline task (calibration, detector, tracker, fusion; no extras)."""
     from pipeline.config import PipelineConfig
@@ -628,8 +623,7 @@ def pipeline_config(task: Mapping[str, Any]):
     return PipelineConfig.model_validate({
         "rig": {"calibration": task["calibration"]},
         "ego_motion": ({"trajectory": task["trajectory"]} if task.get("trajectory") else {"speed_mps": 0.0}),
-        "detector": {"name": task.get("detector", "orb"),
-                     "options": dict(task.get("detector_options") or {})},
+        "detector": detector_section(task),
         # FrontEnd option groups (features, grouping, boxes, association) are the tracker section's keys
         "tracker": {k: dict(v) for k, v in (task.get("frontend_options") or {}).items()},
         "fusion": dict(task.get("fusion_settings") or {}),
@@ -661,7 +655,7 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     ahead = cfg.inputs.prefetch if run_mod.cpus_allowed() > 1 else 0
     src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
                         task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json",
-                        grey=run_mod.wants_grey(cfg), prefetch=ahead)
+                        grey=all(run_mod.reads_grey(cfg, v) for v in task["videos"].values()), prefetch=ahead)
     res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
                       progress=False)
     sm = res.summary
@@ -750,8 +744,7 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
     cfg = PipelineConfig.model_validate({
         "rig": {"calibration": task["calibration"]},
         "ego_motion": {"trajectory": task["trajectory"]},
-        "detector": {"name": task.get("detector", "orb"),
-                     "options": dict(task.get("detector_options") or {})},
+        "detector": detector_section(task),
         "live": {"cameras": vids, "paced": True},
         "outputs": {"progress": False},
     })

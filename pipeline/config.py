@@ -165,10 +165,12 @@ class DetectorConfig(_Section):
     """Which obstacle/feature detector the front end uses."""
 
     name: str = Field(
-        "orb",
+        "orb+navlights",
         description="str: detector registry name: 'orb', 'navlights', 'kornia', 'torch' or a plug-in's name "
         "(entry-point group fisheye_des.detectors); '<keypoint detector>+<box detector>' runs both in one "
-        "front end, e.g. 'orb+navlights' (options per part: {orb: {...}, navlights: {...}}).",
+        "front end, e.g. 'orb+navlights' (the default: ORB's feature tracks plus drones found by their "
+        "navigation lights; options per part: {orb: {...}, navlights: {...}}; on a grey video it is ORB "
+        "alone, at ORB's cost).",
     )
     options: dict[str, Any] = Field(
         default_factory=dict, description="dict: keyword options passed to the detector's constructor."
@@ -343,7 +345,8 @@ class InputsConfig(_Section):
         None,
         description="bool: decode videos to (H, W) grey frames (a grey video is then read without any "
         "colour conversion). Default (null): grey when the detector works on grey images ('orb', "
-        "'kornia'), BGR for the others ('navlights' needs colour). The annotated video is drawn either way.",
+        "'kornia') or the video itself is grey (nothing to find by colour), BGR for the others "
+        "('navlights', 'orb+navlights' need colour). The annotated video is drawn either way.",
     )
 
 

@@ -45,7 +45,7 @@ from pipeline.run import (
     build_fusion,
     build_rig,
     frozen_gc,
-    wants_grey,
+    reads_grey,
 )
 from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
 from pipeline.sources import PacedSource, Source, VideoSource, open_capture
@@ -795,10 +795,11 @@ def run_live(
                 f"live.cameras has {len(lv.cameras)} entries for a rig of {len(names)} ({names})"
             )
         readers = []
-        grey = wants_grey(cfg)  # the fast path of `run`: grey frames for grey detectors
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
-            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
+            # the fast path of `run`: grey frames for grey detectors, and from a video file that is grey
+            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)),
+                                               grey=reads_grey(cfg, ref)))
     # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
     log = None
     if latency_log is not None:

@@ -37,7 +37,14 @@ from pipeline.sinks import (
     make_plots,
     write_json,
 )
-from pipeline.sources import ImageFolderSource, PrefetchSource, Source, SyncedSource, VideoSource
+from pipeline.sources import (
+    ImageFolderSource,
+    PrefetchSource,
+    Source,
+    SyncedSource,
+    VideoSource,
+    is_grey_video,
+)
 
 __all__ = [
     "RunningStats",
@@ -264,6 +271,17 @@ def wants_grey(cfg: PipelineConfig) -> bool:
     return cfg.detector.name.lower() in GREY_DETECTORS
 
 
+def reads_grey(cfg: PipelineConfig, ref: str | Path) -> bool:
+    """Whether video ``ref`` is decoded to grey: ``wants_grey``, or by default (``inputs.grey`` null)
+    also when the file's stream is itself grey (``pipeline.sources.is_grey_video``): a colour detector
+    (navlights) finds nothing in it, so it is read without any colour conversion, as for ORB alone."""
+    if wants_grey(cfg):
+        return True
+    if cfg.inputs.grey is not None or not Path(str(ref)).is_file():
+        return False
+    return is_grey_video(ref)
+
+
 def cpus_allowed() -> int:
     """How many CPUs this process may run on (its affinity mask where the OS has one)."""
     if hasattr(os, "sched_getaffinity"):
@@ -300,7 +318,8 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
                     ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
                 )
             else:
-                src: Source = VideoSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
+                src: Source = VideoSource(ref, camera=name, expected_size=size, fps=inp.fps,
+                                          grey=grey or reads_grey(cfg, ref))
                 sources.append(PrefetchSource(src, ahead) if ahead else src)
     except BaseException:
         for s in sources:

@@ -172,6 +172,20 @@ def open_capture(ref: str | int | Path) -> cv2.VideoCapture:
     return cap
 
 
+def is_grey_video(path: str | Path) -> bool:
+    """Whether the video file ``path``'s stream decodes to one (H, W) uint8 plane without colour
+    conversion (e.g. the simulator's ``--grey`` FFV1): its first frame read with ``CAP_PROP_CONVERT_RGB``
+    off is 2-D with the container's width and height. Raises SourceError when it cannot be opened."""
+    cap = open_capture(path)
+    try:
+        cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
+        ok, img = cap.read()
+        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+    finally:
+        cap.release()
+    return bool(ok) and img is not None and img.ndim == 2 and img.dtype == np.uint8 and img.shape == (h, w)
+
+
 class VideoSource(Source):
     """Frames of one video file (or stream URL), decoded with OpenCV's FFmpeg backend.
 

@@ -1,7 +1,7 @@
 """Benchmark of the front end on a simulated scene: frame rate (with decoding), per-stage timings,
 coverage of the visible obstacles, id switches, features tracked beyond 90 degrees off-axis.
 
-    python -m trackers.benchmark SCENE_DIR [--detector orb] [--threads 1] [--frames N] [--no-poses]
+    python -m trackers.benchmark SCENE_DIR [--detector orb+navlights] [--threads 1] [--frames N] [--no-poses]
 
 The front end gets the scene's true body poses (``T_W_B`` in ``gt.jsonl``) for its rotation
 compensation, as the pipeline gets the trajectory's: ``--no-poses`` (``use_poses=False``) measures
@@ -392,7 +392,7 @@ def open_scene(scene_dir: Path, threads: int | None = None):
 
 def run_benchmark(
     scene_dir: str | Path,
-    detector: str = "orb",
+    detector: str = "orb+navlights",
     threads: int = 1,
     max_frames: int | None = None,
     margin_px: float = 2.0,
@@ -590,7 +590,7 @@ def main(argv: list[str] | None = None) -> None:
     """Command-line entry: print the benchmark of one scene as JSON."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene_dir")
-    ap.add_argument("--detector", default="orb")
+    ap.add_argument("--detector", default="orb+navlights")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--frames", type=int, default=None)
     ap.add_argument(

@@ -180,18 +180,20 @@ def test_set_demo_is_the_demo_scenario_and_all_ends_with_it():
 
 def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
     """The demo renders at 640x360 (its --resolution default) and grey for ORB (a grey detector),
-    colour for navlights (a colour one); every other scene as before (no keywords, same key)."""
+    colour for navlights and orb+navlights, the default (colour ones); every other scene as before
+    (no keywords, same key)."""
     import pipeline.accuracy as acc
     import pipeline.sim.writer as writer
     from pipeline.config import scenarios_dir
     from pipeline.sim.scene import load_scenario
 
-    assert acc.demo_render("demo") == {"resolution": [640, 360], "grey": True}
+    assert acc.demo_render("demo") == {"resolution": [640, 360], "grey": False}
+    assert acc.demo_render("demo", ("detector.name=orb",)) == {"resolution": [640, 360], "grey": True}
     assert acc.demo_render("demo", ("detector.name=navlights",)) == {"resolution": [640, 360], "grey": False}
     assert acc.demo_render("mono_straight") == {}
     scn = load_scenario(scenarios_dir() / "demo.yaml")
     assert acc.render_key(scn, {}) == acc.render_key(scn)
-    keys = {acc.render_key(scn), acc.render_key(scn, acc.demo_render("demo")),
+    keys = {acc.render_key(scn), acc.render_key(scn, acc.demo_render("demo", ("detector.name=orb",))),
             acc.render_key(scn, {"resolution": [640, 360], "grey": False})}
     assert len(keys) == 3
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
@@ -203,7 +205,7 @@ def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
         (Path(out) / "gt.jsonl").write_text("{}\n")
 
     monkeypatch.setattr(writer, "simulate", fake_simulate)
-    how = acc.demo_render("demo")
+    how = acc.demo_render("demo", ("detector.name=orb",))
     on = acc.AccuracyOptions(mode="pipeline")
     d = acc._scene_dir(on, tmp_path / "out", "demo", scn, {"x": 1}, None, how)
     assert calls == [{"resolution": (640, 360), "grey": True}]

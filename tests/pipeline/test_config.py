@@ -191,7 +191,8 @@ def test_inputs_grey_defaults_to_the_detector_s_needs():
     from pipeline.config import load_config
     from pipeline.run import wants_grey
 
-    assert wants_grey(load_config(None)) is True  # orb works on grey
+    assert wants_grey(load_config(None)) is False  # orb+navlights: navlights needs colour
+    assert wants_grey(load_config(None, cli={"detector.name": "orb"})) is True  # orb works on grey
     assert wants_grey(load_config(None, cli={"detector.name": "navlights"})) is False  # needs colour
     assert wants_grey(load_config(None, cli={"detector.name": "navlights", "inputs.grey": True})) is True
     assert wants_grey(load_config(None, cli={"inputs.grey": False})) is False
@@ -235,3 +236,28 @@ def test_shipped_presets_are_package_data_and_found_by_name(tmp_path, monkeypatc
     with pytest.raises(ConfigError, match="mono_forward") as e:  # the message lists the presets
         find_preset("mono_forwad")
     assert "not found" in str(e.value)
+
+
+def test_a_grey_video_is_read_grey_even_for_a_colour_detector(tmp_path):
+    """orb+navlights (the default) needs colour, but a grey video has none: it is decoded grey (no
+    colour conversion, ORB alone's cost); a colour video stays BGR; inputs.grey set wins."""
+    import cv2
+
+    from pipeline.config import load_config
+    from pipeline.run import reads_grey
+
+    def video(path, is_colour):
+        fourcc = cv2.VideoWriter_fourcc(*"FFV1")
+        w = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, fourcc, 30.0, (64, 48), is_colour)
+        if not w.isOpened():
+            pytest.skip("OpenCV cannot write FFV1 here")
+        img = np.tile(np.arange(64, dtype=np.uint8), (48, 1))
+        w.write(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if is_colour else img)
+        w.release()
+        return path
+
+    g, c = video(tmp_path / "g.mkv", False), video(tmp_path / "c.mkv", True)
+    cfg = load_config(None)
+    assert reads_grey(cfg, g) is True and reads_grey(cfg, c) is False
+    assert reads_grey(load_config(None, cli={"inputs.grey": False}), g) is False
+    assert reads_grey(load_config(None, cli={"detector.name": "orb"}), c) is True
