@@ -48,7 +48,7 @@ def run_demo(
             ``configs/scenarios``.
         resolution: (width, height) to render at (the lens scaled), None = the scenario's own.
         seconds: shorten the flight (None = the scenario's duration).
-        detector: detector name for the run (default: the config default, ``orb``).
+        detector: detector name for the run (default: the config default, ``orb+navlights``).
 
     What is scored (the figures of the report): the **confirmed** tracks' reports whose bearing hits
     an obstacle (the renderer's ray cast along the reported bearing hits it first); their truth is
