@@ -1343,7 +1343,10 @@ class BenchRun:
         clip = self.clip(res, "mono")
         base = None
         for m in p.feature_counts:
-            r = self.run(clip.task("pipeline", p.scaling_frames, detector_options={"max_features": m},
+            # the default detector, orb+navlights, with its ORB part's feature budget (a grey clip: navlights
+            # finds nothing on it)
+            r = self.run(clip.task("pipeline", p.scaling_frames, detector="orb+navlights",
+                                   detector_options={"orb": {"max_features": m}},
                                    frontend_options={"features": {"max_features": m}}), 1)
             feat_out.append({"features": m, "result": r})
             fps = r.get("fps")

@@ -302,6 +302,16 @@ def test_bench_quick_everything_end_to_end(tmp_path):
     assert set(doc["sections"]) >= {"throughput", "live", "scaling", "memory", "detectors"}
     assert doc["sections"]["live"][0]["result"].get("latency", {}).get("n", 0) > 0
 
+    def errors(x, path=""):  # every measurement that failed (a row printed with "-" and a note)
+        if isinstance(x, dict):
+            return [f"{path}: {v}" for k, v in x.items() if k == "error" and v] + [
+                e for k, v in x.items() for e in errors(v, f"{path}/{k}")]
+        if isinstance(x, list):
+            return [e for i, v in enumerate(x) for e in errors(v, f"{path}[{i}]")]
+        return []
+
+    assert errors(doc["sections"]) == []
+
 
 def test_memory_sampler_streams_its_samples_to_disk(tmp_path):
     m = bench.MemorySampler([1, 2], path=tmp_path / "memory.json")
