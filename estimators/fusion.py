@@ -2596,9 +2596,9 @@ def _report_maker():
     is built by filling __dict__ with the defaults and the given fields (the same object as
     TrackReport(**kw); tests compare them). Otherwise the constructor itself is used.
 
-    Returns (make(kw), make_full(d), defaults): make_full takes a dict that already holds every
-    field (``defaults``, the fields with a plain default, updated with the others: what
-    ``_report_common`` starts from), so it skips make's key check and defaults."""
+    Returns (make_full(d), defaults): make_full takes a dict that already holds every field
+    (``defaults``, the fields with a plain default, updated with the others: what ``_report_common``
+    starts from)."""
     import dataclasses
 
     flds = dataclasses.fields(TrackReport)
@@ -2606,30 +2606,18 @@ def _report_maker():
     if (hasattr(TrackReport, "__post_init__") or hasattr(TrackReport, "__slots__")
             or any(f.default is dataclasses.MISSING and f.default_factory is not dataclasses.MISSING
                    and f.name != "attributes" for f in flds)):
-        return (lambda kw: TrackReport(**kw)), (lambda d: TrackReport(**d)), defaults
-    required = tuple(f.name for f in flds if f.default is dataclasses.MISSING)
+        return (lambda d: TrackReport(**d)), defaults
     new = object.__new__
-
-    required_keys = frozenset(required)
-
-    def make(kw: dict) -> TrackReport:
-        if not kw.keys() >= required_keys:
-            return TrackReport(**kw)
-        rep = new(TrackReport)
-        d = rep.__dict__
-        d.update(defaults)
-        d.update(kw)
-        return rep
 
     def make_full(d: dict) -> TrackReport:
         rep = new(TrackReport)
         rep.__dict__.update(d)
         return rep
 
-    return make, make_full, defaults
+    return make_full, defaults
 
 
-_new_report, _new_full_report, _REPORT_DEFAULTS = _report_maker()
+_new_full_report, _REPORT_DEFAULTS = _report_maker()
 
 _SOURCE_NAMES = {
     (m, st, b): "+".join(x for x, on in (("mono", m), ("stereo", st), ("bounds", b)) if on)

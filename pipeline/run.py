@@ -304,7 +304,8 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
             "expected one video or image folder per camera, in that order"
         )
     sources: list[Source] = []
-    grey = wants_grey(cfg)
+    # grey for a grey detector, or when every video is itself grey (as bench's LoopingSource decides)
+    grey = wants_grey(cfg) or (not inp.images and all(reads_grey(cfg, r) for r in refs))
     # Read-ahead only when a second CPU can decode while the loop runs: on one core the thread overlaps
     # nothing (measured at 720p, one pinned core: same CPU per frame with and without it, within the
     # noise of a shared machine) and only moves the decode time into other stages' clocks.
@@ -318,8 +319,7 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
                     ImageFolderSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
                 )
             else:
-                src: Source = VideoSource(ref, camera=name, expected_size=size, fps=inp.fps,
-                                          grey=grey or reads_grey(cfg, ref))
+                src: Source = VideoSource(ref, camera=name, expected_size=size, fps=inp.fps, grey=grey)
                 sources.append(PrefetchSource(src, ahead) if ahead else src)
     except BaseException:
         for s in sources:

@@ -949,11 +949,7 @@ class ObstacleGrouper:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Mean member flow per track (T,3) where >= 3 members have a flow (else ``old``), and that mask."""
         sel = np.flatnonzero((owner >= 0) & fvalid)
-        o = owner[sel]
-        cnt = np.bincount(o, minlength=T)
-        sums = np.stack([np.bincount(o, flow[sel, k], T) for k in range(3)], 1) if T else np.zeros((0, 3))
-        has = cnt >= 3
-        return np.where(has[:, None], sums / np.maximum(cnt, 1)[:, None], old), has
+        return ObstacleGrouper._mean_flow(owner[sel], flow[sel], old, T)
 
     def _flows(
         self, ft: FeatureTracker, t_s: float, R: dict[int, np.ndarray] | None

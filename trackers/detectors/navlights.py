@@ -232,7 +232,7 @@ class NavLightsDetector(Detector):
         key = id(mask)
         st = self._seq.get(key)
         if st is None or st[0] is not mask:
-            if len(self._seq) > 16:
+            if len(self._seq) > 16:  # bounded: a rig has a few masks; ones no longer passed are dropped
                 self._seq.clear()
             st = (mask, [0], deque(maxlen=self.scan_every))
             self._seq[key] = st
@@ -409,7 +409,6 @@ class NavLightsDetector(Detector):
         xa, xb = max(cx - h, 0), min(cx + h + 1, image.shape[1])
         if yb <= ya or xb <= xa:
             return None
-        x0 = y0 = 0  # the square's pixels below are frame pixels
         win = cv2.cvtColor(image[ya:yb, xa:xb], cv2.COLOR_BGR2HSV)
         s, v = win[:, :, 1].astype(np.int32), win[:, :, 2].astype(np.int32)
         need = max(self.min_value, int(np.median(v)) + self.white_contrast)
@@ -417,7 +416,7 @@ class NavLightsDetector(Detector):
         if not np.any(ok):
             return None
         vy, vx = np.nonzero(ok)
-        p = np.stack([vx + xa + x0, vy + ya + y0], axis=1).astype(float)
+        p = np.stack([vx + xa, vy + ya], axis=1).astype(float)  # frame pixels
         u = (p - r) @ seg / (L * L)  # 0 at red, 1 at green
         inside = (u > 0.1) & (u < 0.9)
         if not np.any(inside):
