@@ -795,11 +795,11 @@ def run_live(
                 f"live.cameras has {len(lv.cameras)} entries for a rig of {len(names)} ({names})"
             )
         readers = []
+        # the fast path of `run`: grey frames for grey detectors, or when every camera is a grey video file
+        grey = all(reads_grey(cfg, ref) for ref in lv.cameras)
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
-            # the fast path of `run`: grey frames for grey detectors, and from a video file that is grey
-            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)),
-                                               grey=reads_grey(cfg, ref)))
+            readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
     # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
     log = None
     if latency_log is not None:
