@@ -305,7 +305,7 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
         )
     sources: list[Source] = []
     # grey for a grey detector, or when every video is itself grey (as bench's LoopingSource decides)
-    grey = wants_grey(cfg) or (not inp.images and all(reads_grey(cfg, r) for r in refs))
+    grey = wants_grey(cfg) if inp.images else all(reads_grey(cfg, r) for r in refs)
     # Read-ahead only when a second CPU can decode while the loop runs: on one core the thread overlaps
     # nothing (measured at 720p, one pinned core: same CPU per frame with and without it, within the
     # noise of a shared machine) and only moves the decode time into other stages' clocks.

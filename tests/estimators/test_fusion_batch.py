@@ -18,6 +18,7 @@ from estimators.fusion import (
     _ray_covariances,
 )
 from estimators.records import TrackReport
+from tests.estimators.fusion_helpers import noisy_bearing
 
 
 def test_adjugate_det3_matches_numpy_inverse_and_determinant():
@@ -96,20 +97,6 @@ def test_fast_report_equals_the_constructor():
 
 
 # ----------------------------------------------------------------- feature_point (closed form)
-def _noisy_bearing(rng, sigma):
-    """bearing(cam, T_W_B, p_W): the unit bearing (3,) of world point p_W (m) in camera cam at body
-    pose T_W_B, turned by isotropic tangent noise of sigma rad drawn from rng."""
-
-    def bearing(cam, T_W_B, p_W):
-        p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-        b = p_C / np.linalg.norm(p_C)
-        e = rng.normal(scale=sigma, size=3)
-        b = b + e - (e @ b) * b
-        return b / np.linalg.norm(b)
-
-    return bearing
-
-
 def _features_run(settings, feats_W, rep_W, T_s=1.5, sigma=5e-4, seed=5, rig_kind="mono", speed=5.0,
                   feature_cams=None):
     """A straight flight (speed m/s along x) sees fixed feature points feats_W (N, 3); the track's
@@ -127,7 +114,7 @@ def _features_run(settings, feats_W, rep_W, T_s=1.5, sigma=5e-4, seed=5, rig_kin
     rng = np.random.default_rng(seed)
     fus = ObstacleFusion(rig, ego, settings or FusionSettings())
 
-    bearing = _noisy_bearing(rng, sigma)
+    bearing = noisy_bearing(rng, sigma)
 
     n = int(round(T_s * 30.0))
     for k in range(n + 1):
@@ -316,7 +303,7 @@ def test_stereo_velocity_from_the_shared_features_own_displacements():
                    [6.0, 1.8, 0.1]])
     sigma = 5e-4
 
-    bearing = _noisy_bearing(rng, sigma)
+    bearing = noisy_bearing(rng, sigma)
 
     first_v = None
     for k in range(46):

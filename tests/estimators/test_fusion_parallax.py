@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from estimators.fusion import FusionSettings
+from tests.estimators.fusion_helpers import noisy_bearing
 
 
 def _run(feats_W, rep_W, n_frames, speed=5.0, sigma=5e-4, seed=3):
@@ -26,12 +27,7 @@ def _run(feats_W, rep_W, n_frames, speed=5.0, sigma=5e-4, seed=3):
     rng = np.random.default_rng(seed)
     fus = ObstacleFusion(rig, ego, FusionSettings())
 
-    def bearing(cam, T_W_B, p_W):
-        p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-        b = p_C / np.linalg.norm(p_C)
-        e = rng.normal(scale=sigma, size=3)
-        b = b + e - (e @ b) * b
-        return b / np.linalg.norm(b)
+    bearing = noisy_bearing(rng, sigma)
 
     r = None
     for k in range(n_frames + 1):

@@ -118,6 +118,16 @@ def rot_axis(axis, angle_rad: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * K @ K
 
 
+def assert_same_feature_tracks(oa, ob) -> None:
+    """Two front ends' observations of one frame are the same feature tracks: ids, statuses, labels,
+    and every view's bearings and feature ids, bit for bit."""
+    assert [(o.track_id, o.status, o.label) for o in oa] == [(o.track_id, o.status, o.label) for o in ob]
+    for x, y in zip(oa, ob, strict=True):
+        for vx, vy in zip(x.views, y.views, strict=True):
+            np.testing.assert_array_equal(vx.b_C, vy.b_C)
+            np.testing.assert_array_equal(vx.feature_ids, vy.feature_ids)
+
+
 @pytest.fixture
 def model():
     return equidistant()
