@@ -708,11 +708,11 @@ def write_outputs(ev: Evaluation, out_dir: str | Path, plots: bool = True) -> di
     except OSError as e:
         raise InputError(f"{out_dir}: cannot create the output folder ({e.strerror}); expected a "
                          "writable folder path") from None
-    (out_dir / "metrics.json").write_text(json.dumps(_clean(ev.metrics), indent=2))
+    (out_dir / "metrics.json").write_text(json.dumps(json_safe(ev.metrics), indent=2))
     (out_dir / "metrics.txt").write_text(format_table(ev.metrics) + "\n")
     with (out_dir / "reports.jsonl").open("w") as f:
         for r in ev.rows:
-            f.write(json.dumps(_clean(asdict(r))) + "\n")
+            f.write(json.dumps(json_safe(asdict(r))) + "\n")
     paths = {"metrics.json": out_dir / "metrics.json", "metrics.txt": out_dir / "metrics.txt"}
     if plots:
         for p in plot_ranges(ev, out_dir / "plots"):
@@ -720,13 +720,15 @@ def write_outputs(ev: Evaluation, out_dir: str | Path, plots: bool = True) -> di
     return paths
 
 
-def _clean(x):
+def json_safe(x):
+    """``x`` (nested dicts, lists, tuples, numpy scalars, floats) as strict JSON values: tuples become
+    lists, numpy scalars Python numbers, and non-finite floats (NaN, +-inf) None."""
     if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
+        return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, float) and not math.isfinite(x):
         return None
     if isinstance(x, np.generic):
-        return _clean(x.item())
+        return json_safe(x.item())
     return x
