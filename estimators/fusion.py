@@ -103,7 +103,6 @@ time, so the widest motion allowance, but also the longest baseline).
 from __future__ import annotations
 
 import math
-import sys
 import time
 from collections import deque
 from dataclasses import dataclass, field, fields
@@ -423,14 +422,14 @@ def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
     return e1, _tcross(u, e1)
 
 
-_ZEROS = {k: np.zeros(k) for k in (1, 2, 3)}
-for _z in _ZEROS.values():
-    _z.setflags(write=False)
 _EYE3 = np.eye(3)
 _EYE3.setflags(write=False)
-# the 2x2 / 3x3 inverse filterpy's ExtendedKalmanFilter.update uses (its module's linalg.inv):
-# ``_ekf_update`` repeats that update's operations, so it must invert the same way
-_FILTERPY_INV = sys.modules[ExtendedKalmanFilter.__module__].linalg.inv
+_EYE6 = np.eye(6)
+_EYE6.setflags(write=False)
+_H_POS = np.eye(6)[:3]  # d(position) / dx and d(velocity) / dx of the state x = [p_W, v_W]
+_H_VEL = np.eye(6)[3:]
+_H_POS.setflags(write=False)
+_H_VEL.setflags(write=False)
 _CHI2_PPF: dict[tuple[float, int], float] = {}  # (probability, dof) -> chi2_ppf, ``_chi2_gate``
 
 
@@ -493,25 +492,36 @@ class _FeatureRays:
         self.ids = np.zeros(0, dtype=np.int64)  # known feature ids, sorted
         self.id_rows = np.zeros(0, dtype=np.int64)  # their rows
         self.size = 0
-        self.A = np.zeros((capacity, 3, 3))
-        self.y = np.zeros((capacity, 3))
         self.b0 = np.zeros((capacity, 3))  # first bearing (parallax reference)
         self.last_t = np.zeros(capacity)
-        self.cc = np.zeros(capacity)  # sum_i c_i^T (I - b_i b_i^T) c_i, for the residual
-        self.bc = np.zeros((capacity, 3))  # sum_i b_i (b_i . c_i), for the rays' depths
-        self.bcc = np.zeros(capacity)  # sum_i (b_i . c_i)^2
-        self.n = np.zeros(capacity)  # rays so far
+        self._set_sums(np.zeros((capacity, 18)))
+
+    def _set_sums(self, S: np.ndarray) -> None:
+        """Bind the running sums S (capacity, 18), each row's side by side (``add`` gathers and
+        scatters a row once), and their views: A (cap, 3, 3), y (cap, 3), bc (cap, 3) = sum_i b_i
+        (b_i . c_i) (for the rays' depths), cc (cap,) = sum_i c_i^T (I - b_i b_i^T) c_i (for the
+        residual), bcc (cap,) = sum_i (b_i . c_i)^2, n (cap,) = rays so far."""
+        self.S = S
+        self.A = S[:, 0:9].reshape(len(S), 3, 3)
+        self.y = S[:, 9:12]
+        self.bc = S[:, 12:15]
+        self.cc = S[:, 15]
+        self.bcc = S[:, 16]
+        self.n = S[:, 17]
 
     def _grow(self, need: int) -> None:
         cap = len(self.n)
         if need <= cap:
             return
         new = max(need, 2 * cap)
-        for name in ("A", "y", "b0", "last_t", "cc", "bc", "bcc", "n"):
+        for name in ("b0", "last_t"):
             a = getattr(self, name)
             b = np.zeros((new,) + a.shape[1:])
             b[: self.size] = a[: self.size]
             setattr(self, name, b)
+        S = np.zeros((new, self.S.shape[1]))
+        S[: self.size] = self.S[: self.size]
+        self._set_sums(S)
 
     def rows(self, ids: np.ndarray, b_W: np.ndarray) -> np.ndarray:
         """Row of each feature id (M,), allocating rows (first bearing b_W (M, 3)) for new ids, in
@@ -532,12 +542,7 @@ class _FeatureRays:
             r_new = self.size + rank  # row of each new id (by first appearance)
             self._grow(self.size + len(uniq))
             self.b0[r_new] = b_W[new[first]]
-            self.A[r_new] = 0.0  # (rows past size may hold compacted-away data)
-            self.y[r_new] = 0.0
-            self.cc[r_new] = 0.0
-            self.bc[r_new] = 0.0
-            self.bcc[r_new] = 0.0
-            self.n[r_new] = 0.0
+            self.S[r_new] = 0.0  # (rows past size may hold compacted-away data)
             self.size += len(uniq)
             rows[new] = r_new[inv.reshape(-1)]
             all_ids = np.concatenate([known, uniq])
@@ -551,46 +556,46 @@ class _FeatureRays:
         unique: bool = False,
     ) -> None:
         """Add one ray per entry: rows (M,), unit bearings b_W (M, 3), centres c_W (M, 3), in W, at
-        t_s (s); ``unique``: the caller knows the rows are distinct (one sum per row, no
-        np.add.at). memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
+        t_s (s); ``unique``: the caller knows the rows are distinct (no search for repeated rows).
+        memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
         (exponential forgetting: a tracked corner drifts over the object, so old rays stop meeting
         the point it tracks now)."""
-        f = None
-        if memory_s > 0:  # forget old rays: w = exp(-(t - t_last) / memory_s)
-            f = np.exp(-(t_s - self.last_t[rows]) / memory_s)
-            if not unique:
-                self.A[rows] *= f[:, None, None]
-                self.y[rows] *= f[:, None]
-                self.cc[rows] *= f
-                self.bc[rows] *= f[:, None]
-                self.bcc[rows] *= f
-                self.n[rows] *= f
+        M = len(rows)
+        if not M:
+            return
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
         Pc = np.einsum("kij,kj->ki", Pm, c_W)
         cPc = np.sum(Pc * c_W, axis=1)
         bdc = np.sum(b_W * c_W, axis=1)  # b_i . c_i
         bbc = b_W * bdc[:, None]
-        if unique and f is not None:  # (one read and one write per array: the same w s + new)
-            self.A[rows] = self.A[rows] * f[:, None, None] + Pm
-            self.y[rows] = self.y[rows] * f[:, None] + Pc
-            self.cc[rows] = self.cc[rows] * f + cPc
-            self.bc[rows] = self.bc[rows] * f[:, None] + bbc
-            self.bcc[rows] = self.bcc[rows] * f + bdc * bdc
-            self.n[rows] = self.n[rows] * f + 1.0
-        elif unique:
-            self.A[rows] += Pm
-            self.y[rows] += Pc
-            self.cc[rows] += cPc
-            self.bc[rows] += bbc
-            self.bcc[rows] += bdc * bdc
-            self.n[rows] += 1.0
+        # each ray's terms in the sums' layout (``_set_sums``): A, y, bc, cc, bcc, n
+        new = np.concatenate((Pm.reshape(M, 9), Pc, bbc, cPc[:, None], (bdc * bdc)[:, None],
+                              np.ones((M, 1))), axis=1)
+        S = self.S
+        rest = None
+        if not unique:  # a row repeated (a feature's rays from several cameras): the sums take
+            # its rays in call order (np.add.at's): the first of every row, then the second ones...
+            order = np.argsort(rows, kind="stable")
+            rs = rows[order]
+            brk = np.ones(M, dtype=bool)
+            np.not_equal(rs[1:], rs[:-1], out=brk[1:])
+            if not brk.all():
+                start = np.flatnonzero(brk)
+                rank = np.arange(M) - np.repeat(start, np.diff(np.append(start, M)))
+                rest = (order, rank)
+                first = order[brk]
+                rows_all, new_all = rows, new
+                rows, new = rows[first], new[first]
+        if memory_s > 0:  # forget old rays, w = exp(-(t_s - t_last) / memory_s): w s + new
+            f = np.exp(-(t_s - self.last_t[rows]) / memory_s)
+            S[rows] = S[rows] * f[:, None] + new
         else:
-            np.add.at(self.A, rows, Pm)
-            np.add.at(self.y, rows, Pc)
-            np.add.at(self.cc, rows, cPc)
-            np.add.at(self.bc, rows, bbc)
-            np.add.at(self.bcc, rows, bdc * bdc)
-            np.add.at(self.n, rows, 1.0)
+            S[rows] += new
+        if rest is not None:
+            order, rank = rest
+            for k in range(1, int(rank.max()) + 1):
+                sel = order[rank == k]
+                S[rows_all[sel]] += new_all[sel]
         self.last_t[rows] = t_s
 
     def prune(self, t_s: float, max_unseen_s: float) -> None:
@@ -604,8 +609,7 @@ class _FeatureRays:
         alive = r >= 0
         self.ids, self.id_rows = self.ids[alive], r[alive]
         m = int(keep.sum())
-        for name in ("A", "y", "b0", "last_t", "cc", "bc", "bcc", "n"):
-            a = getattr(self, name)
+        for a in (self.S, self.b0, self.last_t):
             a[:m] = a[: self.size][keep]
         self.size = m
 
@@ -2180,10 +2184,8 @@ class ObstacleFusion:
         return self._gated_update(tr, y, H, R, self._gate2)
 
     def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> bool:
-        H = np.zeros((3, 6))
-        H[:, :3] = np.eye(3)
-        y = p_W - tr.kf.x[:3]  # z - H x
-        return self._gated_update(tr, y, H, R, self._gate3)
+        y = p_W - tr.kf.x[:3]  # z - H x,  H = [I 0]
+        return self._gated_update(tr, y, _H_POS, R, self._gate3)
 
     def _anchor_position(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> None:
         """Put the filter's position on the feature stereo point p_W (3,) W, covariance R (3, 3),
@@ -2209,9 +2211,7 @@ class ObstacleFusion:
         if tr.vel_assumed:
             self._adopt_velocity_evidence(tr, (v_W, R))
             return True
-        H = np.zeros((3, 6))
-        H[:, 3:] = np.eye(3)
-        return self._gated_update(tr, v_W - tr.kf.x[3:], H, R, self._gate3)
+        return self._gated_update(tr, v_W - tr.kf.x[3:], _H_VEL, R, self._gate3)  # H = [0 I]
 
     def _adopt_velocity_evidence(self, tr: _Track, meas: tuple | None = None) -> None:
         """Set the velocity of a track whose velocity was assumed (x_v, P_vv) from its velocity
@@ -2635,28 +2635,50 @@ def _source_name(mono: bool, stereo: bool, bounds: bool) -> str:
 def _ekf_predict(kf: ExtendedKalmanFilter) -> None:
     """``kf.predict()`` (filterpy's ExtendedKalmanFilter, no control input) with the same operations
     in the same order, without its bookkeeping copies (x_prior, P_prior: nothing here reads them):
-        x = F x + B u,   P = F P F^T + Q."""
-    dot = np.dot
-    kf.x = dot(kf.F, kf.x) + dot(kf.B, 0)
-    kf.P = dot(kf.F, kf.P).dot(kf.F.T) + kf.Q
+        x = F x,   P = F P F^T + Q."""
+    F = kf.F
+    kf.x = F @ kf.x
+    kf.P = (F @ kf.P) @ F.T + kf.Q
+
+
+def _inv_small(S: np.ndarray) -> np.ndarray:
+    """Inverse (k, k) of an innovation covariance S (k, k), k = 1, 2 or 3, by cofactors in Python
+    floats: S^-1 = adj(S) / det(S). (filterpy's update inverts with scipy's LAPACK inv, ~15 us a
+    call; these agree to rounding, |difference| ~1e-16 relative for the well-conditioned S = H P
+    H^T + R here: tests/estimators/test_fusion_ekf.py.)"""
+    k = len(S)
+    if k == 2:
+        (a, b), (c, d) = S.tolist()
+        det = a * d - b * c
+        return np.array(((d / det, -b / det), (-c / det, a / det)))
+    if k == 1:
+        return np.array(((1.0 / float(S[0, 0]),),))
+    (a, b, c), (d, e, f), (g, h, i) = S.tolist()
+    A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * A + b * B + c * C
+    return np.array(((A / det, (c * h - b * i) / det, (b * f - c * e) / det),
+                     (B / det, (a * i - c * g) / det, (c * d - a * f) / det),
+                     (C / det, (b * g - a * h) / det, (a * e - b * d) / det)))
 
 
 def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
     """``kf.update(y, HJacobian=lambda x: H, Hx=lambda x: 0, R=R)`` (filterpy's
-    ExtendedKalmanFilter: residual y = z - h(x) already formed, (k,); H (k, 6); R (k, k)) with the
-    same operations in the same order, so the same bits, without its bookkeeping (deep copy of z,
-    x_post, P_post, likelihood resets: nothing here reads them). Sets S, SI (its inverse, filterpy's
-    own ``linalg.inv``), K, y, and the Joseph-form update
+    ExtendedKalmanFilter: residual y = z - h(x) already formed, (k,), k <= 3; H (k, 6); R (k, k)):
+    filterpy's operations in its order, without its bookkeeping (deep copy of z, x_post, P_post,
+    likelihood resets: nothing here reads them) and with S inverted by cofactors (``_inv_small``;
+    equal to filterpy's to rounding, tests/estimators/test_fusion_ekf.py). Sets S, SI, K, y (the
+    array passed: callers pass a fresh one), and the Joseph-form update
+        S = H P H^T + R,   K = P H^T S^-1,
         x = x + K y,   P = (I - K H) P (I - K H)^T + K R K^T."""
-    dot = np.dot
-    PHT = dot(kf.P, H.T)
-    kf.S = dot(H, PHT) + R
-    kf.SI = _FILTERPY_INV(kf.S)
-    kf.K = PHT.dot(kf.SI)
-    kf.y = np.subtract(y, _ZEROS[len(y)])
-    kf.x = kf.x + dot(kf.K, kf.y)
-    I_KH = kf._I - dot(kf.K, H)
-    kf.P = dot(I_KH, kf.P).dot(I_KH.T) + dot(kf.K, R).dot(kf.K.T)
+    P = kf.P
+    PHT = P @ H.T
+    kf.S = S = H @ PHT + R
+    kf.SI = SI = _inv_small(S)
+    kf.K = K = PHT @ SI
+    kf.y = y
+    kf.x = kf.x + K @ y
+    I_KH = _EYE6 - K @ H
+    kf.P = (I_KH @ P) @ I_KH.T + (K @ R) @ K.T
 
 
 def _posterior_sigma(sig_r: np.ndarray, chi: np.ndarray, n: np.ndarray, k: float) -> np.ndarray:
@@ -2698,11 +2720,14 @@ def _rotate_rows(X: np.ndarray, cam: np.ndarray, R_W_C) -> np.ndarray:
 def _ray_covariance(d: np.ndarray, sigma_along_m: float, sigma_rad: float) -> np.ndarray:
     """Covariance (3, 3) of a point at offset d (3,) from a sensor: sigma_along_m along d and
     |d| * sigma_rad across it:  R = s_r^2 u u^T + (|d| s_b)^2 (I - u u^T)."""
-    n = float(np.linalg.norm(d))
-    u = d / max(n, 1e-12)
-    uu = np.outer(u, u)
-    s_t = max(n * sigma_rad, 1e-6)
-    return sigma_along_m**2 * uu + s_t**2 * (np.eye(3) - uu) + np.eye(3) * 1e-12
+    dx, dy, dz = d.tolist()  # (in Python floats: ~4x faster than numpy on one 3x3)
+    n = math.sqrt(dx * dx + dy * dy + dz * dz)
+    m = max(n, 1e-12)
+    u = (dx / m, dy / m, dz / m)
+    a = sigma_along_m**2
+    t = max(n * sigma_rad, 1e-6) ** 2
+    return np.array([[a * (u[i] * u[j]) + t * ((1.0 if i == j else 0.0) - u[i] * u[j])
+                      + (1e-12 if i == j else 0.0) for j in range(3)] for i in range(3)])
 
 
 def _ray_covariances(d: np.ndarray, sigma_along_m: np.ndarray, sigma_rad: np.ndarray) -> np.ndarray:

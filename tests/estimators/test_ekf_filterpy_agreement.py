@@ -1,8 +1,10 @@
-"""The fusion's own EKF predict / update (``estimators.fusion._ekf_predict`` / ``_ekf_update``,
-933a998: filterpy's operations without its bookkeeping copies) against filterpy's
-``ExtendedKalmanFilter.predict`` / ``update`` themselves, the independent reference: the fusion's
-reports are claimed output-identical to filterpy's, so the state, covariance, innovation and gain
-must agree bit for bit, for the 1-, 2- and 3-dimensional measurements the fusion makes."""
+"""The fusion's own EKF predict / update (``estimators.fusion._ekf_predict`` / ``_ekf_update``:
+filterpy's operations without its bookkeeping copies, S inverted by cofactors instead of scipy's
+LAPACK inv) against filterpy's ``ExtendedKalmanFilter.predict`` / ``update`` themselves, the
+independent reference: the state, covariance, innovation covariance, its inverse and the gain must
+agree to rounding (1e-12 of each array's largest entry), for the 1-, 2- and 3-dimensional
+measurements the fusion makes. (Until the fusion's speed work under the session-9 speed rule they
+were bit for bit: filterpy's own inv.)"""
 
 from __future__ import annotations
 
@@ -32,14 +34,14 @@ def _filter(rng: np.random.Generator) -> ExtendedKalmanFilter:
 
 
 @pytest.mark.parametrize("dim_z", [1, 2, 3])
-def test_predict_and_update_are_filterpys_bit_for_bit(dim_z):
+def test_predict_and_update_are_filterpys_to_rounding(dim_z):
     rng = np.random.default_rng(11 + dim_z)
     for _ in range(50):
         ref = _filter(rng)
         ours = copy.deepcopy(ref)
         ref.predict()
         _ekf_predict(ours)
-        np.testing.assert_array_equal(ours.x, ref.x)
+        np.testing.assert_array_equal(ours.x, ref.x)  # (the same products: bit for bit)
         np.testing.assert_array_equal(ours.P, ref.P)
         H = rng.normal(size=(dim_z, 6))
         R = _spd(rng, dim_z, 0.05)
@@ -48,4 +50,6 @@ def test_predict_and_update_are_filterpys_bit_for_bit(dim_z):
         ref.update(y, HJacobian=lambda _x, H=H: H, Hx=lambda _x, zero=zero: zero, R=R)
         _ekf_update(ours, y, H, R)
         for name in ("x", "P", "y", "S", "SI", "K"):
-            np.testing.assert_array_equal(getattr(ours, name), getattr(ref, name), err_msg=name)
+            a, b = np.asarray(getattr(ours, name)), np.asarray(getattr(ref, name))
+            assert a.shape == b.shape, name
+            np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12 * float(np.abs(b).max()), err_msg=name)
