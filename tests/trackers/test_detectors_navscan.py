@@ -55,6 +55,25 @@ def test_scan_every_keeps_one_sequence_per_camera_mask():
     assert len(nav.detect_boxes(frame([p]), m1).boxes) == 1  # cam1: its full scan
 
 
+def test_scan_every_without_masks_keeps_one_sequence_per_camera_name():
+    """mask None for both cameras: the camera name tells their sequences apart (keyed by the mask
+    object alone, cam1's first call would continue cam0's sequence and skip its full scan)."""
+    nav = make_detector("navlights", scan_every=2)
+    p = ((100, 60), (92, 60))
+    assert len(nav.detect_boxes(frame([]), None, camera="cam0").boxes) == 0  # cam0: full scan, nothing
+    assert len(nav.detect_boxes(frame([p]), None, camera="cam1").boxes) == 1  # cam1: its full scan
+    assert len(nav.detect_boxes(frame([p]), None, camera="cam0").boxes) == 0  # cam0: nothing to follow
+    assert len(nav.detect_boxes(frame([p]), None, camera="cam1").boxes) == 1  # cam1: around its drone
+    assert len(nav.detect_boxes(frame([p]), None, camera="cam0").boxes) == 1  # cam0: its full scan
+
+
+def test_composite_passes_the_camera_name_to_its_box_part():
+    det = make_detector("orb+navlights", navlights={"scan_every": 2})
+    p = ((100, 60), (92, 60))
+    assert len(det.detect_boxes(frame([]), None, camera="cam0").boxes) == 0
+    assert len(det.detect_boxes(frame([p]), None, camera="cam1").boxes) == 1  # its own full scan
+
+
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True, "3"])
 def test_scan_every_must_be_a_whole_number_of_frames(bad):
     with pytest.raises(ConfigError, match="scan_every"):

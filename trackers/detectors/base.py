@@ -167,9 +167,13 @@ class Detector(ABC):
         gives its keypoint part, so that e.g. ORB runs as it does alone)."""
         return self
 
-    def detect_boxes(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
-        """This frame's boxes (for the BoxTracker; arguments as ``detect``). Default: ``detect``; a
-        composite detector runs only its box part."""
+    def detect_boxes(
+        self, image: np.ndarray, mask: np.ndarray | None = None, camera: str | None = None
+    ) -> Detections:
+        """This frame's boxes (for the BoxTracker; ``image`` and ``mask`` as ``detect``). Default:
+        ``detect``; a composite detector runs only its box part. ``camera``: the name of the camera
+        whose frame this is, for a detector that follows each camera's sequence of frames (navlights'
+        ``scan_every``); None: cameras are told apart by their mask objects."""
         return self.detect(image, mask)
 
     @abstractmethod

@@ -89,11 +89,16 @@ class CompositeDetector(Detector):
         """The box detector."""
         return self._box
 
-    def detect_boxes(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
-        """The box part's boxes (none on a grey frame when the box part needs colour)."""
+    def detect_boxes(
+        self, image: np.ndarray, mask: np.ndarray | None = None, camera: str | None = None
+    ) -> Detections:
+        """The box part's boxes (none on a grey frame when the box part needs colour); ``camera`` is
+        passed on when given (a plug-in box part may take only ``image`` and ``mask``)."""
         if self._box.needs_colour and image.ndim != 3:
             return Detections.empty()
-        return self._box.detect_boxes(image, mask)
+        if camera is None:
+            return self._box.detect_boxes(image, mask)
+        return self._box.detect_boxes(image, mask, camera=camera)
 
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
         """See Detector.detect: the keypoint part's keypoints (and descriptors) and the box part's

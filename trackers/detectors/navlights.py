@@ -166,9 +166,10 @@ class NavLightsDetector(Detector):
         self.single_lights = bool(single_lights)
         self.single_max_area_px = int(single_max_area_px)
         self.scan_every = int(scan_every)
-        # detect_boxes' sequences, one per mask object (one per camera): (the mask, kept referenced
-        # so that its id is not reused; calls so far; the boxes of the last scan_every calls)
-        self._seq: dict[int, tuple[np.ndarray | None, list[int], deque]] = {}
+        # detect_boxes' sequences, one per camera name or (without one) per mask object: (the mask,
+        # kept referenced so that its id is not reused; calls so far; the boxes of the last
+        # scan_every calls)
+        self._seq: dict[tuple, tuple[np.ndarray | None, list[int], deque]] = {}
         self._box_cache: dict[int, tuple[np.ndarray, tuple[int, ...], tuple[int, int, int, int]]] = {}
 
     # ------------------------------------------------------------------------------ colour
@@ -218,20 +219,26 @@ class NavLightsDetector(Detector):
         self._check(image, mask)
         return self._find(image, mask, self._crop_box(mask, image.shape[:2]))
 
-    def detect_boxes(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
-        """The front end's call, once per frame of a camera's sequence (cameras told apart by their
-        mask object): ``detect`` on the whole lens every ``scan_every``-th call, and in between only
-        around the boxes found in the last ``scan_every`` calls (each grown by its own size + 16 px:
-        a drone's lights, its white light's window and the lone-light ring stay inside). A drone that
-        appears is found up to ``scan_every - 1`` frames later; one already found is looked for in
-        every frame. ``scan_every`` 1: ``detect`` every frame."""
+    def detect_boxes(
+        self, image: np.ndarray, mask: np.ndarray | None = None, camera: str | None = None
+    ) -> Detections:
+        """The front end's call, once per frame of a camera's sequence: ``detect`` on the whole lens
+        every ``scan_every``-th call, and in between only around the boxes found in the last
+        ``scan_every`` calls (each grown by its own size + 16 px: a drone's lights, its white light's
+        window and the lone-light ring stay inside). A drone that appears is found up to
+        ``scan_every - 1`` frames later; one already found is looked for in every frame.
+        ``scan_every`` 1: ``detect`` every frame.
+
+        Cameras are told apart by ``camera`` (a name) when given, else by their mask objects (the
+        front end passes one lens mask per camera); several cameras without masks (``mask`` None)
+        need ``camera``, or they share one sequence."""
         self._check(image, mask)
         lens = self._crop_box(mask, image.shape[:2])
         if self.scan_every == 1:
             return self._find(image, mask, lens)
-        key = id(mask)
+        key: tuple = ("mask", id(mask)) if camera is None else ("camera", camera)
         st = self._seq.get(key)
-        if st is None or st[0] is not mask:
+        if st is None or (camera is None and st[0] is not mask):
             if len(self._seq) > 16:  # bounded: a rig has a few masks; ones no longer passed are dropped
                 self._seq.clear()
             st = (mask, [0], deque(maxlen=self.scan_every))
