@@ -10,6 +10,7 @@ reference-camera (the rig's first) feature is reported under that feature's id (
 
 from __future__ import annotations
 
+import functools
 import itertools
 import time
 from collections import deque
@@ -274,6 +275,9 @@ class FrontEnd:
                     self.boxers[c.name] = BoxTracker(self._track_ids, **options.get("boxes", {}))
                 except TypeError as e:
                     raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
+        if len(self.groupers) > 1:  # grouping step 3f: a split both cameras' flows support
+            for n, g in self.groupers.items():
+                g.plane_confirm = functools.partial(self._plane_confirm, n)
         # frames wider than max_width, keypoint cameras: only the part the tracker reads (its lens
         # box, FeatureTracker.frame_box) is shrunk, the rest of the small frame left black
         self._shrink = {
@@ -503,6 +507,16 @@ class FrontEnd:
             return None
         # R_Cnow_Ck = R_C_B R_Bnow_Bk R_C_B^T
         return {k: R_C_B @ R @ R_C_B.T for k, R in rot.items()}
+
+    def _plane_confirm(self, name: str, tr: ObstacleTrack) -> bool:
+        """Whether the track of camera ``name``'s grouper whose part is due to leave by its motion
+        off a plane (grouping step 3f) has a view in another camera (the same global id) where
+        step 3f found a part too (``ObstacleGrouper.plane_recent``)."""
+        g = self._global(tr.id)
+        for n, gr in self.groupers.items():
+            if n != name and any(self._global(t.id) == g and gr.plane_recent(t) for t in gr.tracks.values()):
+                return True
+        return False
 
     def _global(self, tid: int) -> int:
         return self._gid.get(tid, tid)

@@ -33,6 +33,16 @@ write their new state and over components wide enough to be cut):
    comes from step 4 exempting a split-off part, which the crossing box's features then joined;
    the cause there is step 4's least-squares fit pulled by a mover nearby. Kept until a fix of
    step 4 that does not cost stereo accuracy replaces it.
+3f. An upright obstacle standing on the ground it is grouped with (opt-in, ``plane_min``): at its
+   foot the two flows are equal, so 3c finds no step, but a plane's flow on the sphere is an exact
+   8-parameter function of the bearing and an obstacle at one range breaks it. Each disk of
+   members (``link_rad``) is tested against the plane fitted to the rest; the most significant
+   part that is displaced one way, by more than 3c's link tolerance and ``plane_z`` sigmas of
+   the fit's prediction, leaves when found ``split_persist`` frames in a row (see ``_plane_parts``).
+   A track is tested every ``plane_every`` frames (staggered by id), every frame once a part is
+   found in it. On a rig of several cameras the front end sets ``plane_confirm``: the part leaves
+   only when the same obstacle's view in another camera found a part too (one camera's flow
+   alone, e.g. a stereo view mixing two obstacles, does not split it).
 4. Extended texture (the ground, a large wall): a track is *embedded* when non-member features
    surround it (they lie in at least ``extended_sectors`` of 8 angular sectors around it; sectors
    outside the lens do not count against it) and the flow field they span (an affine fit in the
@@ -55,7 +65,7 @@ Its sigma is ``sqrt(spread^2 / n + floor^2)``, spread = RMS angle of the members
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,6 +97,25 @@ def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
     e1 = _normalise(_cross(ref, rep))
     return e1, _cross(rep, e1)
+
+
+def _traceless_basis() -> np.ndarray:
+    """(8,3,3): a basis of the 3x3 matrices modulo the identity (the 8 unit matrices E_ij but E_22,
+    with E_00 - E_22 and E_11 - E_22 for the diagonal): ``P_b G b`` does not see G's identity part."""
+    out = []
+    for i in range(3):
+        for j in range(3):
+            if i == j == 2:
+                continue
+            m = np.zeros((3, 3))
+            m[i, j] = 1.0
+            if i == j:
+                m[2, 2] = -1.0
+            out.append(m)
+    return np.array(out)
+
+
+_TRACELESS = _traceless_basis()
 
 
 def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -131,6 +160,9 @@ class ObstacleTrack:
     split_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3c candidate
     split_n: int = 0  # frames in a row the step 3c candidate split was found
     split: bool = False  # split off another track by its motion (step 3c): not judged as texture
+    plane_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3f candidate
+    plane_n: int = 0  # frames in a row the step 3f candidate split was found
+    plane_seen: int = -(10**9)  # the grouper's frame count when step 3f last found a part in it
 
 
 class ObstacleGrouper:
@@ -180,6 +212,15 @@ class ObstacleGrouper:
             much as pairs beside it; 3 leaves room for noise in the medians.
         split_persist: frames in a row the same split (half its features in common) must be found
             before the track splits: evidence over several frames, not one.
+        plane_min: step 3f (in ``_split``): tracks of at least this many members judged over the
+            window (and at least 12: 8 plane parameters, a part of 3 and a rest of 8) are tested
+            for a compact part off the planar flow field of the others (``_plane_parts``); 0 (the
+            default) turns step 3f off.
+        plane_z: ... and a part leaves only when its mean displacement from the others' plane is
+            this many sigmas of the fit's prediction (``z`` in ``_plane_parts``).
+        plane_every: step 3f tests a track every this many frames (staggered by track id: the
+            cost spread over frames), and every frame once it found a part in it (the split still
+            needs it found ``split_persist`` frames in a row).
         label: label of the tracks (the detector's name).
     """
 
@@ -209,6 +250,9 @@ class ObstacleGrouper:
         split_rel: float = 0.1,
         split_step: float = 3.0,
         split_persist: int = 3,
+        plane_min: int = 0,
+        plane_z: float = 6.0,
+        plane_every: int = 2,
         label: str = "orb",
     ) -> None:
         if (
@@ -257,6 +301,24 @@ class ObstacleGrouper:
         self.split_rel = float(split_rel)
         self.split_step = float(split_step)
         self.split_persist = int(split_persist)
+        if isinstance(plane_min, bool) or not isinstance(plane_min, (int, np.integer)) or plane_min < 0:
+            raise ConfigError(
+                f"ObstacleGrouper: expected plane_min an integer >= 0 (0: step 3f off); got {plane_min!r}"
+            )
+        self.plane_min = int(plane_min)
+        if not 0 < plane_z < float("inf"):  # (also NaN)
+            raise ConfigError(f"ObstacleGrouper: expected a finite plane_z > 0 (sigmas); got {plane_z!r}")
+        self.plane_z = float(plane_z)
+        if isinstance(plane_every, bool) or not isinstance(plane_every, (int, np.integer)) or plane_every < 1:
+            raise ConfigError(
+                f"ObstacleGrouper: expected plane_every an integer >= 1 (frames); got {plane_every!r}"
+            )
+        self.plane_every = int(plane_every)
+        # step 3f on a rig of several cameras (set by the front end): given a track whose part is
+        # due to leave, whether the same obstacle's track in another camera found a part of its
+        # own in its latest update (``plane_recent``); a split one camera's flow alone supports is
+        # not made. None (one camera): no such check.
+        self.plane_confirm: Callable[[ObstacleTrack], bool] | None = None
         # the frame-to-frame rotations, as far back as step 3c's window reaches
         self._R1_hist: deque[np.ndarray] = deque(maxlen=self.split_frames)
         self.label = label
@@ -718,6 +780,7 @@ class ObstacleGrouper:
         srt = np.argsort(o, kind="stable")  # rows grouped by track (blocks), in row order within
         rows, o = rows[srt], o[srt]
         found = np.zeros(T, bool)
+        plane: dict[int, np.ndarray] = {}  # step 3f: track index -> rows of its part off the plane
         if len(rows):
             b_then, t_then, _ = ft.bearing_ago(L)
             b_then, bk = b_then[rows], back[rows]
@@ -732,6 +795,13 @@ class ObstacleGrouper:
             e1, e2 = _tangent_basis(rep[:T])
             xy = np.stack([np.einsum("ij,ij->i", f, e1[o]), np.einsum("ij,ij->i", f, e2[o])], 1)
             fn = np.hypot(xy[:, 0], xy[:, 1])
+            if self.plane_min:  # step 3f: a part off the members' planar flow field
+                # (each track every plane_every-th frame, staggered by id; every frame while a
+                # candidate of it is being confirmed)
+                due = np.array(
+                    [t.plane_n > 0 or (self._frame + t.id) % self.plane_every == 0 for t in tracks], bool
+                ).reshape(T)
+                plane = self._plane_parts(o, rows, ft.b_C[rows], e1, e2, xy, dt, T, rad_px, due)
             # tracks whose members' window flows all lie within half the smallest link tolerance
             # of their mean cannot be cut (every pair links): only the others are looked at
             nn = np.maximum(np.bincount(o, minlength=T), 1)
@@ -761,9 +831,9 @@ class ObstacleGrouper:
             linked = dd < thr
             # only tracks with a near pair that does not link can fall apart
             loose = np.bincount(o[ei[~linked]], minlength=T) > 0
-            if not np.any(loose):
+            if not np.any(loose) and not plane:
                 for t in range(T):  # no candidate this frame: the count restarts
-                    tracks[t].split_n = 0
+                    tracks[t].split_n = tracks[t].plane_n = 0
                 return out_rows, out_tgt
             li, lj = ei[linked], ej[linked]  # links (one direction each)
             # connected components: each end of a link takes the smaller label of the two, then
@@ -819,8 +889,150 @@ class ObstacleGrouper:
                     out_tgt.append((int(t), -1))
         for t in np.flatnonzero(~found):  # no candidate this frame: the count restarts
             tracks[t].split_n = 0
+        # step 3f: the same persistence rule, for tracks step 3c did not split this frame
+        for t in range(T):
+            move = plane.get(t)
+            tr = tracks[t]
+            if move is None or found[t]:
+                tr.plane_n, tr.plane_ids = 0, np.zeros(0, np.int64)
+                continue
+            mids = np.sort(ft.ids[move])
+            prev = tr.plane_ids
+            common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
+            tr.plane_n = tr.plane_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
+            tr.plane_ids = mids
+            tr.plane_seen = self._frame
+            # (refused by the other camera: the count goes on, the split waits for its support)
+            if tr.plane_n >= self.split_persist and (self.plane_confirm is None or self.plane_confirm(tr)):
+                tr.plane_n, tr.plane_ids = 0, np.zeros(0, np.int64)
+                out_rows.append(move)
+                out_tgt.append((int(t), -1))
         self._revive(ft.b_C, out_rows, out_tgt, owner, rep, tracks, taken, flow, fvalid, tflow, R1, dt_s)
         return out_rows, out_tgt
+
+    def plane_recent(self, tr: ObstacleTrack) -> bool:
+        """Whether step 3f found a part in this grouper's track ``tr`` in its latest update or the
+        one before (a rig's cameras are grouped one after the other in a frame)."""
+        return self._frame - tr.plane_seen <= 1
+
+    def _plane_parts(
+        self,
+        o: np.ndarray,
+        rows: np.ndarray,
+        b: np.ndarray,
+        e1: np.ndarray,
+        e2: np.ndarray,
+        xy: np.ndarray,
+        dt: np.ndarray,
+        T: int,
+        rad_px: float,
+        due: np.ndarray,
+    ) -> dict[int, np.ndarray]:
+        """Step 3f: per track (index < T) of at least ``plane_min`` judged members, a compact part
+        whose window flows the planar flow field of the other members does not predict (an
+        upright obstacle at one depth standing on the ground it is grouped with: at its base the
+        flows are equal, so no link between neighbours parts them, but away from its base the
+        ground's flow goes on changing with position and the obstacle's does not).
+
+        The derotated flow of a plane ``n . X = h`` seen by a camera moving with velocity v is
+        ``f(b) = -(n . b / h) P_b v`` (inverse range ``n . b / h`` along the unit bearing b,
+        ``P_b = I - b b^T``), i.e. ``f = -P_b G b`` with ``G = v n^T / h``: linear in G, and G's
+        identity part is invisible (``P_b b = 0``), so 8 parameters g over the basis
+        ``_TRACELESS``: ``f = D(b) g``, D (2,8) the tangent components (e1, e2 at the track's
+        representative bearing) of ``P_b B_k b``. Exact for any plane and lens (bearings, not
+        pixels); the ground near the horizon is far from affine in the image. Each candidate
+        part C is the disk of members within ``link_rad`` of one member; g is fitted to the rest
+        R by least squares (normal equations ``N_R = N - N_C``, ``B_R = B - B_C``: one 8x8
+        solve per candidate), with per-axis noise ``s^2 = SSE_R / (2 |R| - 8)``. C's mean
+        residual ``rbar = mean_C f - Dbar_C g`` has covariance ``V = s^2 (I / |C| + Dbar_C N_R^-1
+        Dbar_C^T)`` (its own noise and the fit's, extrapolated to it); C is off the plane when
+        ``z = sqrt(rbar^T V^-1 rbar) >= plane_z``, at least 2/3 of its members' residuals
+        point rbar's way (one surface displaced, not noise), and the part that leaves, its
+        members displaced along rbar by at least half |rbar| (a disk about an obstacle's edge
+        holds a few ground members too), has ``min_features`` members or more whose mean
+        displacement clears step 3c's link tolerance (``split_min_px`` over the window plus
+        ``split_rel`` of C's mean flow). The rest needs 8 members and more than C. Of a track's
+        candidates, the most significant (largest z).
+
+        Args: o (S,) track index per judged row, rows (S,) those rows into the live features,
+        b (S,3) their unit bearings in C, e1, e2 (T,3) the tangent basis at each track's
+        representative bearing, xy (S,2) window flows in that basis (rad/s), dt (S,) each row's
+        window (s), T tracks, rad_px radians per pixel. Returns {track index: rows of the part}."""
+        out: dict[int, np.ndarray] = {}
+        cnt = np.bincount(o, minlength=T)
+        # all eligible tracks at once (rows come sorted by track: blocks); a candidate disk and
+        # its rest lie in one track
+        idx = np.flatnonzero((cnt[o] >= max(self.plane_min, 12)) & due[o])
+        if not len(idx):
+            return out
+        os_, bt, F, dts = o[idx], b[idx], xy[idx], dt[idx]
+        S = len(idx)
+        # D_i (2,8): the tangent components (e1, e2 at rep) of P_b B_k b, P_b = I - b b^T
+        u = np.einsum("kij,nj->nki", _TRACELESS, bt)  # (S,8,3) B_k b
+        u = u - np.einsum("nki,ni->nk", u, bt)[:, :, None] * bt[:, None, :]
+        D = np.stack([np.einsum("nki,ni->nk", u, e1[os_]), np.einsum("nki,ni->nk", u, e2[os_])], 1)
+        M = ((bt @ bt.T) > np.cos(self.link_rad)) & (os_[:, None] == os_[None, :])  # disks (S,S)
+        Mf = M.astype(float)
+        nC = Mf.sum(1)
+        DD = np.einsum("nai,naj->nij", D, D).reshape(S, 64)
+        DF = np.einsum("nai,na->ni", D, F)  # (S,8)
+        FF = np.einsum("ij,ij->i", F, F)
+        starts = np.flatnonzero(np.r_[True, os_[1:] != os_[:-1]])
+        blk = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, S]))  # block of each row
+        nR = cnt[os_] - nC
+        k = np.flatnonzero((nC >= self.min_features) & (nR >= 8) & (nR > nC))
+        if not len(k):
+            return out
+        kb = blk[k]
+        NR = (np.add.reduceat(DD, starts, 0)[kb] - Mf[k] @ DD).reshape(-1, 8, 8)
+        BR = np.add.reduceat(DF, starts, 0)[kb] - Mf[k] @ DF  # (K,8)
+        # (N_R is symmetric: its condition number from its eigenvalues)
+        ev = np.abs(np.linalg.eigvalsh(NR))
+        wc = ev[:, -1] < 1e10 * ev[:, 0]
+        if not np.any(wc):
+            return out
+        k, kb, NR, BR = k[wc], kb[wc], NR[wc], BR[wc]
+        Mk = Mf[k]  # (K,S)
+        NRi = np.linalg.inv(NR)
+        g = np.einsum("kij,kj->ki", NRi, BR)  # (K,8) g_R = N_R^-1 B_R
+        sse = (np.add.reduceat(FF, starts)[kb] - Mk @ FF) - np.einsum("ki,ki->k", g, BR)
+        s2 = np.maximum(sse, 0.0) / (2.0 * nR[k] - 8.0)
+        mC = Mk / nC[k][:, None]
+        Dbar = (mC @ D.reshape(S, 16)).reshape(-1, 2, 8)  # (K,2,8)
+        fC = mC @ F
+        rbar = fC - np.einsum("kai,ki->ka", Dbar, g)  # (K,2)
+        V = np.einsum("kai,kij,kbj->kab", Dbar, NRi, Dbar) + np.eye(2)[None] / nC[k][:, None, None]
+        V = V * s2[:, None, None]
+        det = V[:, 0, 0] * V[:, 1, 1] - V[:, 0, 1] ** 2
+        # z^2 = rbar^T V^-1 rbar (chi2 with 2 degrees of freedom for a part on the plane)
+        x0, x1 = rbar[:, 0], rbar[:, 1]
+        z2 = V[:, 1, 1] * x0**2 - 2 * V[:, 0, 1] * x0 * x1 + V[:, 0, 0] * x1**2
+        z = np.sqrt(np.maximum(z2, 0.0) / np.maximum(det, 1e-300))
+        rn = np.hypot(x0, x1)
+        # step 3c's link tolerance: split_min_px over the window and split_rel of the flow
+        floor = self.split_min_px * rad_px / np.maximum(mC @ dts, 1e-9)
+        floor = floor + self.split_rel * np.hypot(fC[:, 0], fC[:, 1])
+        # the disks' members' residuals against the rest's fit along rbar's direction (rad/s),
+        # over the (candidate, member) pairs, candidate major, members in row order
+        K = len(k)
+        pk, pn = np.nonzero(M[k])
+        rm = F[pn] - np.einsum("nai,ni->na", D[pn], g[pk])
+        proj = np.einsum("na,na->n", rm, rbar[pk]) / np.maximum(rn, 1e-30)[pk]
+        way = np.bincount(pk, proj > 0, K) * 3 >= 2 * nC[k]
+        # the part: the disk's members displaced at least half as far as its mean (a disk
+        # about an obstacle's edge holds a few ground members too); their mean clears the floor
+        inp = proj >= 0.5 * rn[pk]
+        n_in = np.bincount(pk, inp, K)
+        mean_in = np.bincount(pk, proj * inp, K) / np.maximum(n_in, 1)
+        good = np.flatnonzero((z >= self.plane_z) & way & (n_in >= self.min_features) & (mean_in >= floor))
+        if not len(good):
+            return out
+        # per track its most significant candidate (ties: the first)
+        order = good[np.lexsort((good, -z[good], kb[good]))]
+        first = order[np.r_[True, kb[order][1:] != kb[order][:-1]]]
+        for bi in first.tolist():
+            out[int(os_[k[bi]])] = rows[idx[pn[(pk == bi) & inp]]]
+        return out
 
     def _revive(
         self,
