@@ -616,19 +616,34 @@ class _FeatureRays:
     def residual2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mean squared perpendicular miss (m^2) of each feature's rays from its point p (K, 3):
         (p^T A p - 2 p^T y + cc) / n."""
-        A, y = self.A[rows], self.y[rows]
-        cost = np.einsum("ki,kij,kj->k", p, A, p) - 2.0 * np.sum(p * y, axis=1) + self.cc[rows]
-        return np.maximum(cost, 0.0) / np.maximum(self.n[rows], 1.0)
+        S = self.S[rows]
+        return _residual2(S, p, _pAp(S, p))
 
     def depth2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mean squared depth (m^2) of each feature's point p (K, 3) along its own rays, with the
         rays' (forgetting) weights w_i: sum_i w_i (b_i . (p - c_i))^2 / sum_i w_i, from the running
         sums as (p^T B p - 2 p . e + f) / n with B = sum_i w_i b_i b_i^T = n I - A,
         e = sum_i w_i b_i (b_i . c_i) and f = sum_i w_i (b_i . c_i)^2."""
-        n = self.n[rows]
-        pAp = np.einsum("ki,kij,kj->k", p, self.A[rows], p)
-        s = n * np.sum(p * p, axis=1) - pAp - 2.0 * np.sum(p * self.bc[rows], axis=1) + self.bcc[rows]
-        return np.maximum(s, 0.0) / np.maximum(n, 1e-12)
+        S = self.S[rows]
+        return _depth2(S, p, _pAp(S, p))
+
+
+def _pAp(S: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """p^T A p (K,) of points p (K, 3) with the A of the feature store's sum rows S (K, 18)."""
+    return np.einsum("ki,kij,kj->k", p, S[:, 0:9].reshape(len(S), 3, 3), p)
+
+
+def _residual2(S: np.ndarray, p: np.ndarray, pAp: np.ndarray) -> np.ndarray:
+    """``_FeatureRays.residual2`` from the sum rows S (K, 18) and p^T A p (K,)."""
+    cost = pAp - 2.0 * np.sum(p * S[:, 9:12], axis=1) + S[:, 15]
+    return np.maximum(cost, 0.0) / np.maximum(S[:, 17], 1.0)
+
+
+def _depth2(S: np.ndarray, p: np.ndarray, pAp: np.ndarray) -> np.ndarray:
+    """``_FeatureRays.depth2`` from the sum rows S (K, 18) and p^T A p (K,)."""
+    n = S[:, 17]
+    s = n * np.sum(p * p, axis=1) - pAp - 2.0 * np.sum(p * S[:, 12:15], axis=1) + S[:, 16]
+    return np.maximum(s, 0.0) / np.maximum(n, 1e-12)
 
 
 def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac: float) -> np.ndarray:
@@ -1011,14 +1026,21 @@ class ObstacleFusion:
         for i, (_tr, obs) in enumerate(todo):
             vs = obs.views
             if len(vs) > 1:
-                vs = sorted(vs, key=lambda w: order(w.camera))
+                ks = [order(w.camera) for w in vs]
+                ks_sorted = sorted(ks)
+                if ks != ks_sorted:  # (not in the rig's order: sorted, stable)
+                    vs = sorted(vs, key=lambda w: order(w.camera))
+                    ks = ks_sorted
+                cam_l.extend(ks)
+            else:
+                cam_l.append(order(vs[0].camera))
             vs_l.append(vs)
             first_view.append(len(b_l))
             for v in vs:
                 b_l.append(v.b_C)
-                cam_l.append(order(v.camera))
-                fid_l.append(v.feature_ids)
-                n_l.append(len(v.feature_ids))
+                f = v.feature_ids
+                fid_l.append(f)
+                n_l.append(len(f))
                 fb_l.append(v.feature_b_C)
                 trk_l.append(i)
         if not todo:
@@ -1509,13 +1531,14 @@ class ObstacleFusion:
         if not good.any():
             return
         g, rows, b_now, c_now = g[good], rows[good], b_now[good], c_now[good]
-        adj, det = _adjugate_det3(fs.A[rows])
+        Sr = fs.S[rows]  # the features' running sums (_FeatureRays._set_sums: A, y, bc, cc, bcc, n)
+        adj, det = _adjugate_det3(Sr[:, 0:9].reshape(len(Sr), 3, 3))
         ok = det > 1e-12
-        g, rows, b_now, c_now = g[ok], rows[ok], b_now[ok], c_now[ok]
+        g, rows, b_now, c_now, Sr = g[ok], rows[ok], b_now[ok], c_now[ok], Sr[ok]
         if not len(g):
             return
         Ainv = adj[ok] / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
-        p = np.einsum("kij,kj->ki", Ainv, fs.y[rows])  # A_f p_f = y_f
+        p = np.einsum("kij,kj->ki", Ainv, Sr[:, 9:12])  # A_f p_f = y_f
         o = work[0][1].o_W
         r_vec = p - o
         r = np.linalg.norm(r_vec, axis=1)
@@ -1528,7 +1551,8 @@ class ObstacleFusion:
         # an obstacle, the rays of the last 0.5 s were taken from up to twice as far; 15 m/s at
         # 6 m, mean d_i^2 ~ 5 d_now^2), so Cov(p_f) ~ sigma_f^2 mean_i(d_i^2) A_f^-1 (the d_i^2
         # weighted alike; ``_FeatureRays.depth2``)
-        d2 = fs.depth2(rows, p)
+        pAp = _pAp(Sr, p)
+        d2 = _depth2(Sr, p, pAp)  # (fs.depth2)
         sig_r = s.feature_sigma_rad * np.sqrt(d2) * np.sqrt(
             np.maximum(np.einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
@@ -1536,16 +1560,16 @@ class ObstacleFusion:
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
         if not keep.any():
             return
-        g, rows, b_now, p, r, depth, sig_r, d2, miss2 = (
+        g, rows, b_now, p, r, depth, sig_r, d2, miss2, Sr, pAp = (
             g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], d2[keep],
-            miss2[keep])
+            miss2[keep], Sr[keep], pAp[keep])
         # static-point test: each ray misses its feature's point by ~ sigma_f d_i per axis, so
         #   chi = mean_i miss_i^2 / (2 sigma_f^2 mean_i d_i^2)  ~ 1 for a static point
         # (E = (2n - 3) / 2n, n rays); a moving obstacle's features (crossing motion) fit no static
         # point and their range would be wrong. (Normalised by the current depth instead, a clean
         # track flown at, thesis_speed_15mps at 15 m/s, had median chi 6-10 and failed the test at
         # 40-50 deg of parallax: 6 of its 126 mono obstacle-frames uncovered.)
-        res2 = fs.residual2(rows, p)
+        res2 = _residual2(Sr, p, pAp)  # (fs.residual2)
         chi = res2 / (2.0 * s.feature_sigma_rad ** 2 * np.maximum(d2, 1e-12))
         # the per-feature cut (feature_max_chi) keeps the statistic it was chosen with, the miss
         # over the current depth: stricter for a feature whose older rays were taken from afar
@@ -1554,7 +1578,7 @@ class ObstacleFusion:
         fit = chi_cut <= s.feature_max_chi
         # each point's range sigma scaled as the reports' are (``_posterior_sigma``: k sigma_r,f, or
         # its own fit's a-posteriori factor): the members are compared with a report in those units
-        sig_post = _posterior_sigma(sig_r, chi, fs.n[rows], s.feature_point_sigma_k)
+        sig_post = _posterior_sigma(sig_r, chi, Sr[:, 17], s.feature_point_sigma_k)  # (n: fs.n[rows])
         # ... or, when larger, its CURRENT ray's miss over its noise, chi_now = miss^2 / 2 sigma_f^2:
         # a corner that has just slid off its point (onto an occluding edge, a T-junction) misses
         # it now while the mean over its older rays (chi) hardly moves
@@ -1834,63 +1858,123 @@ class ObstacleFusion:
         point would jump between corners; the features' own displacements do not."""
         s = self.settings
         t_s = work[0][1].t_s
-        order = np.argsort(gg, kind="stable")
+        lag = s.feature_velocity_lag_s
+        # each track's shared features sorted by id (ids are unique within a track)
+        order = np.lexsort((fid, gg))
         gs = gg[order]
         starts = np.flatnonzero(np.diff(gs, prepend=-1))  # each track's run in order
         ends = np.append(starts[1:], len(gs))
-        lag = s.feature_velocity_lag_s
+        f_s, P_s, S_s, T_s, U_s = fid[order], p_mid[order], sr[order], st[order], u[order]
+        due: list[tuple[_Track, tuple, int, int]] = []  # (track, its reference, run start, end)
         for gi, a0, a1 in zip(gs[starts].tolist(), starts.tolist(), ends.tolist(), strict=True):
             tr = work[gi][0]
             ref = tr.vel_ref
             # (a reference sharing a single id is replaced by a later frame sharing more: the first
             # frames of a stereo track often share one)
-            new_ref = (ref is None or t_s - ref[0] > 3.0 * lag
-                       or (len(ref[1]) < 2 and a1 - a0 > len(ref[1])))
-            if not new_ref and t_s - ref[0] < lag - 1e-9:
-                continue  # (not due yet: nothing to sort)
-            idx = order[a0:a1]
-            f = fid[idx]
-            o = np.argsort(f)
-            idx = idx[o]
-            f, P, S, T, U = f[o], p_mid[idx], sr[idx], st[idx], u[idx]
-            if new_ref:
-                tr.vel_ref = (t_s, f, P, S, T, U)
-                continue
-            dt = t_s - ref[0]
-            _, ka, kb = np.intersect1d(ref[1], f, assume_unique=True, return_indices=True)
-            tr.vel_ref = None  # (the next frame's points are the next reference: no shared point)
-            n = len(ka)
-            if n < 2:
-                continue
-            a = U[kb].sum(axis=0)
-            a /= math.sqrt(float(a @ a))
-            Q = np.empty((3, 3))
-            Q[:, 0] = a
-            Q[:, 1:] = tangent_basis(a)
-            W = ((P[kb] - ref[2][ka]) / dt) @ Q  # (n, 3) per-feature velocities in the ray frame
-            w = _median_rows(W)
-            var = np.zeros((n, 3))  # q_k^T C_i q_k of both points: sr^2 (q.u)^2 + st^2 (1 - (q.u)^2)
-            for Ui, Si, Ti in ((ref[5][ka], ref[3][ka], ref[4][ka]), (U[kb], S[kb], T[kb])):
-                c2 = (Ui @ Q) ** 2
-                var += (Si * Si)[:, None] * c2 + (Ti * Ti)[:, None] * (1.0 - c2)
-            var /= dt * dt
-            var_k = _median_rows(var)
-            # features that do not move alike at that noise (chi-square test of their spread at the
-            # gate probability: another object's or the background's members, or more noise than
-            # sigma_f): their spread (1.4826 MAD) is the noise instead, when larger
-            chi = np.sum((W - w) ** 2 / var, axis=0)
-            gate = self._chi2_gate(n - 1)
-            if (chi > gate).any():
-                mad2 = (1.4826 * _median_rows(np.abs(W - w))) ** 2
-                var_k = np.where(chi > gate, np.maximum(mad2, var_k), var_k)
-            # (+ q dt / 12 on each axis: the displacement measures the mean velocity over dt, which
-            # differs from the velocity at the interval's midpoint by that much under the filter's
-            # white acceleration, PSD q = max_accel^2 tau; q dt / 3 from the velocity at its end)
-            q = s.max_accel_mps2**2 * s.accel_time_s
-            rq = var_k * (median_variance_factor(n) / n)
-            v = Q @ w
-            tr.feature_velocity = (v, (Q * (rq + q * dt / 3.0)) @ Q.T)
-            self._velocity_evidence(tr, v, (Q * (rq + q * dt / 12.0)) @ Q.T, t_s - 0.5 * dt)
+            if (ref is None or t_s - ref[0] > 3.0 * lag
+                    or (len(ref[1]) < 2 and a1 - a0 > len(ref[1]))):
+                tr.vel_ref = (t_s, f_s[a0:a1], P_s[a0:a1], S_s[a0:a1], T_s[a0:a1], U_s[a0:a1])
+            elif t_s - ref[0] >= lag - 1e-9:
+                due.append((tr, ref, a0, a1))
+                tr.vel_ref = None  # (the next frame's points are the next reference: no shared point)
+        if not due:
+            return
+        # the ids each due track shares with its reference: one intersection of (track, id) keys
+        # (as np.intersect1d per track; within a track both id lists are sorted and unique)
+        D = len(due)
+        n_ref = np.array([len(ref[1]) for _tr, ref, _a0, _a1 in due], dtype=np.int64)
+        n_now = np.array([a1 - a0 for _tr, _ref, a0, a1 in due], dtype=np.int64)
+        f_ref = np.concatenate([ref[1] for _tr, ref, _a0, _a1 in due])
+        now = np.concatenate([np.arange(a0, a1) for _tr, _ref, a0, a1 in due])
+        d_ref = np.repeat(np.arange(D), n_ref)
+        d_now = np.repeat(np.arange(D), n_now)
+        lo = min(int(f_ref.min()), int(f_s[now].min()))
+        span = max(int(f_ref.max()), int(f_s[now].max())) - lo + 1
+        if span < 2**40 and D < 2**22:
+            _, ka, kb = np.intersect1d((d_ref << 40) + (f_ref - lo), (d_now << 40) + (f_s[now] - lo),
+                                       assume_unique=True, return_indices=True)
+        else:  # ids too far apart for one key: one intersection per track
+            ka_l, kb_l = [], []
+            oa = ob = 0
+            for k, (_tr, ref, a0, a1) in enumerate(due):
+                _, a, b = np.intersect1d(ref[1], f_s[a0:a1], assume_unique=True, return_indices=True)
+                ka_l.append(a + oa)
+                kb_l.append(b + ob)
+                oa, ob = oa + int(n_ref[k]), ob + int(n_now[k])
+            ka, kb = np.concatenate(ka_l), np.concatenate(kb_l)
+        dk = d_ref[ka]  # (the pairs in (track, id) order)
+        n = np.bincount(dk, minlength=D)
+        ok = n >= 2
+        if not ok.any():
+            return
+        keep = ok[dk]
+        ka, kb, dk = ka[keep], kb[keep], dk[keep]
+        R_P = np.concatenate([ref[2] for _tr, ref, _a0, _a1 in due])[ka]
+        R_S = np.concatenate([ref[3] for _tr, ref, _a0, _a1 in due])[ka]
+        R_T = np.concatenate([ref[4] for _tr, ref, _a0, _a1 in due])[ka]
+        R_U = np.concatenate([ref[5] for _tr, ref, _a0, _a1 in due])[ka]
+        # the due tracks with >= 2 shared ids, renumbered 0..G-1
+        dk = (np.cumsum(ok) - 1)[dk]
+        due = [d for d, o in zip(due, ok.tolist(), strict=True) if o]
+        n = n[ok]
+        G = len(due)
+        start = np.cumsum(n) - n
+        dt = np.array([t_s - ref[0] for _tr, ref, _a0, _a1 in due])
+        kb = now[kb]
+        N_P, N_S, N_T, N_U = P_s[kb], S_s[kb], T_s[kb], U_s[kb]
+        # the ray frame Q = [a, e1, e2] of each track (a the mean viewing direction, tangent_basis)
+        a = np.add.reduceat(N_U, start, axis=0)
+        a /= np.sqrt(_dot_rows(a, a))[:, None]
+        e = np.zeros_like(a)
+        e[np.arange(G), np.argmin(np.abs(a), axis=1)] = 1.0
+        e1 = _cross(a, e)
+        e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
+        Q = np.stack([a, e1, _cross(a, e1)], axis=2)  # (G, 3, 3), columns a, e1, e2
+        Qk = Q[dk]
+        W = np.einsum("ki,kij->kj", (N_P - R_P) / dt[dk][:, None], Qk)  # per-feature velocities, ray frame
+        # per-axis medians over each track's features: its rows padded with +inf and sorted
+        m = int(n.max())
+        pos = np.arange(len(dk)) - start[dk]
+        lo_i, hi_i = (n - 1) // 2, n // 2
+        rg = np.arange(G)
+
+        def group_median_cols(X: np.ndarray) -> np.ndarray:  # (rows, 3) -> (G, 3), as _median_rows
+            pad = np.full((G, m, 3), np.inf)
+            pad[dk, pos] = X
+            pad.sort(axis=1)
+            lo_v, hi_v = pad[rg, lo_i], pad[rg, hi_i]
+            return np.where((n % 2 == 1)[:, None], hi_v, (lo_v + hi_v) / 2.0)
+
+        w = group_median_cols(W)
+        # q_k^T C_i q_k of both points: sr^2 (q.u)^2 + st^2 (1 - (q.u)^2)
+        c2 = np.einsum("ki,kij->kj", R_U, Qk) ** 2
+        var = (R_S * R_S)[:, None] * c2 + (R_T * R_T)[:, None] * (1.0 - c2)
+        c2 = np.einsum("ki,kij->kj", N_U, Qk) ** 2
+        var += (N_S * N_S)[:, None] * c2 + (N_T * N_T)[:, None] * (1.0 - c2)
+        var /= (dt * dt)[dk][:, None]
+        var_k = group_median_cols(var)
+        # features that do not move alike at that noise (chi-square test of their spread at the
+        # gate probability: another object's or the background's members, or more noise than
+        # sigma_f): their spread (1.4826 MAD) is the noise instead, when larger
+        res = W - w[dk]
+        chi = np.add.reduceat(res * res / var, start, axis=0)  # (G, 3)
+        gate = np.array([self._chi2_gate(k - 1) for k in n.tolist()])[:, None]
+        wide = chi > gate
+        if wide.any():
+            mad2 = (1.4826 * group_median_cols(np.abs(res))) ** 2
+            var_k = np.where(wide, np.maximum(mad2, var_k), var_k)
+        # (+ q dt / 12 on each axis: the displacement measures the mean velocity over dt, which
+        # differs from the velocity at the interval's midpoint by that much under the filter's
+        # white acceleration, PSD q = max_accel^2 tau; q dt / 3 from the velocity at its end)
+        q = s.max_accel_mps2**2 * s.accel_time_s
+        rq = var_k * (np.array([median_variance_factor(k) for k in n.tolist()]) / n)[:, None]
+        v = np.einsum("gij,gj->gi", Q, w)
+        QT = Q.transpose(0, 2, 1)
+        R_end = (Q * (rq + (q * dt / 3.0)[:, None])[:, None, :]) @ QT
+        R_mid = (Q * (rq + (q * dt / 12.0)[:, None])[:, None, :]) @ QT
+        for k, (tr, _ref, _a0, _a1) in enumerate(due):
+            tr.feature_velocity = (v[k], R_end[k])
+            self._velocity_evidence(tr, v[k], R_mid[k], t_s - 0.5 * float(dt[k]))
 
     def _chi2_gate(self, k: int) -> float:
         """chi2_k(gate_probability), cached per degrees of freedom k >= 1."""
