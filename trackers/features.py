@@ -713,11 +713,13 @@ class FeatureTracker:
             "residual_rejected": float(n_fb - n_res),
             "left_mask": float(n_res - n_ok),
         }
-        kept = np.flatnonzero(ok)
+        # the kept rows updated in place: element-wise over all rows, written where ok (the kept rows'
+        # numbers without gathering them, ~60 -> ~20 us; the dropped rows keep theirs for the lost pool)
+        okc = ok[:, None]
         if moving:  # v <- (v + (p1 - p0) / dt) / 2, px/s
-            self.vel[kept] = 0.5 * self.vel[kept] + 0.5 * (p1[kept] - self.uv[kept]) / np.float32(dt_s)
-        self.uv[kept] = p1[kept]
-        self.age[kept] += 1
+            np.copyto(self.vel, 0.5 * self.vel + 0.5 * (p1 - self.uv) / np.float32(dt_s), where=okc)
+        np.copyto(self.uv, p1, where=okc)
+        self.age += ok
         if n_ok < len(ok):
             self._drop(np.flatnonzero(~ok), remember=True)
 
@@ -849,41 +851,47 @@ class FeatureTracker:
         new_slot = np.empty(n, np.intp)
         new_age = np.ones(n, np.int64)
         new_vel = np.zeros((n, 2), np.float32)
-        used_lost = []
         fresh = reacq < 0
-        if np.any(fresh):
-            new_vel[fresh] = self._neighbour_velocity(np.asarray(uv, np.float32)[fresh])
-        for i in range(n):
-            j = reacq[i]
-            if j >= 0:
-                new_ids[i] = self.lost_ids[j]
-                new_slot[i] = self.lost_slot[j]
-                new_age[i] = self.lost_age[j] + 1
-                new_vel[i] = self.lost_vel[j]
-                used_lost.append(j)
-            else:
-                new_ids[i] = next(self._ids)
-                s = self._alloc_slot()
-                if s < 0:
-                    new_ids[i] = -1
-                    continue
-                new_slot[i] = s
-                self._h_n[s] = 0
-        if used_lost:
+        # (all rows at once, not a Python iteration per row: fresh rows take the next ids and free
+        # slots in row order; an id is used up even when no slot is left for it, as before)
+        rf = np.flatnonzero(fresh)
+        if len(rf):
+            new_vel[rf] = self._neighbour_velocity(np.asarray(uv, np.float32)[rf])
+            new_ids[rf] = [next(self._ids) for _ in range(len(rf))]
+            free = self._free
+            k = min(len(rf), len(free))
+            slots = [free.pop() for _ in range(k)]
+            if k < len(rf):  # out of slots: those rows are not added
+                new_ids[rf[k:]] = -1
+            if k:
+                new_slot[rf[:k]] = slots
+                self._h_n[slots] = 0
+        if len(rf) < n:  # re-acquired: the lost feature's id, slot, age and velocity
+            rr = np.flatnonzero(~fresh)
+            j = reacq[rr]
+            new_ids[rr] = self.lost_ids[j]
+            new_slot[rr] = self.lost_slot[j]
+            new_age[rr] = self.lost_age[j] + 1
+            new_vel[rr] = self.lost_vel[j]
             gone = np.zeros(len(self.lost_ids), bool)
-            gone[used_lost] = True
+            gone[j] = True
             self._remove_lost(gone)
         ok = new_ids >= 0
-        self.ids = np.concatenate([self.ids, new_ids[ok]])
-        self.uv = np.concatenate([self.uv, uv[ok].astype(np.float32)])
-        self.vel = np.concatenate([self.vel, new_vel[ok]])
-        d = desc if desc is not None else np.zeros((n, 32), np.uint8)
-        self.desc = np.concatenate([self.desc, d[ok]])
-        self.has_desc = np.concatenate([self.has_desc, np.full(int(ok.sum()), desc is not None)])
-        self.age = np.concatenate([self.age, new_age[ok]])
-        self.slot = np.concatenate([self.slot, new_slot[ok]])
-        self.b_C = np.concatenate([self.b_C, np.zeros((int(ok.sum()), 3))])
-        return int(ok.sum())
+        m = int(np.count_nonzero(ok))
+        if m < n:
+            new_ids, uv, new_vel = new_ids[ok], uv[ok], new_vel[ok]
+            new_age, new_slot = new_age[ok], new_slot[ok]
+            if desc is not None:
+                desc = desc[ok]
+        self.ids = np.concatenate([self.ids, new_ids])
+        self.uv = np.concatenate([self.uv, np.asarray(uv).astype(np.float32)])
+        self.vel = np.concatenate([self.vel, new_vel])
+        self.desc = np.concatenate([self.desc, desc if desc is not None else np.zeros((m, 32), np.uint8)])
+        self.has_desc = np.concatenate([self.has_desc, np.full(m, desc is not None)])
+        self.age = np.concatenate([self.age, new_age])
+        self.slot = np.concatenate([self.slot, new_slot])
+        self.b_C = np.concatenate([self.b_C, np.zeros((m, 3))])
+        return m
 
     def _neighbour_velocity(self, uv: np.ndarray, radius_px: float = 40.0) -> np.ndarray:
         """(n, 2) px/s: the mean velocity of the live features at least 3 frames old within
