@@ -308,6 +308,94 @@ def stereo_klt(
     return StereoKLT(idx[good], uv_b[good], bb[good], chk[good])
 
 
+def depth_consistent(
+    b_a: np.ndarray,
+    b_b: np.ndarray,
+    owner: np.ndarray,
+    R_b_a: np.ndarray,
+    t_b_a: np.ndarray,
+    spread_rad: np.ndarray,
+    noise_rad: float,
+    min_found: int = 3,
+) -> np.ndarray:
+    """Which stereo-KLT matches of one obstacle's features can be points of that one obstacle,
+    judged from this frame's two rays of each (valid for a moving obstacle too).
+
+    Each match's range along camera a's ray is where it passes closest to camera b's ray (in C_b:
+    t + s d and u b_b with d = R b_a, c = d . b_b, e = b_b . t):
+        s = (c e - d . t) / (1 - c^2),   inverse range w = 1 / s = (1 - c^2) / (c e - d . t).
+    The points of an obstacle about as deep as it is wide lie within D = 2 rho r of the median
+    member's range r (rho: the members' angular radius seen from a, so 2 rho r its width), so
+    their inverse ranges lie within
+        |w - w_med| <= w_med 2 rho / (1 - 2 rho)                (no bound once 2 rho >= 1)
+    of the median's (D / r^2 for D << r), plus the bearing noise: an error of noise_rad on one
+    ray moves w by noise_rad / (|t| sin gamma), gamma the angle between a's ray and the baseline.
+    A match outside that is kept when another match of the group agrees with it within the two
+    rays' noise: a surface of its own (a group holding a nearer obstacle's features beside a
+    farther one's, or the background's). A match on another point of a repeated texture meets b's
+    ray far off and alone (1.4 m beside 3.8 m on a sphere at 3.5 m) and is dropped. Groups with
+    fewer than ``min_found`` matches are kept as they are (no median).
+
+    Args:
+        b_a: (K, 3) unit bearings of the matched features in C_a; b_b: (K, 3) unit bearings where
+            stereo KLT found them in C_b (row-paired).
+        owner: (K,) int, non-decreasing: each match's obstacle (group) index into ``spread_rad``.
+        R_b_a (3, 3), t_b_a (3,) m: p_Cb = R p_Ca + t.
+        spread_rad: (G,) rad, each obstacle's members' largest angle from their mean bearing in C_a.
+        noise_rad: bearing noise allowed on a ray (rad), e.g. a few pixels' angle.
+        min_found: smallest group judged.
+    Returns:
+        (K,) bool, the matches kept.
+    """
+    b_a = np.asarray(b_a, float).reshape(-1, 3)
+    b_b = np.asarray(b_b, float).reshape(-1, 3)
+    owner = np.asarray(owner, np.intp).reshape(-1)
+    keep = np.ones(len(b_a), bool)
+    t = np.asarray(t_b_a, float).reshape(3)
+    base = float(np.linalg.norm(t))
+    if len(b_a) < min_found or base <= 0:
+        return keep
+    d = b_a @ np.asarray(R_b_a, float).T
+    c = np.sum(d * b_b, axis=1)
+    den = c * (b_b @ t) - d @ t  # s (1 - c^2)
+    # w = (1 - c^2) / den; parallel rays (den ~ 0): a point at infinity, w = 0
+    w = np.divide(1.0 - c * c, den, out=np.zeros_like(den), where=np.abs(den) > 1e-12)
+    # noise: noise_rad / (|t| sin gamma), sin gamma = |t_hat x d| (at least 0.1: rays along the
+    # baseline range nothing)
+    sin_g = np.maximum(np.linalg.norm(np.cross(t / base, d), axis=1), 0.1)
+    noise = noise_rad / (base * sin_g)
+    ext = 2.0 * np.asarray(spread_rad, float)
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    cnt = np.diff(np.r_[starts, len(owner)])
+    x = ext[owner[starts]]
+    judged = (cnt >= min_found) & (x < 1.0)  # x >= 1: as deep as its range, any range in front
+    if not judged.any():
+        return keep
+    # the judged groups' rows, each group one run (owner is non-decreasing)
+    g_start, g_cnt, g_x = starts[judged], cnt[judged], x[judged]
+    run = np.repeat(np.arange(len(g_cnt)), g_cnt)  # each judged row's group
+    off = np.cumsum(g_cnt) - g_cnt
+    rows = np.repeat(g_start, g_cnt) + np.arange(len(run)) - off[run]
+    wg, ng = w[rows], noise[rows]
+    # each group's median (np.median's: the middle value, or the mean of the two middle ones)
+    srt = wg[np.lexsort((wg, run))]
+    w_med = (srt[off + (g_cnt - 1) // 2] + srt[off + g_cnt // 2]) / 2
+    xr = g_x[run]
+    near_med = np.abs(wg - w_med[run]) <= np.abs(w_med[run]) * xr / (1.0 - xr) + ng
+    keep[rows] = near_med
+    # off the median's bound, a surface of its own (a nearer obstacle grouped with a farther one,
+    # the background): another match of its group agrees with it within the two rays' noise
+    out = np.flatnonzero(~near_med)
+    if len(out):
+        c = g_cnt[run[out]]
+        pi = np.repeat(out, c)  # each such match against every match of its group
+        pj = np.repeat(off[run[out]], c) + np.arange(len(pi)) - np.repeat(np.cumsum(c) - c, c)
+        agree = np.abs(wg[pi] - wg[pj]) <= ng[pi] + ng[pj]
+        support = np.bincount(pi, agree, minlength=len(run))[out]  # itself included
+        keep[rows[out]] = support >= 2
+    return keep
+
+
 def klt_links(d2_px2: np.ndarray, link_px: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (KLT-found point, other camera's feature) that name one physical point.
 

@@ -29,6 +29,7 @@ from trackers.association import (
     box_pairs,
     boxes_compatible,
     consistent_pairs,
+    depth_consistent,
     klt_links,
     match_features,
     stereo_klt,
@@ -982,7 +983,8 @@ class FrontEnd:
         self, a: str, b: str, todo: list[ObstacleTrack], pid: dict[int, int] | None
     ) -> list[ObstacleTrack]:
         """Views in camera b of camera a's tracks ``todo`` from their members found in b's image by
-        stereo KLT (``_stereo``): a track with >= 3 found gets one, bearing = mean of the found
+        stereo KLT (``_stereo``) whose two rays agree with their track's depth (``_depth_consistent``):
+        a track with >= 3 found gets one, bearing = mean of the found
         members' bearings plus a's offset of the representative point from its found members'
         mean, rotated into b (R_b_a); members: the found ones under their physical-point ids (a's
         ids through ``pid`` when a is not the reference camera)."""
@@ -994,6 +996,8 @@ class FrontEnd:
         rows, which = self._rows(ft, mem)
         own, mem = own[which], mem[which]
         idx, _, bb = self._stereo(a, b, rows)
+        keep = self._depth_consistent(a, b, rows, own, idx, bb, len(todo))
+        idx, bb = idx[keep], bb[keep]
         # idx is increasing and own non-decreasing along rows: each track's found members are
         # one run of idx; tracks with >= 3 found get a view
         cnt = np.bincount(own[idx], minlength=len(todo))
@@ -1036,6 +1040,34 @@ class FrontEnd:
             )
             out.append(v)
         return out
+
+    def _depth_consistent(
+        self, a: str, b: str, rows: np.ndarray, own: np.ndarray, idx: np.ndarray, bb: np.ndarray, n: int
+    ) -> np.ndarray:
+        """Which of camera a's members ``rows[idx]`` found in camera b's image by stereo KLT (at
+        bearings ``bb`` (J, 3) in C_b) are points of their track's obstacle by their two rays
+        (trackers/association.py ``depth_consistent``): the depth extent allowed is the track's
+        width, from its live members' angular radius in a (``own`` (K,): each row's track index
+        of ``n``, non-decreasing), plus 3 px of bearing noise in b.
+
+        Returns:
+            (J,) bool, the found members kept.
+        """
+        keep = np.ones(len(idx), bool)
+        if len(idx) < 3 or np.bincount(own[idx]).max() < 3:
+            return keep  # no track has 3 found: none is judged
+        b_a = self.trackers[a].b_C[rows]
+        # each track's angular radius: the largest angle of its members from their mean bearing
+        sums = np.stack([np.bincount(own, b_a[:, k], minlength=n) for k in range(3)], axis=1)
+        nrm = np.linalg.norm(sums, axis=1, keepdims=True)
+        mean = sums / np.where(nrm > 0, nrm, 1.0)
+        ang = np.arccos(np.clip(np.sum(b_a * mean[own], axis=1), -1.0, 1.0))
+        # own is non-decreasing: each track's rows are one run
+        starts = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
+        spread = np.zeros(n)
+        spread[own[starts]] = np.maximum.reduceat(ang, starts)
+        T = self._T_b_a[(a, b)]
+        return depth_consistent(b_a[idx], bb, own[idx], T.R, T.t, spread, 3.0 * self._rad_px[b])
 
     def _add_found_members(self, seen: dict[str, list[ObstacleTrack]], ref: str, b: str) -> None:
         """Replace, in ``seen[b]``, camera b's grouper tracks that share a global id with a confirmed

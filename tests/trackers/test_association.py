@@ -524,3 +524,70 @@ def test_lk_part_on_fewer_points_keeps_the_numbers_of_all_with_their_box():
     np.testing.assert_allclose(q_own[ok], q_all[far][ok], atol=1e-3)
     assert not np.array_equal(q_own[ok], q_all[far][ok])  # the origin matters (why box_prev exists)
     assert np.median(np.linalg.norm(q_box[ok].reshape(-1, 2) - ft.uv[far][ok], axis=1)) < 0.3
+
+
+def _rays(p_a: np.ndarray, t_b_a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit bearings of points p_a (K, 3) m in C_a from camera a and from camera b (p_Cb = p_Ca + t,
+    R = I)."""
+    b_a = p_a / np.linalg.norm(p_a, axis=1, keepdims=True)
+    p_b = p_a + t_b_a
+    return b_a, p_b / np.linalg.norm(p_b, axis=1, keepdims=True)
+
+
+def test_depth_consistent_drops_a_lone_match_off_the_obstacle_and_keeps_a_nearer_surface():
+    """depth_consistent on a 0.30 m baseline (R = I): 12 points on a sphere of radius 0.5 m whose
+    centre is 3.5 m ahead are all kept; a 13th match whose ray in b was moved onto the point 1.4 m
+    along a's ray (a repeated texture's other period) is dropped (it lies 2 m in front of a 0.5 m
+    sphere, alone in depth); three points of a box 1.45 m ahead grouped with the sphere's points
+    (a nearer obstacle in one group) agree with each other and are kept; a group of two is not
+    judged."""
+    from trackers.association import depth_consistent
+
+    rng = np.random.default_rng(5)
+    t = np.array([-0.3, 0.0, 0.0])
+    c = np.array([0.2, -0.1, 3.5])
+    n = rng.normal(size=(12, 3))
+    n[:, 2] = -np.abs(n[:, 2])  # the half facing the cameras
+    sphere = c + 0.5 * n / np.linalg.norm(n, axis=1, keepdims=True)
+    b_a, b_b = _rays(sphere, t)
+    spread = np.max(np.arccos(np.clip(b_a @ (c / np.linalg.norm(c)), -1, 1)))
+    wrong_a = b_a[:1]
+    _, wrong_b = _rays(wrong_a * 1.4, t)  # b's ray through the point 1.4 m along a's first ray
+    ba, bb = np.concatenate([b_a, wrong_a]), np.concatenate([b_b, wrong_b])
+    keep = depth_consistent(ba, bb, np.zeros(13, np.intp), np.eye(3), t, np.array([spread]), 0.0075)
+    np.testing.assert_array_equal(keep, [True] * 12 + [False])
+    # a nearer surface: three points 1.45-1.47 m ahead in the same group
+    box = np.array([[0.1, 0.0, 1.45], [0.15, 0.05, 1.46], [0.12, -0.04, 1.47]])
+    bx_a, bx_b = _rays(box, t)
+    keep = depth_consistent(
+        np.concatenate([b_a, bx_a]), np.concatenate([b_b, bx_b]), np.zeros(15, np.intp), np.eye(3), t,
+        np.array([spread]), 0.0075,
+    )
+    assert keep.all()
+    # two groups, the second of two matches (one of them the lone one): not judged
+    keep = depth_consistent(
+        np.concatenate([b_a, b_a[:1], wrong_a]), np.concatenate([b_b, b_b[:1], wrong_b]),
+        np.r_[np.zeros(12), np.ones(2)].astype(np.intp), np.eye(3), t, np.array([spread, spread]), 0.0075,
+    )
+    assert keep.all()
+
+
+def test_depth_consistent_bound_follows_the_obstacle_width():
+    """The median bound is the width's: a match 30 % nearer than the median of a group whose members
+    reach 0.01 rad from their mean is dropped, of one reaching 0.2 rad (2 rho / (1 - 2 rho) = 0.67)
+    kept, and with no noise allowance a match just inside the bound's edge (inverse range
+    w_med / (1 - 2 rho)) is kept, one 1 % past it dropped (the others all at the median)."""
+    from trackers.association import depth_consistent
+
+    t = np.array([-0.3, 0.0, 0.0])
+    d = np.array([0.0, 0.0, 1.0])
+    pts = np.stack([d * 4.0] * 5 + [d * 2.8])  # five at 4 m, one 30 % nearer
+    b_a, b_b = _rays(pts + [[0.01, 0.0, 0.0]], t)
+    own = np.zeros(6, np.intp)
+    assert not depth_consistent(b_a, b_b, own, np.eye(3), t, np.array([0.01]), 0.0)[5]
+    assert depth_consistent(b_a, b_b, own, np.eye(3), t, np.array([0.2]), 0.0)[5]
+    rho = 0.1
+    for r, kept in ((4.0 * (1 - 2 * rho) * 1.0001, True), (4.0 * (1 - 2 * rho) * 0.99, False)):
+        p = np.stack([d * 4.0] * 5 + [d * r]) + [[0.01, 0.0, 0.0]]
+        a, b = _rays(p, t)
+        assert depth_consistent(a, b, own, np.eye(3), t, np.array([rho]), 0.0)[5] == kept
