@@ -1385,6 +1385,14 @@ class BoxTracker:
     surround it (one on the drone, ten off it) and hid the drone for 7 frames; so did "the bearing
     and two members in the box" (that track's bearing was 10 px from the box centre, inside its
     12 px radius). Hiding a drone is worse than a second report of an obstacle.
+
+    ``link_older_only`` (opt-in, default False): a box track is linked only to a feature track made
+    before it (a smaller id: box and feature tracks draw ids from the front end's one counter), or to
+    the one it is linked to. A drone found first by its lights then keeps its own report and id
+    beside the feature track ORB finds on it later; by default the link hides the box, so the
+    drone's reported id changes from the box's to the feature track's (an id switch), and back when
+    that feature track ends. The drone id switches of the tuned scenes are such handovers, not links
+    to the wrong track (session 9: moving_crossing, wide_angle_beyond90, noisy_1080p).
     """
 
     def __init__(
@@ -1398,6 +1406,7 @@ class BoxTracker:
         link_min_members: int = 2,
         link_frames: int = 3,
         link_tol_px: float = 2.0,
+        link_older_only: bool = False,
     ) -> None:
         for nm, v in (("confirm_frames", confirm_frames), ("max_missed", max_missed),
                       ("link_min_members", link_min_members), ("link_frames", link_frames)):
@@ -1417,6 +1426,9 @@ class BoxTracker:
         self.link_min_members = int(link_min_members)
         self.link_frames = int(link_frames)
         self.link_tol_px = float(link_tol_px)
+        if not isinstance(link_older_only, bool):
+            raise ConfigError(f"BoxTracker: link_older_only expected true or false, got {link_older_only!r}")
+        self.link_older_only = link_older_only
         self.tracks: dict[int, ObstacleTrack] = {}
         self.links: dict[int, int] = {}  # box track id -> linked feature track id
         self._half: dict[int, float] = {}  # box track id -> its box's angular half-diagonal (rad)
@@ -1519,6 +1531,9 @@ class BoxTracker:
             cos_r = np.cos(radius)
             cos_c = rep_b @ b.b_C
             cand = np.flatnonzero(cos_c >= cos_r)  # its bearing in the box ...
+            if self.link_older_only:  # ... made before the box (ids come from one counter), or linked
+                held_f = self.links.get(b.id)
+                cand = cand[[feats[ti].id < b.id or feats[ti].id == held_f for ti in cand]]
             if not len(cand):
                 continue
             cos_m = mem_b @ b.b_C
