@@ -110,6 +110,14 @@ class NavLightsDetector(Detector):
             inside the half second the coverage target allows, and one already found is looked for in
             every frame; at 720p navlights' CPU goes from ~1.6 to ~0.6 ms a frame (bench clip), but a
             dim, flickering drone is lost for longer (noisy_1080p's drone 1.000 -> 0.979 of frames).
+        grow_value: a light's blob is grown (hysteresis) from its pixels that pass ``min_value`` into
+            the connected pixels of a light's colour (``min_saturation``, red or green hue) of HSV V
+            >= this (``min_value`` or None: no growing; default 150: a red or green as saturated as
+            a light is no sky or ground even that dark). A light dimmed by the camera's exposure has
+            its pixels scattered about ``min_value`` (noisy_1080p's drone: V 170-184), so the pixels
+            that pass are a sparse, broken blob: a lone light then fails the compactness test and a
+            pair's light splits into several boxes. Only pixels joined to one passing ``min_value``
+            join, so growing makes no blob of its own.
     """
 
     produces_keypoints = False
@@ -130,6 +138,7 @@ class NavLightsDetector(Detector):
         single_lights: bool = True,
         single_max_area_px: int = 200,
         scan_every: int = 1,
+        grow_value: int | None = 150,
     ) -> None:
         for nm, v, lo, hi in (
             ("min_value", min_value, 0, 255),
@@ -166,6 +175,12 @@ class NavLightsDetector(Detector):
         self.single_lights = bool(single_lights)
         self.single_max_area_px = int(single_max_area_px)
         self.scan_every = int(scan_every)
+        gv = self.min_value if grow_value is None else grow_value
+        if isinstance(gv, bool) or not isinstance(gv, (int, np.integer)) or not 0 <= gv <= self.min_value:
+            raise ConfigError(
+                f"navlights: grow_value expected an integer in [0, min_value], got {grow_value!r}"
+            )
+        self.grow_value = int(gv)
         # detect_boxes' sequences, one per camera name or (without one) per mask object: (the mask,
         # kept referenced so that its id is not reused; calls so far; the boxes of the last
         # scan_every calls)
@@ -173,9 +188,10 @@ class NavLightsDetector(Detector):
         self._box_cache: dict[int, tuple[np.ndarray, tuple[int, ...], tuple[int, int, int, int]]] = {}
 
     # ------------------------------------------------------------------------------ colour
-    def _colour(self, hsv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """0/255 masks (red, green) of an HSV image (H in [0, 180), S, V in [0, 255])."""
-        s, v = self.min_saturation, self.min_value
+    def _colour(self, hsv: np.ndarray, v: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """0/255 masks (red, green) of an HSV image (H in [0, 180), S, V in [0, 255]); ``v``: the
+        least V (default ``min_value``)."""
+        s, v = self.min_saturation, self.min_value if v is None else v
         red = cv2.inRange(hsv, (0, s, v), (10, 255, 255))
         red |= cv2.inRange(hsv, (170, s, v), (179, 255, 255))
         green = cv2.inRange(hsv, (45, s, v), (90, 255, 255))
@@ -295,10 +311,12 @@ class NavLightsDetector(Detector):
             lit = cv2.bitwise_and(lit, lit, mask=_u8(mask[y0:y1, x0:x1]))
         if cv2.countNonZero(lit) == 0:
             return Detections.empty()
+        if self.grow_value < self.min_value:
+            lit = self._grow(hsv, lit, mask, (x0, y0, x1, y1))
         # red and green, labelled into blobs, only in the box around the lit pixels
         bx0, by0, bw, bh = cv2.boundingRect(lit)
         sub = (slice(by0, by0 + bh), slice(bx0, bx0 + bw))
-        red, green = self._colour(hsv[sub])
+        red, green = self._colour(hsv[sub], self.grow_value)
         red = cv2.bitwise_and(red, lit[sub])
         green = cv2.bitwise_and(green, lit[sub])
         if not self.single_lights and (cv2.countNonZero(red) == 0 or cv2.countNonZero(green) == 0):
@@ -347,7 +365,7 @@ class NavLightsDetector(Detector):
             parts = (("red", (rc, rb, R[2]), used_r), ("green", (gc, gb, G[2]), used_g))
             for colour, (cs, bs, areas), used in parts:
                 for i in range(len(cs)):
-                    if i in used or not self._lone_light(hsv, x0, y0, bs[i], areas[i]):
+                    if i in used or not self._lone_light(hsv, x0, y0, bs[i], areas[i], colour):
                         continue
                     boxes.append([bs[i][0] - m, bs[i][1] - m, bs[i][2] + m, bs[i][3] + m])
                     scores.append(0.3)
@@ -366,7 +384,28 @@ class NavLightsDetector(Detector):
             attributes=tuple(attrs),
         )
 
-    def _lone_light(self, hsv: np.ndarray, x0: int, y0: int, box: np.ndarray, area: float) -> bool:
+    def _grow(self, hsv: np.ndarray, lit: np.ndarray, mask: np.ndarray | None,
+              region: tuple[int, int, int, int]) -> np.ndarray:
+        """``lit`` (0/255, the pixels passing the light test in ``hsv``, the HSV of ``region`` (x0, y0,
+        x1, y1) frame px) grown into the connected saturated red-to-green pixels of V >=
+        ``grow_value`` (hysteresis): a dimmed light's pixels scatter about ``min_value`` and only some
+        pass it; grown from them, the light is one compact blob again. No new blob: only pixels
+        connected to one that passes the strict test join."""
+        lo, hi = (self.min_saturation, self.grow_value), (255, 255)
+        weak = cv2.inRange(hsv, (0, *lo), (90, *hi))
+        weak |= cv2.inRange(hsv, (170, *lo), (179, *hi))
+        if mask is not None:
+            x0, y0, x1, y1 = region
+            weak = cv2.bitwise_and(weak, weak, mask=_u8(mask[y0:y1, x0:x1]))
+        n, lab = cv2.connectedComponents(weak, connectivity=8)
+        keep = np.zeros(n, bool)
+        keep[lab[lit > 0]] = True
+        keep[0] = False
+        return np.where(keep[lab], 255, 0).astype(np.uint8)
+
+    def _lone_light(
+        self, hsv: np.ndarray, x0: int, y0: int, box: np.ndarray, area: float, colour: str = "red"
+    ) -> bool:
         """Whether a red or green blob (``box`` (4,) frame px xyxy, ``area`` px) looks like a light on
         its own: small (``single_max_area_px``), compact (it fills at least half its box) and brighter
         than the ring 2-4 px around its box by ``white_contrast`` (median V)."""
@@ -391,7 +430,16 @@ class NavLightsDetector(Detector):
         # a light is a colour spot on a surface of another colour; a piece of a coloured surface
         # (a bright green texture cut up by noise) has its hue, well saturated, all around it
         hr = hsv[max(ya - 4, 0):min(yb + 4, H), max(xa - 4, 0):min(xb + 4, W)][~inner]
-        hue = int(np.median(hsv[ya:yb, xa:xb, 0]))
+        # the light's own hue: red is 0 (its hues wrap round 180: 178 and 2 are both red, and a
+        # median over them, or over the box's other pixels, is some other colour: a red light on a
+        # blue sky (hue ~107) got a median of 111 and was judged a piece of the sky); green the
+        # median over the box's pixels of green hue (45-90, no wrap)
+        if colour == "red":
+            hue = 0
+        else:
+            hb = hsv[ya:yb, xa:xb, 0]
+            g = hb[(hb >= 45) & (hb <= 90)]
+            hue = int(np.median(g)) if g.size else 60
         dh = np.abs(hr[:, 0].astype(np.int32) - hue)
         dh = np.minimum(dh, 180 - dh)
         alike = (dh <= 15) & (hr[:, 1] >= self.min_saturation // 2)
