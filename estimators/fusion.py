@@ -430,6 +430,24 @@ _H_POS = np.eye(6)[:3]  # d(position) / dx and d(velocity) / dx of the state x =
 _H_VEL = np.eye(6)[3:]
 _H_POS.setflags(write=False)
 _H_VEL.setflags(write=False)
+# filterpy's ExtendedKalmanFilter(dim_x=6, dim_z=2), built once: its constructor allocates ~20
+# arrays (~40 us); a track's filter is a copy of its attributes (``_new_ekf``), whose arrays the
+# fusion never writes in place (x and P are the filter's own; the update binds new S, SI, K, y,
+# x, P; predict binds the shared read-only F, Q), so the template's are made read-only
+_EKF_TEMPLATE = ExtendedKalmanFilter(dim_x=6, dim_z=2)
+for _a in vars(_EKF_TEMPLATE).values():
+    if isinstance(_a, np.ndarray):
+        _a.setflags(write=False)
+
+
+def _new_ekf() -> ExtendedKalmanFilter:
+    """A filterpy ExtendedKalmanFilter(dim_x=6, dim_z=2) sharing the template's read-only initial
+    arrays (its x and P to be bound by the caller), without the constructor's allocations."""
+    kf = object.__new__(ExtendedKalmanFilter)
+    kf.__dict__.update(_EKF_TEMPLATE.__dict__)
+    return kf
+
+
 _CHI2_PPF: dict[tuple[float, int], float] = {}  # (probability, dof) -> chi2_ppf, ``_chi2_gate``
 
 
@@ -2118,7 +2136,7 @@ class ObstacleFusion:
 
     # ---------------------------------------------------------------------------------- filter
     def _new_kf(self, p_W: np.ndarray, P_pp: np.ndarray, v_sigma: float) -> ExtendedKalmanFilter:
-        kf = ExtendedKalmanFilter(dim_x=6, dim_z=2)
+        kf = _new_ekf()
         kf.x = np.concatenate([p_W, np.zeros(3)])
         kf.P = np.zeros((6, 6))
         kf.P[:3, :3] = P_pp
