@@ -1063,7 +1063,7 @@ class FrontEnd:
         mean = sums / np.where(nrm > 0, nrm, 1.0)
         ang = np.arccos(np.clip(np.sum(b_a * mean[own], axis=1), -1.0, 1.0))
         # own is non-decreasing: each track's rows are one run
-        starts = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
+        starts = np.flatnonzero(np.concatenate(([True], own[1:] != own[:-1])))
         spread = np.zeros(n)
         spread[own[starts]] = np.maximum.reduceat(ang, starts)
         T = self._T_b_a[(a, b)]
