@@ -954,8 +954,9 @@ class ObstacleFusion:
         batch: list[tuple[_Track, _Sighting]] = []
         rest: list[tuple[_Track, _Sighting]] = []
         for tr, sg, _status in work:
-            if tr.vel_moving:  # its velocity evidence rejects a static obstacle: its features'
-                tr.feature_range = tr.feature_point = None  # static points are not its range
+            if tr.vel_moving or self._filter_moving(tr, t_s):  # its velocity evidence (or its
+                # filter's velocity) rejects a static obstacle: its features' static points are
+                tr.feature_range = tr.feature_point = None  # not its range
             if tr.feature_range is not None and (not tr.moving or self.settings.feature_ranging_moving):
                 batch.append((tr, sg))  # member features fit static points: they range the track
             else:
@@ -2040,6 +2041,23 @@ class ObstacleFusion:
         P += np.eye(3)[None] * (q * age)[:, None, None]
         chi = np.einsum("ki,ki->k", V, np.linalg.solve(P, V[:, :, None])[:, :, 0])
         return P, (chi > self._gate3).tolist()
+
+    def _filter_moving(self, tr: _Track, t_s: float) -> bool:
+        """Whether a moving-hypothesis track's own filter rejects zero velocity at t_s:
+        v^T (P_vv + q dt I)^-1 v > chi2_3(gate_probability), with v, P_vv its state's velocity and
+        covariance (m/s, m^2/s^2, W), grown by the moving process noise q = max_accel^2 tau over the
+        dt = t_s - t_kf since (the ``vel_moving`` test on the filter instead of the velocity
+        evidence: a track whose shared features are too few for feature velocities still measures
+        its motion from successive stereo fixes). A moving obstacle's features can fit static
+        points at a wrong depth (motion along the epipolar planes of the drone's baseline: the
+        monocular ambiguity), so such a track is not ranged from static points."""
+        if not tr.moving or tr.kf is None:
+            return False
+        s = self.settings
+        q = s.max_accel_mps2**2 * s.accel_time_s
+        v = tr.kf.x[3:]
+        P = tr.kf.P[3:, 3:] + _EYE3 * (q * max(t_s - tr.t_kf, 0.0))
+        return float(v @ np.linalg.solve(P, v)) > self._gate3
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the

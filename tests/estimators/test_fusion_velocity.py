@@ -217,3 +217,23 @@ def test_speed_sigma_monte_carlo_is_consistent():
         z2.append(((r.speed_mps - float(np.linalg.norm(v_true))) / r.speed_sigma_mps) ** 2)
     lo, hi = nees_interval(1, len(z2), 0.95)
     assert lo <= float(np.mean(z2)) <= hi, (np.mean(z2), lo, hi)
+
+
+def test_filter_moving_closed_form():
+    # closed form: a moving-hypothesis filter with velocity v = (0.5, 0, 0) m/s, P_vv = 0.01 I at
+    # t_kf = 0; grown by q dt I, q = max_accel^2 tau = 0.1: chi = 0.25 / (0.01 + 0.1 dt) = 25 at
+    # t = 0 (> chi2_3(0.999) = 16.27: its own velocity rejects a static obstacle), 2.27 at t = 1 s
+    # (not rejected); a static-hypothesis track or one without a filter: never
+    from estimators.fusion import _Track
+
+    fus = ObstacleFusion(stereo_forward_rig(MODEL, 0.30), ConstantVelocity(0.0),
+                         FusionSettings(max_accel_mps2=1.0, accel_time_s=0.1))
+    tr = _Track(1, "orb")
+    assert not fus._filter_moving(tr, 0.0)
+    tr.kf = fus._new_kf(np.zeros(3), np.eye(3), 0.1)
+    tr.kf.x[3:] = (0.5, 0.0, 0.0)
+    tr.t_kf = 0.0
+    tr.moving = True
+    assert fus._filter_moving(tr, 0.0) and not fus._filter_moving(tr, 1.0)
+    tr.moving = False
+    assert not fus._filter_moving(tr, 0.0)
