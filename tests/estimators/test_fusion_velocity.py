@@ -237,3 +237,26 @@ def test_filter_moving_closed_form():
     assert fus._filter_moving(tr, 0.0) and not fus._filter_moving(tr, 1.0)
     tr.moving = False
     assert not fus._filter_moving(tr, 0.0)
+
+
+def test_feature_velocity_is_measured_every_frame_from_one_lag_on():
+    # staggered references: every frame's shared-feature points are measured against the frame one
+    # lag (0.1 s = 3 frames at 30 fps) before and then become a reference, so from frame 3 on every
+    # frame carries one feature velocity (each frame's points used once as a start, once as an end)
+    # instead of one every lag + 1 frames (frames 3, 7, 11, ...: a frame's points one or the other)
+    s = FusionSettings()
+    lag_frames = round(s.feature_velocity_lag_s * FPS)
+    counts = []
+    orig = ObstacleFusion._feature_velocity
+
+    def counting(self, work, *a):
+        before = {id(w[0]): w[0].vel_acc for w in work}
+        orig(self, work, *a)
+        counts.append(sum(w[0].vel_acc is not before[id(w[0])] for w in work))
+
+    ObstacleFusion._feature_velocity = counting
+    try:
+        _hover_run(np.array([0.0, 0.5, 0.0]), T_s=0.5)
+    finally:
+        ObstacleFusion._feature_velocity = orig
+    assert counts == [0] * lag_frames + [1] * (len(counts) - lag_frames)

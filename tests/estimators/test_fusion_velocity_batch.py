@@ -1,7 +1,7 @@
 """``ObstacleFusion._feature_velocity`` computes every due track's feature velocity in one batch.
 
 Several tracks at once (a mix of the cases: one due with many shared ids in shuffled order, one with
-exactly two, one whose reference shares a single id, one not yet due, one fresh): each track's
+exactly two, one whose first frame lists a single id (no reference), one not yet due, one fresh): each track's
 velocity and covariance must equal the per-track formulas of its docstring, written out here with
 np.median per track (the reduction in the track's ray frame Q = [a, tangent_basis(a)]), to rounding;
 tracks must not mix (a batching bug that takes another track's rows fails here).
@@ -57,8 +57,8 @@ def test_batched_feature_velocities_equal_the_per_track_formulas():
     fus = ObstacleFusion(stereo_forward_rig(Equidistant.from_deg_per_px(0.15, 640, 640), 0.3),
                          ConstantVelocity(0.0), s)
     tracks = [_Track(k, "orb") for k in range(5)]
-    # (ids at the reference, ids now) per track; track 2's reference shares a single id with the
-    # frame, so it is replaced; track 3 is first seen at the later frame (fresh reference)
+    # (ids at the reference, ids now) per track; track 2's first frame lists a single id, which
+    # measures nothing, so it is no reference; track 3 is first seen at the later frame (fresh)
     ids = {0: (np.arange(10, 19), rng.permutation(np.arange(12, 21))),
            1: (np.array([40, 41, 42]), np.array([41, 42, 43])),
            2: (np.array([60]), np.array([60, 61, 62])),
@@ -93,17 +93,21 @@ def test_batched_feature_velocities_equal_the_per_track_formulas():
     work0 = [(tr, sg0, "confirmed") for tr in tracks]
     fr0 = frame(0.0, 0)
     fus._feature_velocity(work0, *fr0)
-    refs = {k: tracks[k].vel_ref for k in (0, 1, 2)}
-    for k in (0, 1, 2):
-        assert refs[k] is not None and refs[k][0] == 0.0
+    refs = {}
+    for k in (0, 1):  # (one reference per frame: this frame's, the only one yet)
+        assert tracks[k].vel_ref is not None and len(tracks[k].vel_ref) == 1
+        refs[k] = tracks[k].vel_ref[0]
+        assert refs[k][0] == 0.0
         np.testing.assert_array_equal(refs[k][1], np.sort(ids[k][0]))
+    assert tracks[2].vel_ref is None
     t1 = lag + 1e-3
     sg1 = types.SimpleNamespace(t_s=t1)
     fr1 = frame(t1, 1)
     fus._feature_velocity([(tr, sg1, "confirmed") for tr in tracks], *fr1)
     for k in (0, 1):
         tr = tracks[k]
-        assert tr.vel_ref is None  # (measured: the next frame starts a new reference)
+        # (measured: the reference used is dropped, this frame's points are the next one)
+        assert len(tr.vel_ref) == 1 and tr.vel_ref[0][0] == t1
         m = fr1[0] == k
         o = np.argsort(fr1[1][m])
         now = (fr1[1][m][o], fr1[2][m][o], fr1[3][m][o], fr1[4][m][o], fr1[5][m][o])
@@ -113,9 +117,9 @@ def test_batched_feature_velocities_equal_the_per_track_formulas():
         assert tr.vel_acc is not None and math.isclose(tr.vel_acc[2], t1 - 0.5 * t1)
     # the moving track's velocity is the truth to the noise of its displacements
     np.testing.assert_allclose(tracks[0].feature_velocity[0], vel[0], atol=0.1)
-    # track 2: its one-id reference is replaced by this frame's three ids, nothing measured
-    assert tracks[2].feature_velocity is None and tracks[2].vel_ref[0] == t1
-    np.testing.assert_array_equal(tracks[2].vel_ref[1], [60, 61, 62])
+    # track 2: this frame's three ids are its first reference, nothing measured
+    assert tracks[2].feature_velocity is None and [r[0] for r in tracks[2].vel_ref] == [t1]
+    np.testing.assert_array_equal(tracks[2].vel_ref[0][1], [60, 61, 62])
     # track 3: a fresh reference; track 4: not in the batch at all
-    assert tracks[3].feature_velocity is None and tracks[3].vel_ref[0] == t1
+    assert tracks[3].feature_velocity is None and [r[0] for r in tracks[3].vel_ref] == [t1]
     assert tracks[4].vel_ref is None and tracks[4].feature_velocity is None
