@@ -105,7 +105,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
@@ -158,7 +158,20 @@ class FusionSettings:
         feature_ranging: for static-hypothesis (mono) tracks whose observations list member
             features, range from the features (below) instead of the representative bearing's
             parallax. Default True.
-        feature_sigma_rad: bearing sigma of one member feature (rad). Default 1e-3.
+        feature_sigma_rad: bearing sigma of one member feature (rad) on a camera of focal length
+            ``feature_sigma_focal_px`` (below). Default 1e-3.
+        feature_sigma_focal_px: the focal length (px/rad) feature_sigma_rad holds for; on a rig
+            whose cameras' pixels are coarser, f (the smallest fx or fy of its cameras) below it,
+            the member features' bearing sigma is feature_sigma_rad * feature_sigma_focal_px / f:
+            the pixel part of a tracked feature's error (KLT, the detector's corner) scales with a
+            pixel's angle. Finer pixels keep feature_sigma_rad (its non-pixel part, a corner's
+            drift over the surface, does not shrink with them). None = feature_sigma_rad on every
+            rig. Default 204.52395028133697, the focal length of the simulator's 195-degree 1280x720
+            renders that feature_sigma_rad and feature_point_sigma_k were fitted on (every tuned,
+            held-out and validation scene), so those are unchanged. Measured (two-ray points of
+            shared features, error over their first-order sigma at 1e-3 rad, median |z|; Gaussian
+            0.67): 0.57 / 0.70 on stereo_flying / its held-out twin at 204.5 px/rad, 1.01 on the
+            demo's 640x360 render at 102.3 px/rad, where the scaled sigma is 2e-3 rad.
         feature_min_count: features with enough parallax needed for a feature range. Default 3.
         feature_inner_half: use only the half of them angularly nearest the representative ray
             (the range is the one along that ray; a near object's depth extent is a sizable share
@@ -338,6 +351,7 @@ class FusionSettings:
     stereo_update: str = "bearings"
     feature_ranging: bool = True
     feature_sigma_rad: float = 1e-3
+    feature_sigma_focal_px: float | None = 204.52395028133697
     feature_min_count: int = 3
     feature_inner_half: bool = True
     feature_static_chi: float = 9.0
@@ -373,7 +387,8 @@ class FusionSettings:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if v is None and f.name in ("max_speed_mps", "velocity_prior_sigma_mps"):
+            if v is None and f.name in ("max_speed_mps", "velocity_prior_sigma_mps",
+                                        "feature_sigma_focal_px"):
                 continue
             if f.name == "stereo_update":
                 if v not in ("bearings", "point"):
@@ -397,7 +412,8 @@ class FusionSettings:
                 f"got {self.gate_probability}"
             )
         positive = ("baseline_max_age_s", "lost_after_s", "bearing_sigma_floor_rad", "accel_time_s",
-                    "bounds_pseudo_sigma_frac")
+                    "bounds_pseudo_sigma_frac") + (("feature_sigma_focal_px",)
+                                                   if self.feature_sigma_focal_px is not None else ())
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"FusionSettings.{name}: expected a value > 0, got {getattr(self, name)}")
@@ -869,7 +885,13 @@ class ObstacleFusion:
     def __init__(self, rig: Rig, egomotion: EgoMotion, settings: FusionSettings | None = None):
         self.rig = rig
         self.egomotion = egomotion
-        self.settings = settings or FusionSettings()
+        s = settings or FusionSettings()
+        f_ref = s.feature_sigma_focal_px
+        if f_ref is not None and len(rig):  # a feature's error is a pixel error (see the setting)
+            f_rig = min(min(float(c.model.fx), float(c.model.fy)) for c in rig)
+            if f_rig < f_ref:
+                s = replace(s, feature_sigma_rad=s.feature_sigma_rad * (f_ref / f_rig))
+        self.settings = s  # (feature_sigma_rad: the rig's own)
         self.timings: dict[str, float] = {"estimate": 0.0, "fuse": 0.0}
         self._tracks: dict[int, _Track] = {}
         self._last_t: float | None = None

@@ -630,3 +630,26 @@ def test_gated_restart_drops_the_old_sightings_and_bounds():
     for r, rt in after:  # bounds, when given, contain B's range (A's old sightings are gone)
         if r.range_max_m is not None:
             assert r.range_min_m <= rt <= r.range_max_m
+
+
+def test_feature_sigma_scales_with_the_rigs_pixel_size():
+    # the pixel part of a feature's bearing error: at the reference focal length (px/rad) the
+    # setting is used as it is; a rig of half that focal length (pixels twice as wide) gets twice
+    # the angle, one of 1 / 1.6 of it 1.6 times it; finer pixels (1.5 times the focal length) keep
+    # the setting; None keeps it on every rig
+    f_ref = FusionSettings().feature_sigma_focal_px
+    ego = ConstantVelocity(3.0)
+
+    def rig(f):
+        return stereo_forward_rig(Equidistant(fx=f, fy=f, cx=319.5, cy=179.5, width=640, height=360), 0.30)
+
+    s = FusionSettings(feature_sigma_rad=1e-3)
+    assert ObstacleFusion(rig(f_ref), ego, s).settings.feature_sigma_rad == 1e-3
+    assert ObstacleFusion(rig(f_ref / 2), ego, s).settings.feature_sigma_rad == pytest.approx(2e-3, rel=1e-12)
+    assert ObstacleFusion(rig(f_ref / 1.6), ego, s).settings.feature_sigma_rad == pytest.approx(
+        1.6e-3, rel=1e-12)
+    assert ObstacleFusion(rig(1.5 * f_ref), ego, s).settings.feature_sigma_rad == 1e-3
+    s0 = FusionSettings(feature_sigma_rad=1e-3, feature_sigma_focal_px=None)
+    assert ObstacleFusion(rig(f_ref / 2), ego, s0).settings.feature_sigma_rad == 1e-3
+    with pytest.raises(ConfigError):
+        FusionSettings(feature_sigma_focal_px=0.0)
