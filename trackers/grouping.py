@@ -37,8 +37,10 @@ write their new state and over components wide enough to be cut):
    foot the two flows are equal, so 3c finds no step, but a plane's flow on the sphere is an exact
    8-parameter function of the bearing and an obstacle at one range breaks it. Each disk of
    members (``link_rad``) is tested against the plane fitted to the rest; the most significant
-   part that is displaced one way, by more than 3c's link tolerance and ``plane_z`` sigmas of
-   the fit's prediction, leaves when found ``split_persist`` frames in a row (see ``_plane_parts``).
+   part that is displaced one way, by more than 3c's link tolerance, ``plane_z`` sigmas of the
+   fit's prediction and ``plane_ratio`` times the rest's own scatter about its plane (a part of
+   one curved obstacle is off the plane by about as much as its rest is), leaves when found
+   ``split_persist`` frames in a row (see ``_plane_parts``).
    A track is tested every ``plane_every`` frames (staggered by id), every frame once a part is
    found in it. On a rig of several cameras the front end sets ``plane_confirm``: the part leaves
    only when the same obstacle's view in another camera found a part too (one camera's flow
@@ -218,6 +220,10 @@ class ObstacleGrouper:
             default) turns step 3f off.
         plane_z: ... and a part leaves only when its mean displacement from the others' plane is
             this many sigmas of the fit's prediction (``z`` in ``_plane_parts``).
+        plane_ratio: ... and its mean displacement is at least this many times the rest's RMS
+            residual about its plane (per axis): one surface off a plane, not a part of a curved
+            obstacle, whose rest is as far from planar (tuned scenes: parts of one obstacle 4-9,
+            obstacles off the ground 17-84).
         plane_every: step 3f tests a track every this many frames (staggered by track id: the
             cost spread over frames), and every frame once it found a part in it (the split still
             needs it found ``split_persist`` frames in a row).
@@ -253,6 +259,7 @@ class ObstacleGrouper:
         plane_min: int = 0,
         plane_z: float = 6.0,
         plane_every: int = 2,
+        plane_ratio: float = 12.0,
         label: str = "orb",
     ) -> None:
         if (
@@ -314,6 +321,9 @@ class ObstacleGrouper:
                 f"ObstacleGrouper: expected plane_every an integer >= 1 (frames); got {plane_every!r}"
             )
         self.plane_every = int(plane_every)
+        if not 0 <= plane_ratio < float("inf"):  # (also NaN)
+            raise ConfigError(f"ObstacleGrouper: expected a finite plane_ratio >= 0; got {plane_ratio!r}")
+        self.plane_ratio = float(plane_ratio)
         # step 3f on a rig of several cameras (set by the front end): given a track whose part is
         # due to leave, whether the same obstacle's track in another camera found a part of its
         # own in its latest update (``plane_recent``); a split one camera's flow alone supports is
@@ -1024,7 +1034,10 @@ class ObstacleGrouper:
         inp = proj >= 0.5 * rn[pk]
         n_in = np.bincount(pk, inp, K)
         mean_in = np.bincount(pk, proj * inp, K) / np.maximum(n_in, 1)
-        good = np.flatnonzero((z >= self.plane_z) & way & (n_in >= self.min_features) & (mean_in >= floor))
+        # and it stands out of the rest's own scatter about its plane (rbar >= plane_ratio s): a
+        # part of one curved surface is off the plane by about as much as the rest is
+        good = (z >= self.plane_z) & way & (n_in >= self.min_features) & (mean_in >= floor)
+        good = np.flatnonzero(good & (rn >= self.plane_ratio * np.sqrt(s2)))
         if not len(good):
             return out
         # per track its most significant candidate (ties: the first)
