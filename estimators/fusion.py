@@ -2851,7 +2851,7 @@ def _inv_small(S: np.ndarray) -> np.ndarray:
     """Inverse (k, k) of an innovation covariance S (k, k), k = 1, 2 or 3, by cofactors in Python
     floats: S^-1 = adj(S) / det(S). (filterpy's update inverts with scipy's LAPACK inv, ~15 us a
     call; these agree to rounding, |difference| ~1e-16 relative for the well-conditioned S = H P
-    H^T + R here: tests/estimators/test_fusion_ekf.py.)"""
+    H^T + R here: tests/estimators/test_ekf_filterpy_agreement.py.)"""
     k = len(S)
     if k == 2:
         (a, b), (c, d) = S.tolist()
@@ -2872,8 +2872,8 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     ExtendedKalmanFilter: residual y = z - h(x) already formed, (k,), k <= 3; H (k, 6); R (k, k)):
     filterpy's operations in its order, without its bookkeeping (deep copy of z, x_post, P_post,
     likelihood resets: nothing here reads them) and with S inverted by cofactors (``_inv_small``;
-    equal to filterpy's to rounding, tests/estimators/test_fusion_ekf.py). Sets S, SI, K, y (the
-    array passed: callers pass a fresh one), and the Joseph-form update
+    equal to filterpy's to rounding, tests/estimators/test_ekf_filterpy_agreement.py). Sets S, SI,
+    K, y (the array passed: callers pass a fresh one), and the Joseph-form update
         S = H P H^T + R,   K = P H^T S^-1,
         x = x + K y,   P = (I - K H) P (I - K H)^T + K R K^T."""
     P = kf.P
