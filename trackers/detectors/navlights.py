@@ -178,7 +178,8 @@ class NavLightsDetector(Detector):
         gv = self.min_value if grow_value is None else grow_value
         if isinstance(gv, bool) or not isinstance(gv, (int, np.integer)) or not 0 <= gv <= self.min_value:
             raise ConfigError(
-                f"navlights: grow_value expected an integer in [0, min_value], got {grow_value!r}"
+                f"navlights: grow_value expected an integer in [0, min_value={self.min_value}] or None, "
+                f"got {grow_value!r}"
             )
         self.grow_value = int(gv)
         # detect_boxes' sequences, one per camera name or (without one) per mask object: (the mask,
