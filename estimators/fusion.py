@@ -2143,7 +2143,10 @@ class ObstacleFusion:
         q = s.max_accel_mps2**2 * s.accel_time_s
         v = tr.kf.x[3:]
         P = tr.kf.P[3:, 3:] + _EYE3 * (q * max(t_s - tr.t_kf, 0.0))
-        return float(v @ np.linalg.solve(P, v)) > self._gate3
+        try:
+            return float(v @ np.linalg.solve(P, v)) > self._gate3
+        except np.linalg.LinAlgError:  # singular (a zero velocity prior and no process noise):
+            return float(v @ np.linalg.pinv(P) @ v) > self._gate3  # the chi over what is measured
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
