@@ -204,7 +204,10 @@ class TrackerConfig(_Section):
         "track; 0 turns the rule off), extended_frames (frames a tentative track may be judged so before "
         "it is dropped), split_frames (frames, 10: window over which step 3c compares members' motions), "
         "split_min_px (px, 1.5; 0 turns the split by motion off), split_rel (0.1), split_step (3.0), "
-        "split_persist (frames, 3: a split must be found this many frames in a row).",
+        "split_persist (frames, 3: a split must be found this many frames in a row), plane_min (12: step 3f, "
+        "an obstacle standing on the ground it is grouped with leaves the ground's planar flow; tracks of at "
+        "least this many members are tested, 0 turns it off), plane_z (sigmas, 6.0), plane_ratio (12.0), "
+        "plane_every (frames, 2).",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,

@@ -33,7 +33,7 @@ write their new state and over components wide enough to be cut):
    comes from step 4 exempting a split-off part, which the crossing box's features then joined;
    the cause there is step 4's least-squares fit pulled by a mover nearby. Kept until a fix of
    step 4 that does not cost stereo accuracy replaces it.
-3f. An upright obstacle standing on the ground it is grouped with (opt-in, ``plane_min``): at its
+3f. An upright obstacle standing on the ground it is grouped with (``plane_min``, on by default): at its
    foot the two flows are equal, so 3c finds no step, but a plane's flow on the sphere is an exact
    8-parameter function of the bearing and an obstacle at one range breaks it. Each disk of
    members (``link_rad``) is tested against the plane fitted to the rest; the most significant
@@ -216,8 +216,8 @@ class ObstacleGrouper:
             before the track splits: evidence over several frames, not one.
         plane_min: step 3f (in ``_split``): tracks of at least this many members judged over the
             window (and at least 12: 8 plane parameters, a part of 3 and a rest of 8) are tested
-            for a compact part off the planar flow field of the others (``_plane_parts``); 0 (the
-            default) turns step 3f off.
+            for a compact part off the planar flow field of the others (``_plane_parts``); default
+            12; 0 turns step 3f off.
         plane_z: ... and a part leaves only when its mean displacement from the others' plane is
             this many sigmas of the fit's prediction (``z`` in ``_plane_parts``).
         plane_ratio: ... and its mean displacement is at least this many times the rest's RMS
@@ -256,7 +256,7 @@ class ObstacleGrouper:
         split_rel: float = 0.1,
         split_step: float = 3.0,
         split_persist: int = 3,
-        plane_min: int = 0,
+        plane_min: int = 12,
         plane_z: float = 6.0,
         plane_every: int = 2,
         plane_ratio: float = 12.0,

@@ -131,9 +131,9 @@ def test_blob_under_link_tolerance_stays():
     assert list(_parts(_grouper(), b, xy)) == [0]
 
 
-def test_off_by_default():
-    g = ObstacleGrouper(iter(range(10)))
-    assert g.plane_min == 0
+def test_on_by_default_and_off_at_zero():
+    assert ObstacleGrouper(iter(range(10))).plane_min == 12
+    assert ObstacleGrouper(iter(range(10)), plane_min=0).plane_min == 0
 
 
 def test_bad_settings_named():
