@@ -15,17 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``np.cross(a, b)`` of (3,) or (N, 3) vectors (at least one (N, 3)), the same products and
-    differences in the same order (so the same bits) without np.cross's axis handling (~20 us)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
-    out[..., 0] = a1 * b2 - a2 * b1
-    out[..., 1] = a2 * b0 - a0 * b2
-    out[..., 2] = a0 * b1 - a1 * b0
-    return out
+from estimators.geometry import _cross  # np.cross bit for bit, without its axis handling
 
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
@@ -42,7 +32,7 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
     tn = np.linalg.norm(t)
     if tn == 0:
         return np.linalg.norm(np.cross(b1, b0 @ np.asarray(R_C1_C0).T), axis=1)  # pure rotation: rays equal
-    n = _cross3(t / tn, b0 @ np.asarray(R_C1_C0).T)
+    n = _cross(t / tn, b0 @ np.asarray(R_C1_C0).T)
     nn = np.linalg.norm(n, axis=1)
     res = np.abs(np.sum(b1 * n, axis=1)) / np.where(nn > 1e-9, nn, 1.0)
     return np.where(nn > 1e-9, res, 1.0)
@@ -79,7 +69,7 @@ def match_features(
     tn = np.linalg.norm(t)
     Rb0 = b0 @ np.asarray(R_C1_C0).T
     if tn > 0:
-        n = _cross3(t / tn, Rb0)
+        n = _cross(t / tn, Rb0)
         nn = np.linalg.norm(n, axis=1)
         res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
         res[nn <= 1e-9] = 1.0
@@ -374,7 +364,7 @@ def depth_consistent(
     w = np.divide(1.0 - c * c, den, out=np.zeros_like(den), where=np.abs(den) > 1e-12)
     # noise: noise_rad / (|t| sin gamma), sin gamma = |t_hat x d| (at least 0.1: rays along the
     # baseline range nothing)
-    sin_g = np.maximum(np.linalg.norm(_cross3(t / base, d), axis=1), 0.1)
+    sin_g = np.maximum(np.linalg.norm(_cross(t / base, d), axis=1), 0.1)
     noise = noise_rad / (base * sin_g)
     ext = 2.0 * np.asarray(spread_rad, float)
     starts = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1])))
