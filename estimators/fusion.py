@@ -161,7 +161,8 @@ class FusionSettings:
         feature_sigma_rad: bearing sigma of one member feature (rad) on a camera of focal length
             ``feature_sigma_focal_px`` (below). Default 1e-3.
         feature_sigma_focal_px: the focal length (px/rad) feature_sigma_rad holds for; on a rig
-            whose cameras' pixels are coarser, f (the smallest fx or fy of its cameras) below it,
+            whose cameras' pixels are coarser, f (the smallest px per rad at the image centre of its
+            cameras, d uv / d b_C on the axis: fx, fy for Equidistant) below it,
             the member features' bearing sigma is feature_sigma_rad * feature_sigma_focal_px / f:
             the pixel part of a tracked feature's error (KLT, the detector's corner) scales with a
             pixel's angle. Finer pixels keep feature_sigma_rad (its non-pixel part, a corner's
@@ -896,8 +897,12 @@ class ObstacleFusion:
         s = settings or FusionSettings()
         f_ref = s.feature_sigma_focal_px
         if f_ref is not None and len(rig):  # a feature's error is a pixel error (see the setting)
-            f_rig = min(min(float(c.model.fx), float(c.model.fy)) for c in rig)
-            if f_rig < f_ref:
+            # f: px per rad at the image centre, d uv / d b_C on the optical axis (fx, fy for
+            # Equidistant; fx / (1 + xi) for DoubleSphere)
+            axis = np.array([[0.0, 0.0, 1.0]])
+            f_rig = min(float(np.min(np.abs(np.diagonal(c.model.bearing_to_pixel_jacobian(axis)[0]))))
+                        for c in rig)
+            if f_rig < f_ref * (1.0 - 1e-9):  # (rounding of the Jacobian: equal focal lengths stay equal)
                 s = replace(s, feature_sigma_rad=s.feature_sigma_rad * (f_ref / f_rig))
         self.settings = s  # (feature_sigma_rad: the rig's own)
         self.timings: dict[str, float] = {"estimate": 0.0, "fuse": 0.0}

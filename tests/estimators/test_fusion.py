@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from estimators.cameras import Equidistant
+from estimators.cameras import DoubleSphere, Equidistant
 from estimators.egomotion import ConstantVelocity, TumTrajectory
 from estimators.errors import ConfigError, InputError
 from estimators.fusion import FusionSettings, ObstacleFusion
@@ -649,6 +649,11 @@ def test_feature_sigma_scales_with_the_rigs_pixel_size():
     assert ObstacleFusion(rig(f_ref / 1.6), ego, s).settings.feature_sigma_rad == pytest.approx(
         1.6e-3, rel=1e-12)
     assert ObstacleFusion(rig(1.5 * f_ref), ego, s).settings.feature_sigma_rad == 1e-3
+    # a lens whose px per rad at the centre is not fx: DoubleSphere's projection on the axis is
+    # u - cx = fx x / (alpha d2 + (1 - alpha)(xi + z)), d2 = xi + 1 there, so du/dx = fx / (1 + xi)
+    ds = DoubleSphere(fx=f_ref, fy=f_ref, cx=319.5, cy=179.5, width=640, height=360, xi=0.5, alpha=0.6)
+    assert ObstacleFusion(stereo_forward_rig(ds, 0.30), ego, s).settings.feature_sigma_rad == pytest.approx(
+        1.5e-3, rel=1e-9)
     s0 = FusionSettings(feature_sigma_rad=1e-3, feature_sigma_focal_px=None)
     assert ObstacleFusion(rig(f_ref / 2), ego, s0).settings.feature_sigma_rad == 1e-3
     with pytest.raises(ConfigError):
