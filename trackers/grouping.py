@@ -313,7 +313,8 @@ class ObstacleGrouper:
                 f"ObstacleGrouper: expected plane_min an integer >= 0 (0: step 3f off); got {plane_min!r}"
             )
         self.plane_min = int(plane_min)
-        if not 0 < plane_z < float("inf"):  # (also NaN)
+        real = (int, float, np.integer, np.floating)
+        if not isinstance(plane_z, real) or not 0 < plane_z < float("inf"):  # (also NaN)
             raise ConfigError(f"ObstacleGrouper: expected a finite plane_z > 0 (sigmas); got {plane_z!r}")
         self.plane_z = float(plane_z)
         if isinstance(plane_every, bool) or not isinstance(plane_every, (int, np.integer)) or plane_every < 1:
@@ -321,7 +322,7 @@ class ObstacleGrouper:
                 f"ObstacleGrouper: expected plane_every an integer >= 1 (frames); got {plane_every!r}"
             )
         self.plane_every = int(plane_every)
-        if not 0 <= plane_ratio < float("inf"):  # (also NaN)
+        if not isinstance(plane_ratio, real) or not 0 <= plane_ratio < float("inf"):  # (also NaN)
             raise ConfigError(f"ObstacleGrouper: expected a finite plane_ratio >= 0; got {plane_ratio!r}")
         self.plane_ratio = float(plane_ratio)
         # step 3f on a rig of several cameras (set by the front end): given a track whose part is

@@ -145,6 +145,10 @@ def test_bad_settings_named():
         ObstacleGrouper(iter(range(10)), plane_every=0)
     with pytest.raises(ConfigError, match="plane_ratio"):
         ObstacleGrouper(iter(range(10)), plane_ratio=-1.0)
+    with pytest.raises(ConfigError, match="plane_z"):  # a string from a config file: named, not a TypeError
+        ObstacleGrouper(iter(range(10)), plane_z="6")
+    with pytest.raises(ConfigError, match="plane_ratio"):
+        ObstacleGrouper(iter(range(10)), plane_ratio=None)
 
 
 class _FixedPart(ObstacleGrouper):
@@ -244,6 +248,7 @@ def test_the_front_end_asks_the_other_camera_on_a_stereo_rig():
     g1._frame = 7  # its part was found two updates ago: no longer
     assert not g0.plane_confirm(t0)
     t0.plane_seen = g0._frame
+    assert not g0.plane_confirm(t0)  # a camera's own part does not confirm itself
     assert g1.plane_confirm(t1)
 
 
