@@ -863,14 +863,15 @@ def scored_ranges(rows_by_scene: dict[str, tuple[str, list]]) -> dict[str, dict]
     velocity: >= 1 s), so a change that hurts young or moving obstacles' ranges shows only here.
     Non-finite values (the median width of bounds without an upper end) are None, as in the
     evaluator's metrics.json and the demo's report.json (strict JSON)."""
-    from pipeline.evaluate import json_safe, scored_range_metrics
+    from pipeline.evaluate import scored_range_metrics
+    from pipeline.sinks import to_plain
 
     g = scored_range_metrics([r for _rig, rows in rows_by_scene.values() for r in rows])
     out = {"all": g["confirmed"], "stationary": g["stationary"], "moving": g["moving"]}
     for rig in ("mono", "stereo"):
         sel = [r for k, rows in rows_by_scene.values() if k == rig for r in rows]
         out[f"moving_{rig}_rig"] = scored_range_metrics(sel)["moving"]
-    return json_safe(out)
+    return to_plain(out)
 
 
 def format_scored(m: dict, halves: dict | None = None) -> str:

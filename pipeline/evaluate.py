@@ -36,6 +36,7 @@ from estimators.egomotion import TumTrajectory
 from estimators.errors import InputError
 from pipeline.sim.scene import Scenario, load_scenario
 from pipeline.sim.world import SKY_ID, World, object_velocity, raycast, surface_distance
+from pipeline.sinks import to_plain
 
 RANGE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 50.0, math.inf)
 Z_975 = 1.959963984540054  # standard normal 97.5% quantile
@@ -708,27 +709,13 @@ def write_outputs(ev: Evaluation, out_dir: str | Path, plots: bool = True) -> di
     except OSError as e:
         raise InputError(f"{out_dir}: cannot create the output folder ({e.strerror}); expected a "
                          "writable folder path") from None
-    (out_dir / "metrics.json").write_text(json.dumps(json_safe(ev.metrics), indent=2))
+    (out_dir / "metrics.json").write_text(json.dumps(to_plain(ev.metrics), indent=2))
     (out_dir / "metrics.txt").write_text(format_table(ev.metrics) + "\n")
     with (out_dir / "reports.jsonl").open("w") as f:
         for r in ev.rows:
-            f.write(json.dumps(json_safe(asdict(r))) + "\n")
+            f.write(json.dumps(to_plain(asdict(r))) + "\n")
     paths = {"metrics.json": out_dir / "metrics.json", "metrics.txt": out_dir / "metrics.txt"}
     if plots:
         for p in plot_ranges(ev, out_dir / "plots"):
             paths[p.name] = p
     return paths
-
-
-def json_safe(x):
-    """``x`` (nested dicts, lists, tuples, numpy scalars, floats) as strict JSON values: tuples become
-    lists, numpy scalars Python numbers, and non-finite floats (NaN, +-inf) None."""
-    if isinstance(x, dict):
-        return {k: json_safe(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [json_safe(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, np.generic):
-        return json_safe(x.item())
-    return x
