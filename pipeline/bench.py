@@ -655,7 +655,7 @@ def _task_pipeline(task: Mapping[str, Any]) -> dict[str, Any]:
     ahead = cfg.inputs.prefetch if run_mod.cpus_allowed() > 1 else 0
     src = LoopingSource({c: task["videos"][c] for c in rig.names}, n, float(task["fps"]),
                         task.get("checkpoints") or [], warm, Path(task["out"]) / "memory.json",
-                        grey=all(run_mod.reads_grey(cfg, v) for v in task["videos"].values()), prefetch=ahead)
+                        grey=run_mod.reads_grey(cfg, task["videos"].values()), prefetch=ahead)
     res = run_mod.run(cfg, task["out"], rig=rig, egomotion=ego, source=src, frontend=front, fusion=fusion,
                       progress=False)
     sm = res.summary

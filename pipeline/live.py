@@ -796,7 +796,7 @@ def run_live(
             )
         readers = []
         # the fast path of `run`: grey frames for grey detectors, or when every camera is a grey video file
-        grey = all(reads_grey(cfg, ref) for ref in lv.cameras)
+        grey = reads_grey(cfg, lv.cameras)
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))

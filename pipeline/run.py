@@ -19,7 +19,7 @@ import os
 import random
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -271,15 +271,16 @@ def wants_grey(cfg: PipelineConfig) -> bool:
     return cfg.detector.name.lower() in GREY_DETECTORS
 
 
-def reads_grey(cfg: PipelineConfig, ref: str | Path) -> bool:
-    """Whether video ``ref`` is decoded to grey: ``wants_grey``, or by default (``inputs.grey`` null)
-    also when the file's stream is itself grey (``pipeline.sources.is_grey_video``): a colour detector
-    (navlights) finds nothing in it, so it is read without any colour conversion, as for ORB alone."""
+def reads_grey(cfg: PipelineConfig, refs: Iterable[str | Path]) -> bool:
+    """Whether the videos ``refs`` (one per camera; run, live and bench decide alike) are decoded
+    to grey: ``wants_grey``, or by default (``inputs.grey`` null) also when every file's stream is
+    itself grey (``pipeline.sources.is_grey_video``): a colour detector (navlights) finds nothing in
+    it, so it is read without any colour conversion, as for ORB alone. One colour video: all colour."""
     if wants_grey(cfg):
         return True
-    if cfg.inputs.grey is not None or not Path(str(ref)).is_file():
+    if cfg.inputs.grey is not None:
         return False
-    return is_grey_video(ref)
+    return all(Path(str(r)).is_file() and is_grey_video(r) for r in refs)
 
 
 def cpus_allowed() -> int:
@@ -305,7 +306,7 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
         )
     sources: list[Source] = []
     # grey for a grey detector, or when every video is itself grey (as bench's LoopingSource decides)
-    grey = wants_grey(cfg) if inp.images else all(reads_grey(cfg, r) for r in refs)
+    grey = wants_grey(cfg) if inp.images else reads_grey(cfg, refs)
     # Read-ahead only when a second CPU can decode while the loop runs: on one core the thread overlaps
     # nothing (measured at 720p, one pinned core: same CPU per frame with and without it, within the
     # noise of a shared machine) and only moves the decode time into other stages' clocks.

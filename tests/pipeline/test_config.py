@@ -258,6 +258,6 @@ def test_a_grey_video_is_read_grey_even_for_a_colour_detector(tmp_path):
 
     g, c = video(tmp_path / "g.mkv", False), video(tmp_path / "c.mkv", True)
     cfg = load_config(None)
-    assert reads_grey(cfg, g) is True and reads_grey(cfg, c) is False
-    assert reads_grey(load_config(None, cli={"inputs.grey": False}), g) is False
+    assert reads_grey(cfg, [g]) is True and reads_grey(cfg, [c]) is False
+    assert reads_grey(load_config(None, cli={"inputs.grey": False}), [g]) is False
     assert reads_grey(load_config(None, cli={"detector.name": "orb"}), c) is True
