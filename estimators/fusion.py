@@ -921,9 +921,8 @@ class ObstacleFusion:
         self._prev_members: tuple[np.ndarray, np.ndarray] | None = None  # (ids sorted, track ids)
         self._prev_t: float | None = None
         s = self.settings
-        self._gate2 = chi2_ppf(s.gate_probability, 2)
-        self._gate3 = chi2_ppf(s.gate_probability, 3)
-        self._chi2_gates: dict[int, float] = {}
+        self._gate2 = self._chi2_gate(2)
+        self._gate3 = self._chi2_gate(3)
 
     # ------------------------------------------------------------------------------- public API
     @property
@@ -990,7 +989,8 @@ class ObstacleFusion:
         batch: list[tuple[_Track, _Sighting]] = []
         rest: list[tuple[_Track, _Sighting]] = []
         for tr, sg, _status in work:
-            if tr.vel_moving or self._filter_moving(tr, t_s):  # its velocity evidence (or its
+            if (tr.feature_range is not None or tr.feature_point is not None) and (
+                    tr.vel_moving or self._filter_moving(tr, t_s)):  # its velocity evidence (or its
                 # filter's velocity) rejects a static obstacle: its features' static points are
                 tr.feature_range = tr.feature_point = None  # not its range
             if tr.feature_range is not None and (not tr.moving or self.settings.feature_ranging_moving):
@@ -1661,8 +1661,9 @@ class ObstacleFusion:
         g, rows, b_now, p, r, sig_r, chi, chi_cut, sig_post = (
             g[keep], rows[keep], b_now[keep], p[keep], r[keep], sig_r[keep], chi[keep], chi_cut[keep],
             sig_post[keep])
-        chi_med = _group_median(g, chi, G)
-        if behind is not None:
+        if behind is None:
+            chi_med = _group_median(g, chi, G)
+        else:
             # the features whose rays meet behind the camera fail the static-point test: each is a
             # failed vote in the median, and when they carry more of the track's ray evidence
             # than the features that meet in front (residual dof of each feature's fit, 2n - 3
@@ -2088,13 +2089,10 @@ class ObstacleFusion:
 
     def _chi2_gate(self, k: int) -> float:
         """chi2_k(gate_probability), cached per degrees of freedom k >= 1."""
-        g = self._chi2_gates.get(k)
-        if g is None:  # (chi2_ppf bisects: ~2 ms; kept per process, for every fusion of a run)
-            key = (self.settings.gate_probability, max(int(k), 1))
-            g = _CHI2_PPF.get(key)
-            if g is None:
-                g = _CHI2_PPF[key] = chi2_ppf(*key)
-            self._chi2_gates[k] = g
+        key = (self.settings.gate_probability, max(int(k), 1))
+        g = _CHI2_PPF.get(key)
+        if g is None:  # (chi2_ppf bisects; kept per process, for every fusion of a run)
+            g = _CHI2_PPF[key] = chi2_ppf(*key)
         return g
 
     def _velocity_evidence(self, tr: _Track, v: np.ndarray, R: np.ndarray, t_s: float) -> None:
