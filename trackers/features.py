@@ -964,9 +964,6 @@ class FeatureTracker:
                 taken.add(j)
         return out
 
-    def _alloc_slot(self) -> int:
-        return self._free.pop() if self._free else -1
-
     def _drop(self, idx: np.ndarray, remember: bool) -> None:
         """Remove live features ``idx``; remember those with descriptors for re-acquisition."""
         if not len(idx):

@@ -1400,13 +1400,13 @@ class BoxTracker:
     and two members in the box" (that track's bearing was 10 px from the box centre, inside its
     12 px radius). Hiding a drone is worse than a second report of an obstacle.
 
-    ``link_older_only`` (opt-in, default False): a box track is linked only to a feature track made
-    before it (a smaller id: box and feature tracks draw ids from the front end's one counter), or to
-    the one it is linked to. A drone found first by its lights then keeps its own report and id
-    beside the feature track ORB finds on it later; by default the link hides the box, so the
-    drone's reported id changes from the box's to the feature track's (an id switch), and back when
-    that feature track ends. The drone id switches of the tuned scenes are such handovers, not links
-    to the wrong track (session 9: moving_crossing, wide_angle_beyond90, noisy_1080p).
+    ``link_older_only`` (opt-in, default False): a box track is linked only to a feature track made before
+    it (a smaller id: box and feature tracks draw ids from the front end's one counter). A drone found
+    first by its lights then keeps its own report and id beside the feature track ORB finds on it later;
+    by default the link hides the box, so the drone's reported id changes from the box's to the feature
+    track's (an id switch), and back when that feature track ends. The drone id switches of the tuned
+    scenes are such handovers, not links to the wrong track (session 9: moving_crossing,
+    wide_angle_beyond90, noisy_1080p).
     """
 
     def __init__(
@@ -1545,9 +1545,9 @@ class BoxTracker:
             cos_r = np.cos(radius)
             cos_c = rep_b @ b.b_C
             cand = np.flatnonzero(cos_c >= cos_r)  # its bearing in the box ...
-            if self.link_older_only:  # ... made before the box (ids come from one counter), or linked
-                held_f = self.links.get(b.id)
-                cand = cand[[feats[ti].id < b.id or feats[ti].id == held_f for ti in cand]]
+            if self.link_older_only:  # ... made before the box (ids come from one counter; a held
+                # link was made under this rule, so its feature track is older too)
+                cand = cand[[feats[ti].id < b.id for ti in cand]]
             if not len(cand):
                 continue
             cos_m = mem_b @ b.b_C
