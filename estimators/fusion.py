@@ -2357,7 +2357,10 @@ class ObstacleFusion:
         x0, P0 = kf.x, kf.P  # (filterpy's update binds new arrays: these stay the prior)
         # filterpy EKF update with the residual already formed about the linearisation point:
         # z = y, h(x) = 0 (bearing) / the same residual for a linear measurement.
-        _ekf_update(kf, y, H, R)
+        if not _ekf_update(kf, y, H, R):  # S singular (zero noise on a zero-variance direction):
+            tr.gated += 1  # the NIS is undefined; the measurement is rejected like a gated one
+            tr.gated_run += 1
+            return False
         yv = kf.y
         nis = float(yv @ kf.SI @ yv)
         if not math.isfinite(nis) or nis > gate:
@@ -2462,8 +2465,8 @@ class ObstacleFusion:
         H[0, :3] = d / r  # d|p - o|/dp
         R = np.array([[(self.settings.bounds_pseudo_sigma_frac * max(target, 1e-3)) ** 2]])
         y = np.array([target - r])
-        _ekf_update(tr.kf, y, H, R)
-        tr.bounded_now = True
+        if _ekf_update(tr.kf, y, H, R):  # (not applied when S = u^T P u + R is exactly 0)
+            tr.bounded_now = True
 
     # ---------------------------------------------------------------------------------- report
     def _reports(self, items: list[tuple[_Track, str]], fc: _FrameContext) -> list[TrackReport]:
@@ -2853,27 +2856,33 @@ def _ekf_predict(kf: ExtendedKalmanFilter) -> None:
     kf.P = (F @ kf.P) @ F.T + kf.Q
 
 
-def _inv_small(S: np.ndarray) -> np.ndarray:
+def _inv_small(S: np.ndarray) -> np.ndarray | None:
     """Inverse (k, k) of an innovation covariance S (k, k), k = 1, 2 or 3, by cofactors in Python
-    floats: S^-1 = adj(S) / det(S). (filterpy's update inverts with scipy's LAPACK inv, ~15 us a
-    call; these agree to rounding, |difference| ~1e-16 relative for the well-conditioned S = H P
-    H^T + R here: tests/estimators/test_ekf_filterpy_agreement.py.)"""
+    floats: S^-1 = adj(S) / det(S); None when det(S) is exactly 0 (singular: the caller rejects the
+    measurement). (filterpy's update inverts with scipy's LAPACK inv, ~15 us a call, and raises on a
+    singular S; these agree to rounding, |difference| ~1e-16 relative for the well-conditioned
+    S = H P H^T + R here: tests/estimators/test_ekf_filterpy_agreement.py.)"""
     k = len(S)
     if k == 2:
         (a, b), (c, d) = S.tolist()
         det = a * d - b * c
+        if det == 0.0:
+            return None
         return np.array(((d / det, -b / det), (-c / det, a / det)))
     if k == 1:
-        return np.array(((1.0 / float(S[0, 0]),),))
+        s00 = float(S[0, 0])
+        return None if s00 == 0.0 else np.array(((1.0 / s00,),))
     (a, b, c), (d, e, f), (g, h, i) = S.tolist()
     A, B, C = e * i - f * h, f * g - d * i, d * h - e * g
     det = a * A + b * B + c * C
+    if det == 0.0:
+        return None
     return np.array(((A / det, (c * h - b * i) / det, (b * f - c * e) / det),
                      (B / det, (a * i - c * g) / det, (c * d - a * f) / det),
                      (C / det, (b * g - a * h) / det, (a * e - b * d) / det)))
 
 
-def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> bool:
     """``kf.update(y, HJacobian=lambda x: H, Hx=lambda x: 0, R=R)`` (filterpy's
     ExtendedKalmanFilter: residual y = z - h(x) already formed, (k,), k <= 3; H (k, 6); R (k, k)):
     filterpy's operations in its order, without its bookkeeping (deep copy of z, x_post, P_post,
@@ -2881,16 +2890,23 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     equal to filterpy's to rounding, tests/estimators/test_ekf_filterpy_agreement.py). Sets S, SI,
     K, y (the array passed: callers pass a fresh one), and the Joseph-form update
         S = H P H^T + R,   K = P H^T S^-1,
-        x = x + K y,   P = (I - K H) P (I - K H)^T + K R K^T."""
+        x = x + K y,   P = (I - K H) P (I - K H)^T + K R K^T.
+    Returns True, or False (the filter untouched) when S is exactly singular (no inverse: filterpy
+    raised there; degenerate settings such as a zero bearing sigma on a zero-variance state)."""
     P = kf.P
     PHT = P @ H.T
-    kf.S = S = H @ PHT + R
-    kf.SI = SI = _inv_small(S)
+    S = H @ PHT + R
+    SI = _inv_small(S)
+    if SI is None:
+        return False
+    kf.S = S
+    kf.SI = SI
     kf.K = K = PHT @ SI
     kf.y = y
     kf.x = kf.x + K @ y
     I_KH = _EYE6 - K @ H
     kf.P = (I_KH @ P) @ I_KH.T + (K @ R) @ K.T
+    return True
 
 
 def _posterior_sigma(sig_r: np.ndarray, chi: np.ndarray, n: np.ndarray, k: float) -> np.ndarray:
