@@ -971,16 +971,19 @@ class FeatureTracker:
         keep = np.ones(len(self.ids), bool)
         keep[idx] = False
         gone = ~keep
+        # the kept and remembered rows as index arrays, found once (a boolean mask per array would
+        # count its rows again for each of the eight arrays); the same rows in the same order
         if remember and self.reacquire_frames > 0:
-            r = gone & self.has_desc
+            r = np.flatnonzero(gone & self.has_desc)
+            nr = len(r)
             self.lost_ids = np.concatenate([self.lost_ids, self.ids[r]])
             self.lost_uv = np.concatenate([self.lost_uv, self.uv[r]])
             self.lost_vel = np.concatenate([self.lost_vel, self.vel[r]])
-            self.lost_t = np.concatenate([self.lost_t, np.full(int(r.sum()), self._t_uv)])
+            self.lost_t = np.concatenate([self.lost_t, np.full(nr, self._t_uv)])
             self.lost_desc = np.concatenate([self.lost_desc, self.desc[r]])
             self.lost_age = np.concatenate([self.lost_age, self.age[r]])
             self.lost_slot = np.concatenate([self.lost_slot, self.slot[r]])
-            self.lost_for = np.concatenate([self.lost_for, np.zeros(int(r.sum()), np.int64)])
+            self.lost_for = np.concatenate([self.lost_for, np.zeros(nr, np.int64)])
             free = gone & ~self.has_desc
             excess = len(self.lost_ids) - self.max_features  # bound the pool: forget the oldest
             if excess > 0:
@@ -989,12 +992,13 @@ class FeatureTracker:
                 self._forget_lost(old)
         else:
             free = gone
-        self._free.extend(int(s) for s in self.slot[free])
+        self._free.extend(self.slot[free].tolist())
+        ki = np.flatnonzero(keep)
         for name in ("ids", "uv", "vel", "desc", "has_desc", "age", "slot", "b_C"):
-            setattr(self, name, getattr(self, name)[keep])
+            setattr(self, name, getattr(self, name)[ki])
 
     def _remove_lost(self, gone: np.ndarray) -> None:
-        keep = ~gone
+        keep = np.flatnonzero(~gone)  # (the kept rows found once for the eight arrays)
         names = ("lost_ids", "lost_uv", "lost_vel", "lost_t", "lost_desc", "lost_age", "lost_slot")
         names += ("lost_for",)
         for name in names:
@@ -1003,7 +1007,7 @@ class FeatureTracker:
     def _forget_lost(self, gone: np.ndarray) -> None:
         if not np.any(gone):
             return
-        self._free.extend(int(s) for s in self.lost_slot[gone])
+        self._free.extend(self.lost_slot[gone].tolist())
         self._remove_lost(gone)
 
     def _bearings_and_history(self, frame: int, t_s: float) -> None:

@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from operator import attrgetter
 
 import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
 from trackers.detectors.base import Detections, Detector, register_detector, to_grey
+
+_response = attrgetter("response")
+
+
+def _responses(kps) -> np.ndarray:
+    """(N,) float32 responses of N cv2.KeyPoints (one C-level pass; a list comprehension's per-item
+    attribute look-up cost ~60 us for the ~2,500 keypoints of a 1280x720 detection)."""
+    return np.fromiter(map(_response, kps), np.float32, len(kps))
 
 
 def bucket(
@@ -116,7 +125,7 @@ class OrbDetector(Detector):
         if not kps:
             return Detections.empty()
         uv = cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32)
-        sc = np.array([k.response for k in kps], dtype=np.float32)
+        sc = _responses(kps)
         if mask is not None and len(kps) >= 0.9 * self._orb.getMaxFeatures():
             # ORB's budget was used up: when much of it went to corners outside the mask (e.g.
             # sensor noise outside the lens circle), detect again inside the mask (the slow path)
@@ -128,7 +137,7 @@ class OrbDetector(Detector):
                 if not kps:
                     return Detections.empty()
                 uv = cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32)
-                sc = np.array([k.response for k in kps], dtype=np.float32)
+                sc = _responses(kps)
         if mask is not None:
             m = np.asarray(mask)
             ui = np.clip(np.rint(uv[:, 0]).astype(np.intp), 0, m.shape[1] - 1)
@@ -136,7 +145,7 @@ class OrbDetector(Detector):
             inside = np.flatnonzero(m[vi, ui] > 0)
             if not len(inside):
                 return Detections.empty()
-            kps = [kps[i] for i in inside]
+            kps = [kps[i] for i in inside.tolist()]
             uv, sc = uv[inside], sc[inside]
         per_cell = max(1, int(np.ceil(self.max_features / (self.grid[0] * self.grid[1]) * 2)))
         off = np.array(origin, np.float32)
@@ -146,7 +155,7 @@ class OrbDetector(Detector):
             keep = keep[np.asarray(select(uv[keep] + off, sc[keep]), np.intp)]
             if not len(keep):
                 return Detections.empty()
-        kps = [kps[i] for i in keep]
+        kps = [kps[i] for i in keep.tolist()]
         if not self.descriptors:
             return Detections(keypoints=uv[keep], scores=sc[keep])
         kps, des = self._orb.compute(grey, kps)
@@ -154,6 +163,6 @@ class OrbDetector(Detector):
             return Detections.empty()
         return Detections(
             keypoints=cv2.KeyPoint_convert(kps).reshape(-1, 2).astype(np.float32),
-            scores=np.array([k.response for k in kps], np.float32),
+            scores=_responses(kps),
             descriptors=des,
         )
