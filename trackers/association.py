@@ -15,7 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators.geometry import _cross  # np.cross bit for bit, without its axis handling
+# np.cross and np.linalg.norm(x, axis=1) bit for bit, without their axis handling
+from estimators.geometry import _cross, _norm_rows
 
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
@@ -33,8 +34,8 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
     if tn == 0:
         return np.linalg.norm(np.cross(b1, b0 @ np.asarray(R_C1_C0).T), axis=1)  # pure rotation: rays equal
     n = _cross(t / tn, b0 @ np.asarray(R_C1_C0).T)
-    nn = np.linalg.norm(n, axis=1)
-    res = np.abs(np.sum(b1 * n, axis=1)) / np.where(nn > 1e-9, nn, 1.0)
+    nn = _norm_rows(n)
+    res = np.abs(np.add.reduce(b1 * n, axis=1)) / np.where(nn > 1e-9, nn, 1.0)
     return np.where(nn > 1e-9, res, 1.0)
 
 
@@ -287,7 +288,7 @@ def stereo_klt(
     # the backward check: rows asked for, and followed rows that did not land where expected
     chk = np.ones(len(idx), bool) if check is None else np.asarray(check, bool)[idx].copy()
     chk |= ~own[idx]
-    chk |= own[idx] & (np.linalg.norm(uv_b - start[idx], axis=1) > recheck_px)
+    chk |= own[idx] & (_norm_rows(uv_b - start[idx]) > recheck_px)
     # the lens and epipolar tests of the forward results first (row by row: the same numbers on
     # the rows KLT found as on all), so the backward check runs only on rows that can pass them
     box = chk & good  # the rows to check: their box makes the backward call's parts
@@ -305,7 +306,7 @@ def stereo_klt(
             grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach, box_prev=p1[box]
         ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         good[ci] &= (st2 == 1) & (
-            np.linalg.norm((p0r - p0[ci]).reshape(-1, 2), axis=1) <= fb_max_px
+            _norm_rows((p0r - p0[ci]).reshape(-1, 2)) <= fb_max_px
         )
     return StereoKLT(idx[good], uv_b[good], bb[good], chk[good])
 
@@ -358,13 +359,13 @@ def depth_consistent(
     if len(b_a) < min_found or base <= 0:
         return keep
     d = b_a @ np.asarray(R_b_a, float).T
-    c = np.sum(d * b_b, axis=1)
+    c = np.add.reduce(d * b_b, axis=1)
     den = c * (b_b @ t) - d @ t  # s (1 - c^2)
     # w = (1 - c^2) / den; parallel rays (den ~ 0): a point at infinity, w = 0
     w = np.divide(1.0 - c * c, den, out=np.zeros_like(den), where=np.abs(den) > 1e-12)
     # noise: noise_rad / (|t| sin gamma), sin gamma = |t_hat x d| (at least 0.1: rays along the
     # baseline range nothing)
-    sin_g = np.maximum(np.linalg.norm(_cross(t / base, d), axis=1), 0.1)
+    sin_g = np.maximum(_norm_rows(_cross(t / base, d)), 0.1)
     noise = noise_rad / (base * sin_g)
     ext = 2.0 * np.asarray(spread_rad, float)
     starts = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1])))

@@ -66,6 +66,7 @@ Its sigma is ``sqrt(spread^2 / n + floor^2)``, spread = RMS angle of the members
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -78,25 +79,69 @@ from trackers.features import FeatureTracker
 
 
 def _normalise(v: np.ndarray) -> np.ndarray:
-    n = np.sqrt(np.add.reduce(v * v, axis=-1, keepdims=True))  # np.linalg.norm's own formula
+    if v.ndim == 1 and len(v) == 3:  # one vector: the same IEEE operations in Python floats (~3x faster)
+        x, y, z = v.tolist()
+        n = math.sqrt(x * x + y * y + z * z)
+        return v / (n if n > 0 else 1.0)
+    n = _vnorm(v)[..., None]  # np.linalg.norm's own formula
     return v / np.where(n > 0, n, 1.0)
 
 
 _SECTOR_MID = -np.pi + (np.arange(8) + 0.5) * (np.pi / 4.0)  # middle directions of 8 sectors (rad)
 _SECTOR_COS, _SECTOR_SIN = np.cos(_SECTOR_MID), np.sin(_SECTOR_MID)
 _ARANGE12 = np.arange(12)
+_EZ, _EX = np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]])
+_EYE3 = np.eye(3)[None]  # (1, 3, 3)
+_RIDGE = np.diag([1e-9, 1e-3, 1e-3])  # step 4's ridge on the affine fit's normal equations
 _N_OF_SUMS = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])  # N = [[n, x, y], [x, xx, xy], [y, xy, yy]] sums
 
 
 def _vnorm(v: np.ndarray) -> np.ndarray:
-    """Norms (...) of vectors v (..., 3): np.linalg.norm(v, axis=-1)'s own formula, without its overhead."""
-    return np.sqrt(np.add.reduce(v * v, axis=-1))
+    """Norms (...) of vectors v (..., 3) or (..., 2): np.linalg.norm(v, axis=-1)'s own formula, without its
+    overhead. The squares are summed left to right, as ``np.add.reduce`` sums a short last axis (the same
+    values, bit for bit), but column by column (add.reduce along a 3-long axis is ~3x slower)."""
+    s = v * v
+    if s.shape[-1] == 3:
+        return np.sqrt(s[..., 0] + s[..., 1] + s[..., 2])
+    if s.shape[-1] == 2:
+        return np.sqrt(s[..., 0] + s[..., 1])
+    return np.sqrt(np.add.reduce(s, axis=-1))
+
+
+def _bincount3(keys: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
+    """Per key 0..n-1 the sums (n, 3) of the rows of v (K, 3) with that key (K,) int:
+    ``np.stack([np.bincount(keys, v[:, k], n) for k in range(3)], 1)``, the same sums, without np.stack's
+    overhead (a C-ordered copy of the three rows)."""
+    sums = [np.bincount(keys, v[:, 0], n), np.bincount(keys, v[:, 1], n), np.bincount(keys, v[:, 2], n)]
+    return np.array(sums).T.copy()
+
+
+def _well_conditioned(A: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which symmetric matrices A (K, n, n) have a condition number below 1e10 (their eigenvalues'
+    largest over smallest magnitude, ``np.linalg.eigvalsh``'s), and their inverses (K, n, n)
+    (``np.linalg.inv``'s; None when one is exactly singular).
+
+    ``cond <= |A|_F |A^-1|_F``, so where that bound is below 1e9 the test passes without the
+    eigenvalues (an eighth of the cost on step 3f's 8x8 matrices); the others are decided by them."""
+    try:
+        Ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:  # an exactly singular one: the eigenvalues decide
+        Ai = None
+    ok = np.zeros(len(A), bool)
+    if Ai is not None:
+        with np.errstate(over="ignore", invalid="ignore"):
+            m = A.shape[-1] ** 2
+            ok = np.sqrt((A * A).reshape(-1, m).sum(1) * (Ai * Ai).reshape(-1, m).sum(1)) < 1e9
+    if not np.all(ok):
+        ev = np.abs(np.linalg.eigvalsh(A[~ok]))
+        ok[~ok] = ev[:, -1] < 1e10 * ev[:, 0]
+    return ok, Ai
 
 
 def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
     normalised (ref the z axis, or x near it), e2 = rep x e1."""
-    ref = np.where(np.abs(rep[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    ref = np.where(np.abs(rep[:, 2:3]) < 0.9, _EZ, _EX)
     e1 = _normalise(_cross(ref, rep))
     return e1, _cross(rep, e1)
 
@@ -443,8 +488,8 @@ class ObstacleGrouper:
             piece_of = np.repeat(np.arange(K), [len(p) for p in pieces])
             cnt_p = np.bincount(piece_of, minlength=K)
             b_p, f_p = b[rows_all], flow[rows_all]
-            pc = _normalise(np.stack([np.bincount(piece_of, b_p[:, k], K) for k in range(3)], 1))
-            pf = np.stack([np.bincount(piece_of, f_p[:, k], K) for k in range(3)], 1) / cnt_p[:, None]
+            pc = _normalise(_bincount3(piece_of, b_p, K))
+            pf = _bincount3(piece_of, f_p, K) / cnt_p[:, None]
             tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
             cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
             cand = np.flatnonzero((cnt_now < need_t) & (hits > 0))
@@ -514,12 +559,12 @@ class ObstacleGrouper:
         o = owner[own]
         cnt = np.bincount(o, minlength=TK)
         b_own = b[own]
-        mean_c = _normalise(np.stack([np.bincount(o, b_own[:, k], TK) for k in range(3)], 1))
+        mean_c = _normalise(_bincount3(o, b_own, TK))
         m_per = pvalid[own] & ~fresh[o]
         po = o[m_per]
         pcnt = np.bincount(po, minlength=TK)
         d_per = b_own[m_per] - b_prev[own[m_per]]
-        dsum = np.stack([np.bincount(po, d_per[:, k], TK) for k in range(3)], 1)
+        dsum = _bincount3(po, d_per, TK)
         # move with the members present in both frames: b_rep += mean(b_now - b_prev), then a
         # gentle pull towards the member mean (gain centre_gain)
         moved = _normalise(rep + dsum / np.maximum(pcnt, 1)[:, None])
@@ -712,7 +757,7 @@ class ObstacleGrouper:
             return out
         alive = cnt >= np.concatenate([self._need_t, np.full(TK - T, self._keep_min())])
         used = np.zeros(TK, bool)
-        fn = np.linalg.norm(tflow, axis=1)
+        fn = _vnorm(tflow)
         for i in dying:
             mb = tracks[i].member_b_C
             mb = mb @ R1.T if R1 is not None else mb
@@ -796,7 +841,7 @@ class ObstacleGrouper:
             b_then, t_then, _ = ft.bearing_ago(L)
             b_then, bk = b_then[rows], back[rows]
             if R:
-                Rs = np.tile(np.eye(3), (L + 1, 1, 1))
+                Rs = np.repeat(_EYE3, L + 1, 0)
                 for kk, Rk in R.items():
                     if 0 < kk <= L:
                         Rs[kk] = Rk
@@ -898,14 +943,15 @@ class ObstacleGrouper:
                     tr.split_n, tr.split_ids = 0, np.zeros(0, np.int64)
                     out_rows.append(move)
                     out_tgt.append((int(t), -1))
-        for t in np.flatnonzero(~found):  # no candidate this frame: the count restarts
+        for t in np.flatnonzero(~found).tolist():  # no candidate this frame: the count restarts
             tracks[t].split_n = 0
         # step 3f: the same persistence rule, for tracks step 3c did not split this frame
-        for t in range(T):
+        found_l = found.tolist()
+        for t, tr in enumerate(tracks):
             move = plane.get(t)
-            tr = tracks[t]
-            if move is None or found[t]:
-                tr.plane_n, tr.plane_ids = 0, np.zeros(0, np.int64)
+            if move is None or found_l[t]:
+                if tr.plane_n or len(tr.plane_ids):  # (else it is reset already)
+                    tr.plane_n, tr.plane_ids = 0, np.zeros(0, np.int64)
                 continue
             mids = np.sort(ft.ids[move])
             prev = tr.plane_ids
@@ -988,8 +1034,8 @@ class ObstacleGrouper:
         DD = np.einsum("nai,naj->nij", D, D).reshape(S, 64)
         DF = np.einsum("nai,na->ni", D, F)  # (S,8)
         FF = np.einsum("ij,ij->i", F, F)
-        starts = np.flatnonzero(np.r_[True, os_[1:] != os_[:-1]])
-        blk = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, S]))  # block of each row
+        starts = np.flatnonzero(np.concatenate(([True], os_[1:] != os_[:-1])))
+        blk = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, S)))  # block of each row
         nR = cnt[os_] - nC
         k = np.flatnonzero((nC >= self.min_features) & (nR >= 8) & (nR > nC))
         if not len(k):
@@ -997,14 +1043,12 @@ class ObstacleGrouper:
         kb = blk[k]
         NR = (np.add.reduceat(DD, starts, 0)[kb] - Mf[k] @ DD).reshape(-1, 8, 8)
         BR = np.add.reduceat(DF, starts, 0)[kb] - Mf[k] @ DF  # (K,8)
-        # (N_R is symmetric: its condition number from its eigenvalues)
-        ev = np.abs(np.linalg.eigvalsh(NR))
-        wc = ev[:, -1] < 1e10 * ev[:, 0]
+        wc, NRi = _well_conditioned(NR)
         if not np.any(wc):
             return out
         k, kb, NR, BR = k[wc], kb[wc], NR[wc], BR[wc]
         Mk = Mf[k]  # (K,S)
-        NRi = np.linalg.inv(NR)
+        NRi = NRi[wc] if NRi is not None else np.linalg.inv(NR)
         g = np.einsum("kij,kj->ki", NRi, BR)  # (K,8) g_R = N_R^-1 B_R
         sse = (np.add.reduceat(FF, starts)[kb] - Mk @ FF) - np.einsum("ki,ki->k", g, BR)
         s2 = np.maximum(sse, 0.0) / (2.0 * nR[k] - 8.0)
@@ -1043,7 +1087,7 @@ class ObstacleGrouper:
             return out
         # per track its most significant candidate (ties: the first)
         order = good[np.lexsort((good, -z[good], kb[good]))]
-        first = order[np.r_[True, kb[order][1:] != kb[order][:-1]]]
+        first = order[np.concatenate(([True], kb[order][1:] != kb[order][:-1]))]
         for bi in first.tolist():
             out[int(os_[k[bi]])] = rows[idx[pn[(pk == bi) & inp]]]
         return out
@@ -1165,7 +1209,7 @@ class ObstacleGrouper:
         """Mean flow per track (T,3) of the members with a flow (track index o (S,), flow f (S,3))
         where >= 3 members have one (else ``old`` (T,3)), and that mask (T,): as ``_track_flow``."""
         cnt = np.bincount(o, minlength=T)
-        sums = np.stack([np.bincount(o, f[:, k], T) for k in range(3)], 1) if T else np.zeros((0, 3))
+        sums = _bincount3(o, f, T) if T else np.zeros((0, 3))
         has = cnt >= 3
         return np.where(has[:, None], sums / np.maximum(cnt, 1)[:, None], old), has
 
@@ -1189,7 +1233,7 @@ class ObstacleGrouper:
         if R:
             # b_then <- R_C_Cprev[k] b_then, k = frames back of each feature's sample (identity if absent)
             n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)
-            Rs = np.tile(np.eye(3), (self.flow_frames + 1, 1, 1))
+            Rs = np.repeat(_EYE3, self.flow_frames + 1, 0)
             for k, Rk in R.items():
                 if 0 < k <= self.flow_frames:
                     Rs[k] = Rk
@@ -1272,20 +1316,23 @@ class ObstacleGrouper:
                 small.extend([True] * (len(cut) + 1))
         # components of min_features or more: cut to max_radius pieces
         cos_r = np.cos(self.max_radius_rad)
-        for r in np.flatnonzero(size >= self.min_features):
-            comp = np.flatnonzero(labels == r)
+        by_label = np.argsort(labels, kind="stable")  # rows grouped by label, in row order within
+        first = np.cumsum(size) - size
+        for r in np.flatnonzero(size >= self.min_features).tolist():
+            comp = by_label[first[r] : first[r] + size[r]]  # (= np.flatnonzero(labels == r))
             while len(comp):
-                cen = _normalise(bf[comp].mean(0))
-                cc = bf[comp] @ cen
-                if np.all(cc > cos_r):
+                bc = bf[comp]
+                cen = _normalise(np.add.reduce(bc, 0) / len(comp))  # (bc.mean(0)'s own sums)
+                cc = bc @ cen
+                if (cc > cos_r).all():
                     out.append(free[comp])
                     small.append(False)
                     break
                 # cut: a piece around the member farthest from the centre, so the rest stays compact
                 far = comp[np.argmin(cc)]
-                piece = comp[bf[comp] @ bf[far] > cos_r]
-                c2 = _normalise(bf[piece].mean(0))
-                inside = bf[comp] @ c2 > cos_r
+                piece = comp[bc @ bf[far] > cos_r]
+                c2 = _normalise(np.add.reduce(bf[piece], 0) / len(piece))
+                inside = bc @ c2 > cos_r
                 piece = comp[inside] if np.any(inside) else np.array([far])
                 if len(piece) >= self.min_features:
                     out.append(free[piece])
@@ -1353,7 +1400,7 @@ class ObstacleGrouper:
         sums = np.bincount((ti[:, None] * 12 + _ARANGE12).ravel(), w.ravel(), A * 12).reshape(A, 12)
         N = sums[:, _N_OF_SUMS].reshape(A, 3, 3)
         rhs = sums[:, 6:].reshape(A, 3, 2)
-        N += np.diag([1e-9, 1e-3, 1e-3]) * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
+        N += _RIDGE * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
         c0 = np.linalg.solve(N[surrounded], rhs[surrounded])[:, 0, :]  # (S, 2)
         tf = np.stack([np.einsum("ij,ij->i", tflow, e1), np.einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
         gap = _vnorm(c0 - tf)
