@@ -1076,9 +1076,11 @@ class ObstacleFusion:
             c_W[k] = T_W_B.R @ T_B_C.t + T_W_B.t
         c_rows = list(c_W)  # one (3,) array per camera, shared by its views
         c_tup = [tuple(c.tolist()) for c in c_rows]
-        vs_l, b_l, cam_l, fid_l, fb_l, trk_l, n_l, first_view = [], [], [], [], [], [], [], []
+        if not todo:
+            return [], None
+        vs_l, cam_l = [], []
         order = cam_index.__getitem__
-        for i, (_tr, obs) in enumerate(todo):
+        for _tr, obs in todo:
             vs = obs.views
             if len(vs) > 1:
                 ks = [order(w.camera) for w in vs]
@@ -1090,51 +1092,45 @@ class ObstacleFusion:
             else:
                 cam_l.append(order(vs[0].camera))
             vs_l.append(vs)
-            first_view.append(len(b_l))
-            for v in vs:
-                b_l.append(v.b_C)
-                f = v.feature_ids
-                fid_l.append(f)
-                n_l.append(len(f))
-                fb_l.append(v.feature_b_C)
-                trk_l.append(i)
-        if not todo:
-            return [], None
-        B = np.array(b_l)  # (V, 3) camera bearings
+        n_v = [len(vs) for vs in vs_l]  # views per track
+        one = len(cam_l) == len(vs_l)  # (one view per track: a mono rig)
+        allv = [vs[0] for vs in vs_l] if one else [v for vs in vs_l for v in vs]
+        fid_l = [v.feature_ids for v in allv]
+        n_l = [len(f) for f in fid_l]
+        B = np.array([v.b_C for v in allv])  # (V, 3) camera bearings
         vcam = np.array(cam_l, dtype=np.int64)
         fcnt = np.array(n_l, dtype=np.int64)
         M = int(fcnt.sum())
         B = _rotate_rows(B, vcam, R_W_C)
         B /= np.sqrt(B[:, 0] * B[:, 0] + B[:, 1] * B[:, 1] + B[:, 2] * B[:, 2])[:, None]
         b_rows = list(B)
+        nv = np.array(n_v, dtype=np.int64)
+        first_view = np.cumsum(nv) - nv  # each track's first view
         feats = None
+        FB = None
         if M:
             ids = np.concatenate(fid_l)
-            FB = np.concatenate(fb_l)
+            FB = np.concatenate([v.feature_b_C for v in allv])
             fcam = np.repeat(vcam, fcnt)
             FB = _rotate_rows(FB, fcam, R_W_C)
-            feats = (ids, FB, c_W[fcam], np.repeat(np.array(trk_l, dtype=np.int64), fcnt), fcam,
-                     B[first_view])
+            trk = np.arange(len(vs_l), dtype=np.int64)  # each view's track
+            if not one:
+                trk = np.repeat(trk, nv)
+            feats = (ids, FB, c_W[fcam], np.repeat(trk, fcnt), fcam, B[first_view])
         offs = (np.cumsum(fcnt) - fcnt).tolist()
-        cnts = n_l
         o_W = T_W_B.t
+        mk = _View
+        sig_l = [float(v.sigma_rad if v.sigma_rad > floor else floor) for v in allv]
+        vobj = [mk(v.camera, c_rows[k], b, sg, f, FB[o:o + n]) if n else mk(v.camera, c_rows[k], b, sg)
+                for v, k, b, sg, f, n, o in zip(allv, cam_l, b_rows, sig_l, fid_l, n_l, offs, strict=True)]
         work = []
         j = 0
-        for (tr, obs), vs in zip(todo, vs_l, strict=True):
-            views = []
-            f0 = []
-            for v in vs:
-                k = cam_l[j]
-                n, o = cnts[j], offs[j]
-                sigma = v.sigma_rad if v.sigma_rad > floor else floor
-                if n:
-                    views.append(_View(v.camera, c_rows[k], b_rows[j], float(sigma), fid_l[j],
-                                       FB[o:o + n]))
-                else:
-                    views.append(_View(v.camera, c_rows[k], b_rows[j], float(sigma)))
-                f0.append(o)
-                j += 1
-            sg = _Sighting(t_s, frame, o_W, tuple(views), c_tup[cam_l[j - len(vs)]], tuple(f0))
+        for (tr, obs), n in zip(todo, n_v, strict=True):
+            if n == 1:
+                sg = _Sighting(t_s, frame, o_W, (vobj[j],), c_tup[cam_l[j]], (offs[j],))
+            else:
+                sg = _Sighting(t_s, frame, o_W, tuple(vobj[j:j + n]), c_tup[cam_l[j]], tuple(offs[j:j + n]))
+            j += n
             tr.feature_range = None
             tr.feature_stereo = None
             tr.feature_point = None
@@ -1352,7 +1348,7 @@ class ObstacleFusion:
         tr.history.append(sg)
         tr.last_seen_t = sg.t_s
         tr.last_views = sg.views
-        tr.cameras = tuple(v.camera for v in sg.views)
+        tr.cameras = (sg.views[0].camera,) if len(sg.views) == 1 else tuple([v.camera for v in sg.views])
         return t1 - t0
 
     def _end(self, tr: _Track, t_s: float, fc: _FrameContext) -> TrackReport:
@@ -1452,27 +1448,34 @@ class ObstacleFusion:
         idx: list[int] = []
         ca_l, ba_l, cb_l, bb_l, D_l, dl_l = [], [], [], [], [], []
         D_cache: dict[float, float] = {}
+        hypot = math.hypot
         for i, (tr, sg, _st) in enumerate(work):
             hist = tr.history
             t_now = sg.t_s
-            while hist and t_now - hist[0].t_s > max_age:
-                hist.popleft()
-            tr.bounds, tr.bounds_reason = None, None
+            tr.bounds = None
+            if hist:
+                h = hist[0]
+                while t_now - h.t_s > max_age:
+                    hist.popleft()
+                    if not hist:
+                        break
+                    h = hist[0]
             if not hist:
                 tr.bounds_reason = "no earlier sighting yet"
                 continue
-            h = hist[0]
+            tr.bounds_reason = None
             va, vb = h.views[0], sg.views[0]
             idx.append(i)
             ca_l.append(va.c_W)
             ba_l.append(va.b_W)
             cb_l.append(vb.c_W)
             bb_l.append(vb.b_W)
-            D = D_cache.get(h.t_s)
+            t_h = h.t_s
+            D = D_cache.get(t_h)
             if D is None:  # eq. 3.11-3.13: FC = GC = v dt (one per earlier frame)
-                D = D_cache[h.t_s] = self._max_speed(h.t_s, t_now) * (t_now - h.t_s)
+                D = D_cache[t_h] = self._max_speed(t_h, t_now) * (t_now - t_h)
             D_l.append(D)
-            dl_l.append(nsig * math.hypot(va.sigma_rad, vb.sigma_rad))
+            dl_l.append(nsig * hypot(va.sigma_rad, vb.sigma_rad))
         if not idx:
             return
         rows, c_a, b_a, c_b, b_b = _noisy_bound_rays_batch(
@@ -1488,13 +1491,15 @@ class ObstacleFusion:
         np.maximum.at(hi, own, r_max[ok])
         any_ok = np.zeros(G, dtype=bool)
         any_ok[own] = True
+        r_floor = s.bounds_min_range_m
+        inf = math.inf
         for i, good, lo_i, hi_i in zip(idx, any_ok.tolist(), lo.tolist(), hi.tolist(), strict=True):
             tr = work[i][0]
             # an upper bound at the camera itself (below bounds_min_range_m): the rays meet only
             # where they start, i.e. no point within the allowed motion (a hovering drone, max
             # speed = its own speed ~0, and an obstacle that moved): inconsistent, not "at 0 m"
-            if good and not hi_i < s.bounds_min_range_m:
-                tr.bounds = _Bounds(lo_i, None if math.isinf(hi_i) else hi_i)
+            if good and not hi_i < r_floor:
+                tr.bounds = _Bounds(lo_i, None if hi_i == inf else hi_i)  # (hi >= 0 here)
             else:
                 tr.bounds_reason = "bounds unobservable: inconsistent with max speed"
 
@@ -1560,7 +1565,8 @@ class ObstacleFusion:
         eligible = np.array([s.feature_ranging_moving or not tr.moving for tr, _sg, _st in work])
         # one entry per (track, feature): the first camera's ray of it
         key_n = fs.size + 1
-        edge_keys = np.unique(g[edge] * key_n + rows[edge])  # (track, feature) on an outline in a view
+        # (track, feature) on an outline in a view
+        edge_keys = np.unique(g[edge] * key_n + rows[edge]) if avoid_ls else None
         _, first = np.unique(g * key_n + rows, return_index=True)
         first = first[eligible[g[first]]]
         if len(first) == 0:
@@ -1702,7 +1708,12 @@ class ObstacleFusion:
         point = None
         if s.feature_point:  # the lower-median inner feature's own point and sigma
             # (of the inner ones off the track's outline, when it has two or more: _outline_flags)
-            cand = inner & ~np.isin(g * key_n + rows, edge_keys) if avoid_ls else inner.copy()
+            if avoid_ls and len(edge_keys):  # (np.isin's answer: a search in the sorted unique keys)
+                key = g * key_n + rows
+                at = np.minimum(np.searchsorted(edge_keys, key), len(edge_keys) - 1)
+                cand = inner & (edge_keys[at] != key)
+            else:
+                cand = inner.copy()
             cand |= inner & (np.bincount(g[cand], minlength=G) < 2)[g]
             gc, rc, sc = g[cand], r[cand], sig_r[cand]
             sel = _group_lower_median_index(gc, rc, np.bincount(gc, minlength=G), s.feature_point_quantile)
@@ -2242,7 +2253,7 @@ class ObstacleFusion:
             tr.history.append(sg)           # assumed max speed
             tr.last_seen_t = sg.t_s
             tr.last_views = sg.views
-            tr.cameras = tuple(v.camera for v in sg.views)
+            tr.cameras = (sg.views[0].camera,) if len(sg.views) == 1 else tuple([v.camera for v in sg.views])
 
     # ---------------------------------------------------------------------------------- filter
     def _new_kf(self, p_W: np.ndarray, P_pp: np.ndarray, v_sigma: float) -> ExtendedKalmanFilter:
@@ -2894,8 +2905,14 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     Returns True, or False (the filter untouched) when S is exactly singular (no inverse: filterpy
     raised there; degenerate settings such as a zero bearing sigma on a zero-variance state)."""
     P = kf.P
-    PHT = P @ H.T
-    S = H @ PHT + R
+    if H is _H_POS or H is _H_VEL:  # H = [I 0] / [0 I]: P H^T and H P H^T are P's columns and block
+        # (the same values: every product but one per entry is an exact 0)
+        c = slice(0, 3) if H is _H_POS else slice(3, 6)
+        PHT = P[:, c]
+        S = PHT[c] + R
+    else:
+        PHT = P @ H.T
+        S = H @ PHT + R
     SI = _inv_small(S)
     if SI is None:
         return False
@@ -2904,7 +2921,11 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     kf.K = K = PHT @ SI
     kf.y = y
     kf.x = kf.x + K @ y
-    I_KH = _EYE6 - K @ H
+    if H is _H_POS or H is _H_VEL:  # K H = [K 0] / [0 K]
+        I_KH = _EYE6.copy()
+        I_KH[:, c] -= K
+    else:
+        I_KH = _EYE6 - K @ H
     kf.P = (I_KH @ P) @ I_KH.T + (K @ R) @ K.T
     return True
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 
-from estimators.fusion import _ekf_predict, _ekf_update
+from estimators.fusion import _H_POS, _H_VEL, _ekf_predict, _ekf_update
 
 
 def _spd(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
@@ -49,6 +49,27 @@ def test_predict_and_update_are_filterpys_to_rounding(dim_z):
         zero = np.zeros(dim_z)
         ref.update(y, HJacobian=lambda _x, H=H: H, Hx=lambda _x, zero=zero: zero, R=R)
         _ekf_update(ours, y, H, R)
+        for name in ("x", "P", "y", "S", "SI", "K"):
+            a, b = np.asarray(getattr(ours, name)), np.asarray(getattr(ref, name))
+            assert a.shape == b.shape, name
+            np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12 * float(np.abs(b).max()), err_msg=name)
+
+
+@pytest.mark.parametrize("block", ["position", "velocity"])
+def test_point_and_velocity_updates_are_filterpys_to_rounding(block):
+    """The stereo point and feature-velocity updates pass the shared selection matrices H = [I 0] /
+    [0 I] (``_H_POS`` / ``_H_VEL``), for which ``_ekf_update`` takes P's columns and block instead of
+    the products with H: filterpy's update with the same H is the reference."""
+    H = _H_POS if block == "position" else _H_VEL
+    rng = np.random.default_rng(5 if block == "position" else 6)
+    for _ in range(50):
+        ref = _filter(rng)
+        ours = copy.deepcopy(ref)
+        R = _spd(rng, 3, 0.05)
+        y = rng.normal(size=3)
+        zero = np.zeros(3)
+        ref.update(y, HJacobian=lambda _x: np.array(H), Hx=lambda _x, zero=zero: zero, R=R)
+        assert _ekf_update(ours, y, H, R)
         for name in ("x", "P", "y", "S", "SI", "K"):
             a, b = np.asarray(getattr(ours, name)), np.asarray(getattr(ref, name))
             assert a.shape == b.shape, name
