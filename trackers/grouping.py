@@ -138,6 +138,16 @@ def _well_conditioned(A: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     return ok, Ai
 
 
+def _found_again(fids: np.ndarray, prev: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+    """A candidate part (feature ids fids (K,)) found in a track this frame (steps 3c and 3f): its
+    sorted ids and the frames in a row it has been found, ``n + 1`` when it has at least half of its
+    features (or of the last candidate's) in common with the last frame's candidate (sorted ids prev
+    (P,)), else 1."""
+    mids = np.sort(fids)
+    common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
+    return mids, (n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1)
+
+
 def _tangent_basis(rep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal tangent vectors (e1, e2), each (T, 3), at unit bearings rep (T, 3): e1 = ref x rep
     normalised (ref the z axis, or x near it), e2 = rep x e1."""
@@ -934,11 +944,7 @@ class ObstacleGrouper:
                 move = rows[ia]
                 found[t] = True
                 tr = tracks[t]
-                mids = np.sort(ids[move])
-                prev = tr.split_ids
-                common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
-                tr.split_n = tr.split_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
-                tr.split_ids = mids
+                tr.split_ids, tr.split_n = _found_again(ids[move], tr.split_ids, tr.split_n)
                 if tr.split_n >= self.split_persist:
                     tr.split_n, tr.split_ids = 0, np.zeros(0, np.int64)
                     out_rows.append(move)
@@ -953,11 +959,7 @@ class ObstacleGrouper:
                 if tr.plane_n or len(tr.plane_ids):  # (else it is reset already)
                     tr.plane_n, tr.plane_ids = 0, np.zeros(0, np.int64)
                 continue
-            mids = np.sort(ft.ids[move])
-            prev = tr.plane_ids
-            common = np.intersect1d(mids, prev, assume_unique=True).size if len(prev) else 0
-            tr.plane_n = tr.plane_n + 1 if 2 * common >= min(len(mids), len(prev)) > 0 else 1
-            tr.plane_ids = mids
+            tr.plane_ids, tr.plane_n = _found_again(ft.ids[move], tr.plane_ids, tr.plane_n)
             tr.plane_seen = self._frame
             # (refused by the other camera: the count goes on, the split waits for its support)
             if tr.plane_n >= self.split_persist and (self.plane_confirm is None or self.plane_confirm(tr)):

@@ -10,7 +10,7 @@ import pytest
 from estimators.errors import ConfigError
 from tests.trackers.conftest import rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
-from trackers.grouping import ObstacleGrouper
+from trackers.grouping import ObstacleGrouper, _found_again
 
 FPS = 30.0
 # frame to frame, flows agree within flow_abs + flow_rel |f| = 0.1 + 0.2 |f| rad/s, so the moving
@@ -112,3 +112,14 @@ def test_bad_split_settings_are_config_errors(bad):
     (key, value), = bad.items()
     with pytest.raises(ConfigError, match=key):
         ObstacleGrouper(iter(range(1, 10)), **bad)
+
+
+def test_found_again_counts_a_candidate_found_with_half_its_features_in_common():
+    ids, n = _found_again(np.array([9, 3, 5, 7]), np.zeros(0, np.int64), 0)  # first time: 1
+    assert ids.tolist() == [3, 5, 7, 9] and n == 1
+    ids, n = _found_again(np.array([7, 9, 11, 13]), ids, n)  # 2 of 4 in common (half): 2
+    assert ids.tolist() == [7, 9, 11, 13] and n == 2
+    ids, n = _found_again(np.array([13, 20, 21]), ids, n)  # 1 of min(3, 4) = 3 in common: restart
+    assert ids.tolist() == [13, 20, 21] and n == 1
+    ids, n = _found_again(np.array([20]), ids, 4)  # all of the smaller one in common: 5
+    assert n == 5
