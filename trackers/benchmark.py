@@ -409,7 +409,8 @@ def run_benchmark(
     Returns a dict: frames, fps (decode + front end), fps_frontend, their CPU-time versions, ms per
     stage, coverage per obstacle (and overall), id switches per obstacle and per obstacle-minute,
     distinct track ids seen on each obstacle, reported tracks on no obstacle per frame (the ground,
-    false groups: ``off_obstacle_tracks_per_frame``), tracks the groupers split by motion
+    false groups: ``off_obstacle_tracks_per_frame``; of them confirmed:
+    ``off_obstacle_confirmed_per_frame``), tracks the groupers split by motion
     (``track_splits``, step 3c) (``switch_log``: frame, obstacle, old and new id, why the old one no
     longer counts), rim features.
     ``use_poses``: pass the scene's true ``T_W_B`` per frame (when ``gt.jsonl`` has it) to the
@@ -442,6 +443,8 @@ def run_benchmark(
     rim_feats, rim_old = 0, 0
     n_obs = 0
     n_off = n_gt = 0  # tracks on no obstacle, frames with ground truth
+    n_off_conf = 0  # ... of them confirmed
+    confirmed_ids: set[int] = set()  # this frame's confirmed track ids
     posed = False  # some frame was given its pose
     for f in frames:
         c0 = time.process_time()
@@ -482,10 +485,13 @@ def run_benchmark(
         # which obstacle is each reported track on?
         on: dict[int, set[int]] = {}
         alive_on: dict[int, set[int]] = {}  # every live track id -> the obstacles its views are on
+        confirmed_ids.clear()
         for o in obs:
             if o.status == "lost":
                 continue
             alive_on.setdefault(o.track_id, set())
+            if o.status == "confirmed":
+                confirmed_ids.add(o.track_id)
             for v in o.views:
                 oW = T_W_B.apply(c_B[v.camera])
                 dW = T_W_B.rotate(R_B_C[v.camera] @ v.b_C)
@@ -500,6 +506,7 @@ def run_benchmark(
                     alive_on[o.track_id].add(best)
         # reported tracks none of whose views is on an obstacle (the ground, a false group)
         n_off += sum(1 for obst in alive_on.values() if not obst)
+        n_off_conf += sum(1 for tid, obst in alive_on.items() if not obst and tid in confirmed_ids)
         n_gt += 1
         if ex is not None:
             ex.reported(f, alive_on)
@@ -579,6 +586,7 @@ def run_benchmark(
         "switch_log": switch_log,
         "observations_per_frame": n_obs / nf,
         "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
+        "off_obstacle_confirmed_per_frame": n_off_conf / max(n_gt, 1),
         "track_splits": sum(getattr(g, "splits", 0) for g in fe.groupers.values()),
         "rim_features_per_frame": rim_feats / nf,
         "rim_features_age10_per_frame": rim_old / nf,
