@@ -656,20 +656,6 @@ class _FeatureRays:
             a[:m] = a[: self.size][keep]
         self.size = m
 
-    def residual2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Mean squared perpendicular miss (m^2) of each feature's rays from its point p (K, 3):
-        (p^T A p - 2 p^T y + cc) / n."""
-        S = self.S[rows]
-        return _residual2(S, p, _pAp(S, p))
-
-    def depth2(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Mean squared depth (m^2) of each feature's point p (K, 3) along its own rays, with the
-        rays' (forgetting) weights w_i: sum_i w_i (b_i . (p - c_i))^2 / sum_i w_i, from the running
-        sums as (p^T B p - 2 p . e + f) / n with B = sum_i w_i b_i b_i^T = n I - A,
-        e = sum_i w_i b_i (b_i . c_i) and f = sum_i w_i (b_i . c_i)^2."""
-        S = self.S[rows]
-        return _depth2(S, p, _pAp(S, p))
-
 
 def _pAp(S: np.ndarray, p: np.ndarray) -> np.ndarray:
     """p^T A p (K,) of points p (K, 3) with the A of the feature store's sum rows S (K, 18)."""
@@ -677,13 +663,17 @@ def _pAp(S: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def _residual2(S: np.ndarray, p: np.ndarray, pAp: np.ndarray) -> np.ndarray:
-    """``_FeatureRays.residual2`` from the sum rows S (K, 18) and p^T A p (K,)."""
+    """Mean squared perpendicular miss (m^2) of each feature's rays from its point p (K, 3), from
+    its ``_FeatureRays`` sum rows S (K, 18) and p^T A p (K,): (p^T A p - 2 p^T y + cc) / n."""
     cost = pAp - 2.0 * np.sum(p * S[:, 9:12], axis=1) + S[:, 15]
     return np.maximum(cost, 0.0) / np.maximum(S[:, 17], 1.0)
 
 
 def _depth2(S: np.ndarray, p: np.ndarray, pAp: np.ndarray) -> np.ndarray:
-    """``_FeatureRays.depth2`` from the sum rows S (K, 18) and p^T A p (K,)."""
+    """Mean squared depth (m^2) of each feature's point p (K, 3) along its own rays, with the rays'
+    (forgetting) weights w_i: sum_i w_i (b_i . (p - c_i))^2 / sum_i w_i, from its ``_FeatureRays``
+    sum rows S (K, 18) and p^T A p (K,) as (p^T B p - 2 p . e + f) / n with B = sum_i w_i b_i b_i^T
+    = n I - A, e = sum_i w_i b_i (b_i . c_i) and f = sum_i w_i (b_i . c_i)^2."""
     n = S[:, 17]
     s = n * np.sum(p * p, axis=1) - pAp - 2.0 * np.sum(p * S[:, 12:15], axis=1) + S[:, 16]
     return np.maximum(s, 0.0) / np.maximum(n, 1e-12)
@@ -1404,6 +1394,8 @@ class ObstacleFusion:
             d2 = (c[0] - x) ** 2 + (c[1] - y) ** 2 + (c[2] - z) ** 2
             if d2 > best_b2:
                 best, best_b2 = h, d2
+        if best is None:  # (every baseline NaN: non-finite camera centres)
+            return "no earlier sighting with a finite baseline"
         va = best.views[0]
         cos_par = float(va.b_W @ vb.b_W)  # cheap pre-check of the parallax before triangulating
         if cos_par > math.cos(self.settings.min_parallax_rad) and best_b2 > 1e-18:
@@ -1515,7 +1507,7 @@ class ObstacleFusion:
         sigma is at most mono_init_max_rel_sigma. That sigma is first order in the normal equations:
         each ray i misses p_f by ~ sigma_f d_i (d_i its own depth), so Cov(p_f) ~ sigma_f^2 D2 A_f^-1 and
             sigma_r,f = sigma_f sqrt(D2) sqrt(u^T A_f^-1 u),   u = (p_f - o) / |p_f - o|
-        (D2 = mean_i d_i^2, ``_FeatureRays.depth2``: flown at, the older rays are the farther ones)
+        (D2 = mean_i d_i^2, ``_depth2``: flown at, the older rays are the farther ones)
         (two rays at parallax theta: sqrt(2) sigma_f d / (2 sin(theta / 2)) ~ sqrt(2) sigma_f d / theta).
         With >= feature_min_count of them and the features fitting static points (median chi):
             z = median_f |p_f - o_W|  (over the half angularly nearest the representative ray),
@@ -1611,9 +1603,9 @@ class ObstacleFusion:
         # each ray i misses p_f by ~ sigma_f d_i (d_i its own depth, not the current one: flying at
         # an obstacle, the rays of the last 0.5 s were taken from up to twice as far; 15 m/s at
         # 6 m, mean d_i^2 ~ 5 d_now^2), so Cov(p_f) ~ sigma_f^2 mean_i(d_i^2) A_f^-1 (the d_i^2
-        # weighted alike; ``_FeatureRays.depth2``)
+        # weighted alike; ``_depth2``)
         pAp = _pAp(Sr, p)
-        d2 = _depth2(Sr, p, pAp)  # (fs.depth2)
+        d2 = _depth2(Sr, p, pAp)
         sig_r = s.feature_sigma_rad * np.sqrt(d2) * np.sqrt(
             np.maximum(np.einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
@@ -1643,7 +1635,7 @@ class ObstacleFusion:
         # point and their range would be wrong. (Normalised by the current depth instead, a clean
         # track flown at, thesis_speed_15mps at 15 m/s, had median chi 6-10 and failed the test at
         # 40-50 deg of parallax: 6 of its 126 mono obstacle-frames uncovered.)
-        res2 = _residual2(Sr, p, pAp)  # (fs.residual2)
+        res2 = _residual2(Sr, p, pAp)
         chi = res2 / (2.0 * s.feature_sigma_rad ** 2 * np.maximum(d2, 1e-12))
         # the per-feature cut (feature_max_chi) keeps the statistic it was chosen with, the miss
         # over the current depth: stricter for a feature whose older rays were taken from afar

@@ -9,7 +9,7 @@ import pytest
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
-from estimators.fusion import FusionSettings, ObstacleFusion, _inv_small, _Track, _View
+from estimators.fusion import FusionSettings, ObstacleFusion, _inv_small, _Sighting, _Track, _View
 from estimators.rig import stereo_forward_rig
 
 
@@ -56,3 +56,17 @@ def test_inv_small_of_a_singular_matrix_is_none_and_of_a_regular_one_the_inverse
         S[0, -1] = S[-1, 0] = 0.5
         assert _inv_small(np.ones((k, k))) is None  # a singular non-zero one: equal rows
     np.testing.assert_allclose(_inv_small(S) @ S, np.eye(k), atol=1e-15)
+
+
+def test_mono_init_pair_with_non_finite_camera_centres_is_a_reason_not_an_error():
+    """Every baseline NaN (camera centres not finite): no earlier sighting is the longest baseline,
+    and the initialisation answers with a reason (before: AttributeError on None)."""
+    model = Equidistant(fx=200.0, fy=200.0, cx=319.5, cy=179.5, width=640, height=360)
+    fus = ObstacleFusion(stereo_forward_rig(model, 0.30), ConstantVelocity(3.0), FusionSettings())
+    nan = np.full(3, np.nan)
+    view = _View("cam0", nan, np.array([0.0, 0.0, 1.0]), 1e-3)
+    past = _Sighting(0.0, 0, nan, (view,))
+    now = _Sighting(0.1, 1, nan, (view,))
+    tr = _Track(1, "orb")
+    tr.history.append(past)
+    assert fus._mono_init_pair(tr, now) == "no earlier sighting with a finite baseline"

@@ -1,6 +1,7 @@
 """The member features' noise model: each ray misses its feature's point by sigma_f times its OWN
-depth (``_FeatureRays.depth2``), not the current one. Expected values from the definitions written
-here (depths b_i . (p - c_i) summed by hand) and from a flight whose geometry is set by hand."""
+depth (``_depth2`` of the feature store's sums), not the current one. Expected values from the
+definitions written here (depths b_i . (p - c_i) summed by hand) and from a flight whose geometry
+is set by hand."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
-from estimators.fusion import FusionSettings, ObstacleFusion, _FeatureRays
+from estimators.fusion import FusionSettings, ObstacleFusion, _depth2, _FeatureRays, _pAp
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import mono_forward_rig
 
@@ -39,7 +40,8 @@ def test_depth2_is_the_weighted_mean_squared_depth_of_the_rays(memory_s):
     d = np.array([bi @ (p - ci) for bi, ci in zip(b, c, strict=True)])  # each ray's own depth
     w = np.exp(-(t[-1] - t) / memory_s) if memory_s > 0 else np.ones(3)  # forgetting weights
     expected = float(np.sum(w * d * d) / np.sum(w))
-    assert fs.depth2(rows, p[None])[0] == pytest.approx(expected, rel=1e-9)
+    S = fs.S[rows]
+    assert _depth2(S, p[None], _pAp(S, p[None]))[0] == pytest.approx(expected, rel=1e-9)
 
 
 def test_a_static_cluster_flown_at_fast_is_ranged_at_large_parallax():
