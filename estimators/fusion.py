@@ -1151,29 +1151,26 @@ class ObstacleFusion:
         order = np.argsort(ids, kind="stable")
         self._prev_members = (ids[order], owner[order])
         if s.member_reset_frac >= 1.0 or prev is None or not len(prev[0]):
-            off = np.cumsum(n) - n
-            for k, (tr, _sg, _st) in enumerate(work):
-                tr.n_members, tr.t_members = int(n[k]), t_s
-                tr.member_ids = ids[off[k]:off[k] + int(n[k])]
+            off = (np.cumsum(n) - n).tolist()
+            for (tr, _sg, _st), nk, o in zip(work, n.tolist(), off, strict=True):
+                tr.n_members, tr.t_members = nk, t_s
+                tr.member_ids = ids[o:o + nk]
             return
         pid, ptr = prev
         j = np.minimum(np.searchsorted(pid, ids), len(pid) - 1)
         new = ~((pid[j] == ids) & (ptr[j] == owner))  # not this track's member last frame
         n_new = np.bincount(g, weights=new, minlength=G)
         m = 2  # fewest member rays now and then (one ray's share is 0 or 1)
-        off = np.cumsum(n) - n  # (feats are grouped track by track, in work's order)
-        for k, (tr, _sg, _st) in enumerate(work):
-            nk = int(n[k])
+        off = (np.cumsum(n) - n).tolist()  # (feats are grouped track by track, in work's order)
+        frac = s.member_reset_frac
+        for (tr, _sg, _st), nk, o, nn in zip(work, n.tolist(), off, n_new.tolist(), strict=True):
             if nk >= m and tr.n_members >= m and (tr.kf is not None or tr.history):
-                if tr.t_members == t_prev:
-                    nn = float(n_new[k])
-                else:  # not seen in the previous frame: against its last member set
-                    cur = ids[off[k]:off[k] + nk]
-                    nn = float(nk - np.count_nonzero(np.isin(cur, tr.member_ids)))
-                if nn > s.member_reset_frac * nk:
+                if tr.t_members != t_prev:  # not seen in the previous frame: against its last member set
+                    nn = float(nk - np.count_nonzero(np.isin(ids[o:o + nk], tr.member_ids)))
+                if nn > frac * nk:
                     self._restart(tr, "member features replaced: filter restarted")
             tr.n_members, tr.t_members = nk, t_s
-            tr.member_ids = ids[off[k]:off[k] + nk]
+            tr.member_ids = ids[o:o + nk]
 
     @staticmethod
     def _restart(tr: _Track, reason: str) -> None:
@@ -2551,8 +2548,10 @@ class ObstacleFusion:
             rng_l = rng.tolist()
             for j, (k, tr) in enumerate(zip(with_kf, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
-                kw.update(bearing_body=b_B[j], range_m=rng_l[j], range_sigma_m=sig[j],
-                          position_body_m=p_B[j])
+                kw["bearing_body"] = b_B[j]  # (item stores: the order kw.update(...) gave)
+                kw["range_m"] = rng_l[j]
+                kw["range_sigma_m"] = sig[j]
+                kw["position_body_m"] = p_B[j]
                 # one velocity per report: the reported one, else the velocity the filter assumes
                 # (a static-hypothesis track's 0, an assumed velocity's prior: the hypothesis its
                 # range rests on); a moving track whose measured velocity is too uncertain to
