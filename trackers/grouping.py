@@ -446,13 +446,14 @@ class ObstacleGrouper:
             owner[r[far]] = -1
         sel = np.flatnonzero((owner >= 0) & fvalid)  # members with a flow
         o, f_sel, fn_sel = owner[sel], flow[sel], fnorm[sel]
+        tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
-            tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
             if len(sel):
                 good = self._agree(f_sel, fn_sel, tflow[o], loose, _vnorm(tflow)[o]) | ~has_flow[o]
-                owner[sel[~good]] = -1
-                sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
-        tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
+                if not good.all():  # (else the mean over the same members is the same)
+                    owner[sel[~good]] = -1
+                    sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
+                    tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         # 2. unassigned features with a flow join the track of their nearest member (features
         # marked as extended texture too: they start no new group, but may move with a track)
         free = np.flatnonzero((owner < 0) & fvalid)
