@@ -25,6 +25,7 @@ from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion, _Track
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import stereo_forward_rig
+from tests.estimators.fusion_helpers import noisy_bearing
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
 FPS = 30.0
@@ -36,14 +37,6 @@ V_DRONE = 2.0
 T_SWAP = 1.0
 
 
-def _bearing(cam, T_W_B, p_W, sigma, rng):
-    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-    b = p_C / np.linalg.norm(p_C)
-    e = rng.normal(scale=sigma, size=3)
-    b = b + e - (e @ b) * b
-    return b / np.linalg.norm(b)
-
-
 def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4):
     """[(t, report, true range from the body origin)] per frame of the scene above."""
     rng = np.random.default_rng(seed)
@@ -51,6 +44,7 @@ def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4):
     ego = ConstantVelocity(V_DRONE)
     fus = ObstacleFusion(rig, ego, settings)
     sig = settings.feature_point_sigma_k * settings.feature_sigma_rad
+    bearing = noisy_bearing(rng, sig)
     out = []
     for k in range(int(round(T_s * FPS)) + 1):
         t = k / FPS
@@ -61,8 +55,8 @@ def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4):
         cams = [rig["cam1"]] if swapped else list(rig)
         ids = np.arange(len(pts)) + (100 if swapped else 0)
         views = tuple(
-            CameraView(c.name, _bearing(c, T_W_B, centre, sig, rng), [0, 0], sig, feature_ids=ids,
-                       feature_b_C=np.array([_bearing(c, T_W_B, q, sig, rng) for q in pts]))
+            CameraView(c.name, bearing(c, T_W_B, centre), [0, 0], sig, feature_ids=ids,
+                       feature_b_C=np.array([bearing(c, T_W_B, q) for q in pts]))
             for c in cams)
         (r,) = fus.step([ObstacleObservation(7, "obstacle", t, "confirmed", views)], k, t)
         out.append((t, r, float(np.linalg.norm(centre - T_W_B.t)), fus))
