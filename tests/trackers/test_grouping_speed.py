@@ -70,3 +70,29 @@ def test_well_conditioned_agrees_with_the_eigenvalue_rule():
     S = np.array([np.eye(8), np.diag([1.0] * 7 + [0.0])])
     ok, Ai = _well_conditioned(S)
     assert ok.tolist() == [True, False] and Ai is None
+
+
+@pytest.mark.parametrize("cond", [1e8, 8e9, 1.2e10, 3e10])
+def test_well_conditioned_near_the_threshold(cond):
+    """Condition numbers on both sides of 1e10 (an 8 x 8 rotated diag(1, ..., 1, 1 / cond)): 1e8 passes
+    by the Frobenius bound, 8e9 only by the eigenvalues, 1.2e10 and 3e10 fail though their bound
+    |A|_F |A^-1|_F ~ 2.65 cond is below 1e11 (a shortcut bound above 1e10 would pass them)."""
+    Q, _ = np.linalg.qr(np.random.default_rng(4).normal(size=(8, 8)))
+    A = (Q * np.r_[np.ones(7), 1.0 / cond]) @ Q.T
+    A = 0.5 * (A + A.T)[None]
+    ok, Ai = _well_conditioned(A)
+    assert ok.tolist() == [cond < 1e10]
+    assert Ai is not None and np.array_equal(Ai, np.linalg.inv(A))
+
+
+def test_vnorm_and_normalise_sum_in_numpys_order():
+    """Components of one magnitude, where the order of the sum of squares shows in the last bit of
+    some norms (x^2 + z^2 + y^2 differs from numpy's x^2 + y^2 + z^2 in ~12 % of these draws)."""
+    rng = np.random.default_rng(7)
+    V = rng.uniform(0.5, 2.0, size=(2000, 3))
+    assert np.array_equal(_vnorm(V), _ref_norm(V))
+    assert np.array_equal(_normalise(V), _ref_normalise(V))
+    for v in V[:300]:  # the one-vector path (Python floats)
+        assert np.array_equal(_normalise(v), _ref_normalise(v))
+    W = rng.uniform(0.5, 2.0, size=(2000, 2))
+    assert np.array_equal(_vnorm(W), _ref_norm(W))
