@@ -117,9 +117,11 @@ def _bincount3(keys: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
 
 
 def _well_conditioned(A: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """Which symmetric matrices A (K, n, n) have a condition number below 1e10 (their eigenvalues'
-    largest over smallest magnitude, ``np.linalg.eigvalsh``'s), and their inverses (K, n, n)
-    (``np.linalg.inv``'s; None when one is exactly singular).
+    """Which symmetric matrices A (K, n, n) have a condition number below 1e10, and their inverses
+    (K, n, n) (``np.linalg.inv``'s; None when one is exactly singular). The rule is step 3f's:
+    |last| < 1e10 |first| of ``np.linalg.eigvalsh``'s ascending eigenvalues, i.e. the largest over
+    the smallest eigenvalue for a positive semi-definite A such as step 3f's N_R (for an indefinite
+    A, the magnitudes of its two extreme eigenvalues, which the bound below also covers).
 
     ``cond <= |A|_F |A^-1|_F``, so where that bound is below 1e9 the test passes without the
     eigenvalues (an eighth of the cost on step 3f's 8x8 matrices); the others are decided by them."""
