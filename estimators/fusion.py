@@ -226,6 +226,18 @@ class FusionSettings:
             z^2 > 9 5.02 -> 4.88 %, stereo <= 3 m 1.409 -> 1.400 %, moving stereo-rig p90 19.96 ->
             18.91 %; validation NEES 1.977 -> 1.977, stereo <= 8 m 1.0144 -> 1.0148 %; tuned and
             held-out unchanged).
+        stereo_jump_check: a shared feature whose two-ray stereo point moved since its last one
+            by more than the obstacle's motion (velocity prior) and both points' noise allow
+            (``_stereo_jumps``) is not used that frame (its two cameras' rays are on two physical
+            points: a stereo-KLT match on another period of a repeated texture, or sliding along
+            an edge). Default True (val2_heldout_stereo_flying track 145: a stereo fix from two such
+            features put a just-restarted track at 1.35 m on 3.48 m, z^2 1536; accuracy --set all
+            replayed over one recording, with restart_keeps_motion: validation range NEES 1.977 ->
+            1.845, z^2 > 9 3.38 -> 3.34 %, speed 0.514 -> 0.499 %, moving stereo-rig p90 7.33 ->
+            6.57 %; worse: validation stereo <= 3 m 0.909 -> 0.918 %, <= 8 m 1.015 -> 1.018 %,
+            1-sigma 74.01 -> 73.95 %, 13 fewer ranged reports; tuned, held-out and demo unchanged.
+            Of the points it refuses, most are not cross-camera mismatches by the renderer's truth:
+            it is a coarse test).
         feature_max_chi: with feature_point, the largest chi of one feature, its rays' mean squared
             miss over 2 (sigma_f d)^2 with d its CURRENT depth (the statistic it was chosen with;
             the static-point test above uses each ray's own depth instead) (a stereo id mismatch
@@ -381,6 +393,7 @@ class FusionSettings:
     feature_static_chi: float = 9.0
     feature_static_behind: bool = True
     restart_keeps_motion: bool = True
+    stereo_jump_check: bool = True
     feature_point: bool = True
     feature_max_chi: float = 36.0
     moving_mono_max_s: float = 0.3
@@ -925,6 +938,7 @@ class ObstacleFusion:
         self._features = _FeatureRays()
         self._gidx: dict[int, int] = {}
         self._members_ls = self._members_st = None
+        self._st_last: tuple | None = None  # shared features' last two-ray points (_stereo_jumps)
         self._speed_cache: dict[float, float] = {}
         self._FQ_cache: dict[tuple[float, bool], tuple[np.ndarray, np.ndarray]] = {}
         self._prev_members: tuple[np.ndarray, np.ndarray] | None = None  # (ids sorted, track ids)
@@ -1890,6 +1904,10 @@ class ObstacleFusion:
         sr = math.sqrt(2.0) * s.feature_sigma_rad * depth / np.sqrt(den)
         ok = (good & (dep_a > 0) & (dep_b > 0) & (sr <= s.stereo_max_rel_sigma * r)
               & (miss <= 4.0 * math.sqrt(2.0) * s.feature_sigma_rad * depth))
+        if s.stereo_jump_check and ok.any():
+            okk = np.flatnonzero(ok)
+            ok[okk[self._stereo_jumps(ids[ia][okk], 0.5 * (q_a[okk] + q_b[okk]), sr[okk],
+                                      work[0][1].t_s)]] = False
         if not ok.any():
             return
         G = len(work)
@@ -1970,6 +1988,54 @@ class ObstacleFusion:
             zk = float(z[k])
             work[k][0].feature_stereo = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
             work[k][0].struct_sigma_m = float(struct[k])
+
+    def _stereo_jumps(self, fid: np.ndarray, p_W: np.ndarray, sr: np.ndarray, t_s: float) -> np.ndarray:
+        """Which shared features' two-ray points jumped since their last one: (K,) bool for the
+        features fid (K,) with this frame's two-ray points p_W (K, 3) m in W and first-order range
+        sigmas sr (K,) m at t_s.
+
+        One id is one physical point, so its two-ray point moves only with the obstacle: between
+        its last accepted point p' (sigma s', time t') and this one, at most by the obstacle's
+        motion, zero-mean with the velocity prior's sigma v (``_velocity_prior_sigma``: the max
+        speed, or the drone's, at least 1 m/s) per axis, plus both points' noise in the reports'
+        units (k = feature_point_sigma_k):
+            |p - p'|^2 > chi2_3(gate_probability) (k^2 (sr^2 + s'^2) + (v (t_s - t'))^2)
+        is a jump: one camera's ray of the id is on another physical point now, or was then (a
+        stereo-KLT match on another period of a repeated texture, or sliding along an edge). Such
+        a point is not used this frame; it is the id's last point for the next frame all the same
+        (which of the two was wrong is not known: a lasting change is refused once, not for as
+        long as the old point is remembered). (val2_heldout_stereo_flying track 145 at 2.667 s:
+        both shared features' points 1.35-1.47 m, one and four frames after 3.6-3.9 m, the obstacle
+        at 3.48 m: a stereo fix that put the track at 1.35 m, z^2 1536, then carried.) An id
+        without a last point (new, or not seen for lost_after_s) is accepted."""
+        s = self.settings
+        K = len(fid)
+        bad = np.zeros(K, dtype=bool)
+        last = self._st_last
+        if last is not None and len(last[0]):
+            hid, hp, hs, ht = last
+            j = np.minimum(np.searchsorted(hid, fid), len(hid) - 1)
+            m = hid[j] == fid
+            if m.any():
+                jm = j[m]
+                v = self._velocity_prior_sigma(t_s) * np.maximum(t_s - ht[jm], 0.0)
+                dp = p_W[m] - hp[jm]
+                var = s.feature_point_sigma_k ** 2 * (sr[m] ** 2 + hs[jm] ** 2) + v * v
+                bad[np.flatnonzero(m)[_dot_rows(dp, dp) > self._gate3 * var]] = True
+        # this frame's points (accepted or not) become their ids' last ones; ids unseen for
+        # lost_after_s are dropped
+        nid, sel = np.unique(fid, return_index=True)
+        if last is not None and len(last[0]):
+            hid, hp, hs, ht = last
+            old = (t_s - ht <= s.lost_after_s) & ~np.isin(hid, nid)
+            nid = np.concatenate([hid[old], nid])
+            order = np.argsort(nid, kind="stable")
+            self._st_last = (nid[order], np.concatenate([hp[old], p_W[sel]])[order],
+                             np.concatenate([hs[old], sr[sel]])[order],
+                             np.concatenate([ht[old], np.full(len(sel), t_s)])[order])
+        else:
+            self._st_last = (nid, p_W[sel].copy(), sr[sel].copy(), np.full(len(sel), t_s))
+        return bad
 
     def _feature_velocity(self, work, gg: np.ndarray, fid: np.ndarray, p_mid: np.ndarray,
                           sr: np.ndarray, st: np.ndarray, u: np.ndarray) -> None:
