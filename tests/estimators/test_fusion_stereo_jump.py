@@ -25,6 +25,7 @@ from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import stereo_forward_rig
+from tests.estimators.fusion_helpers import noisy_bearing
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
 FPS = 30.0
@@ -35,14 +36,6 @@ PERIOD = np.array([0.0, 0.30, 0.0])
 K_NEW = 15
 
 
-def _bearing(cam, T_W_B, p_W, sigma, rng):
-    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-    b = p_C / np.linalg.norm(p_C)
-    e = rng.normal(scale=sigma, size=3)
-    b = b + e - (e @ b) * b
-    return b / np.linalg.norm(b)
-
-
 def _run(settings: FusionSettings, T_s: float = 0.8, seed: int = 5):
     """[(frame, t, report)] per frame; the true range of the centre is |CENTRE| (hovering at the origin)."""
     rng = np.random.default_rng(seed)
@@ -50,6 +43,7 @@ def _run(settings: FusionSettings, T_s: float = 0.8, seed: int = 5):
     ego = ConstantVelocity(0.0)
     fus = ObstacleFusion(rig, ego, settings)
     sig = settings.feature_point_sigma_k * settings.feature_sigma_rad
+    bearing = noisy_bearing(rng, sig)
     pts = CENTRE + OFFSETS
     other = CENTRE + OFFSETS[:, [0, 2, 1]]  # (corners 10-15: other points of the same cluster)
     out = []
@@ -63,9 +57,9 @@ def _run(settings: FusionSettings, T_s: float = 0.8, seed: int = 5):
                 seen, ids = other, np.arange(len(pts)) + 10
             elif k == K_NEW + 1 and c.name == "cam1":
                 seen = pts + PERIOD
-            views.append(CameraView(c.name, _bearing(c, T_W_B, seen.mean(axis=0), sig, rng), [0, 0], sig,
+            views.append(CameraView(c.name, bearing(c, T_W_B, seen.mean(axis=0)), [0, 0], sig,
                                     feature_ids=ids,
-                                    feature_b_C=np.array([_bearing(c, T_W_B, q, sig, rng) for q in seen])))
+                                    feature_b_C=np.array([bearing(c, T_W_B, q) for q in seen])))
         (r,) = fus.step([ObstacleObservation(3, "obstacle", t, "confirmed", tuple(views))], k, t)
         out.append((k, t, r))
     return out
