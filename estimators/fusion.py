@@ -1242,8 +1242,8 @@ class ObstacleFusion:
         P = P0 + _EYE3 * (s.max_accel_mps2**2 * s.accel_time_s * max(t_s - t_e, 0.0))
         try:
             chi = float(v @ np.linalg.solve(P, v))
-        except np.linalg.LinAlgError:  # (singular: a zero prior and no process noise)
-            chi = float(v @ np.linalg.pinv(P) @ v)
+        except np.linalg.LinAlgError:  # singular (a zero prior and no process noise):
+            chi = float(v @ np.linalg.pinv(P) @ v)  # the chi over what is measured
         return P, chi > self._gate3
 
     @staticmethod
@@ -2269,14 +2269,7 @@ class ObstacleFusion:
         monocular ambiguity), so such a track is not ranged from static points."""
         if not tr.moving or tr.kf is None:
             return False
-        s = self.settings
-        q = s.max_accel_mps2**2 * s.accel_time_s
-        v = tr.kf.x[3:]
-        P = tr.kf.P[3:, 3:] + _EYE3 * (q * max(t_s - tr.t_kf, 0.0))
-        try:
-            return float(v @ np.linalg.solve(P, v)) > self._gate3
-        except np.linalg.LinAlgError:  # singular (a zero velocity prior and no process noise):
-            return float(v @ np.linalg.pinv(P) @ v) > self._gate3  # the chi over what is measured
+        return self._evidence_now_one((tr.kf.x[3:], tr.kf.P[3:, 3:], tr.t_kf), t_s)[1]
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
