@@ -89,8 +89,9 @@ def test_ci_small_coverage_and_ids(ci_scene):
     assert res["rim_features_per_frame"] > 0
     # tracks on no obstacle are some of the reported ones (the pole and sphere tracks are not)
     assert 0 <= res["off_obstacle_tracks_per_frame"] < res["observations_per_frame"]
-    # ... and the confirmed ones among them (a tentative track is counted only in the first)
-    assert 0 <= res["off_obstacle_confirmed_per_frame"] <= res["off_obstacle_tracks_per_frame"]
+    # ... and the confirmed ones among them (a tentative track is counted only in the first;
+    # measured at 804cf02..16d9020: 3.03 confirmed of 5.90 a frame, so counting tentative ones too fails)
+    assert 0 < res["off_obstacle_confirmed_per_frame"] < res["off_obstacle_tracks_per_frame"]
     assert set(res["ms_per_frame"]) >= {"decode", "frontend", "detect", "track", "group", "associate"}
 
 
