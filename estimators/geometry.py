@@ -164,18 +164,18 @@ def _norm(x: np.ndarray) -> float:
 
 
 def _norm_rows(x: np.ndarray, keepdims: bool = False) -> np.ndarray:
-    """Row norms of a float (N, K) array: ``np.linalg.norm(x, axis=1)``'s own formula,
-    sqrt(add.reduce(x * x, axis=1)), without its axis handling (~10 us a call); the same values.
+    """Norms (...) of the vectors x (..., K) (float): ``np.linalg.norm(x, axis=-1)``'s own formula,
+    sqrt(add.reduce(x * x, axis=-1)), without its axis handling (~10 us a call); the same values.
     For K = 2 or 3 the squares are summed column by column, left to right (add.reduce's own order
-    on so short an axis, ~3x faster; as ``trackers.grouping._vnorm``)."""
+    on so short an axis, bit for bit; ~3x faster). keepdims: (..., 1)."""
     s = x * x
-    if s.shape[1] == 3:
-        n = np.sqrt(s[:, 0] + s[:, 1] + s[:, 2])
-    elif s.shape[1] == 2:
-        n = np.sqrt(s[:, 0] + s[:, 1])
+    if s.shape[-1] == 3:
+        n = np.sqrt(s[..., 0] + s[..., 1] + s[..., 2])
+    elif s.shape[-1] == 2:
+        n = np.sqrt(s[..., 0] + s[..., 1])
     else:
-        return np.sqrt(np.add.reduce(s, axis=1, keepdims=keepdims))
-    return n[:, None] if keepdims else n
+        n = np.sqrt(np.add.reduce(s, axis=-1))
+    return n[..., None] if keepdims else n
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

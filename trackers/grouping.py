@@ -74,7 +74,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from estimators.errors import ConfigError
-from estimators.geometry import _cross
+from estimators.geometry import _cross, _norm_rows
 from trackers.features import FeatureTracker
 
 
@@ -83,7 +83,7 @@ def _normalise(v: np.ndarray) -> np.ndarray:
         x, y, z = v.tolist()
         n = math.sqrt(x * x + y * y + z * z)
         return v / (n if n > 0 else 1.0)
-    n = _vnorm(v)[..., None]  # np.linalg.norm's own formula
+    n = _norm_rows(v, keepdims=True)  # np.linalg.norm's own formula
     return v / np.where(n > 0, n, 1.0)
 
 
@@ -94,18 +94,6 @@ _EZ, _EX = np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]])
 _EYE3 = np.eye(3)[None]  # (1, 3, 3)
 _RIDGE = np.diag([1e-9, 1e-3, 1e-3])  # step 4's ridge on the affine fit's normal equations
 _N_OF_SUMS = np.array([0, 1, 2, 1, 3, 4, 2, 4, 5])  # N = [[n, x, y], [x, xx, xy], [y, xy, yy]] sums
-
-
-def _vnorm(v: np.ndarray) -> np.ndarray:
-    """Norms (...) of vectors v (..., 3) or (..., 2): np.linalg.norm(v, axis=-1)'s own formula, without its
-    overhead. The squares are summed left to right, as ``np.add.reduce`` sums a short last axis (the same
-    values, bit for bit), but column by column (add.reduce along a 3-long axis is ~3x slower)."""
-    s = v * v
-    if s.shape[-1] == 3:
-        return np.sqrt(s[..., 0] + s[..., 1] + s[..., 2])
-    if s.shape[-1] == 2:
-        return np.sqrt(s[..., 0] + s[..., 1])
-    return np.sqrt(np.add.reduce(s, axis=-1))
 
 
 def _bincount3(keys: np.ndarray, v: np.ndarray, n: int) -> np.ndarray:
@@ -451,7 +439,7 @@ class ObstacleGrouper:
         tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
             if len(sel):
-                good = self._agree(f_sel, fn_sel, tflow[o], loose, _vnorm(tflow)[o]) | ~has_flow[o]
+                good = self._agree(f_sel, fn_sel, tflow[o], loose, _norm_rows(tflow)[o]) | ~has_flow[o]
                 if not good.all():  # (else the mean over the same members is the same)
                     owner[sel[~good]] = -1
                     sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
@@ -467,7 +455,7 @@ class ObstacleGrouper:
             fk, t_of = free[k], owner[memb[j[k]]]
             ok = np.einsum("ij,ij->i", b[fk], rep[t_of]) > cos_r
             # (the last known flow if < 3 members)
-            ok &= self._agree(flow[fk], fnorm[fk], tflow[t_of], 1.0, _vnorm(tflow)[t_of])
+            ok &= self._agree(flow[fk], fnorm[fk], tflow[t_of], 1.0, _norm_rows(tflow)[t_of])
             owner[fk[ok]] = t_of[ok]
         # 2b. a track short of members (coasting, or its features replaced) takes the free features
         # within link_rad of where it was predicted to be that move like it
@@ -512,7 +500,7 @@ class ObstacleGrouper:
                 pred = _normalise(pred + tflow[cand] * dt_s) if self.coast_predict else pred
                 cs = pc @ pred.T  # (K, C)
                 pi, ci = np.nonzero(cs > cos_r)
-                agree = self._agree(pf[pi], _vnorm(pf)[pi], tflow[cand[ci]])
+                agree = self._agree(pf[pi], _norm_rows(pf)[pi], tflow[cand[ci]])
                 pi, ci = pi[agree], ci[agree]
                 used_p, used_c = set(), set()
                 order = np.argsort(-cs[pi, ci], kind="stable")  # closest pairs first
@@ -770,7 +758,7 @@ class ObstacleGrouper:
             return out
         alive = cnt >= np.concatenate([self._need_t, np.full(TK - T, self._keep_min())])
         used = np.zeros(TK, bool)
-        fn = _vnorm(tflow)
+        fn = _norm_rows(tflow)
         for i in dying:
             mb = tracks[i].member_b_C
             mb = mb @ R1.T if R1 is not None else mb
@@ -1187,8 +1175,8 @@ class ObstacleGrouper:
     ) -> np.ndarray:
         """Flows f (..., 3) (norms fn (...)) and g (..., 3) (norms gn (...), computed when None)
         agree (rad/s): ``|f - g| < loose (flow_abs + flow_rel max(|f|, |g|))``."""
-        gn = _vnorm(g) if gn is None else gn
-        return _vnorm(f - g) < loose * (self.flow_abs + self.flow_rel * np.maximum(fn, gn))
+        gn = _norm_rows(g) if gn is None else gn
+        return _norm_rows(f - g) < loose * (self.flow_abs + self.flow_rel * np.maximum(fn, gn))
 
     @staticmethod
     def _owners(ids: np.ndarray, tracks: list[ObstacleTrack]) -> np.ndarray:
@@ -1408,8 +1396,8 @@ class ObstacleGrouper:
         N += _RIDGE * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
         c0 = np.linalg.solve(N[surrounded], rhs[surrounded])[:, 0, :]  # (S, 2)
         tf = np.stack([np.einsum("ij,ij->i", tflow, e1), np.einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
-        gap = _vnorm(c0 - tf)
-        thr = self.flow_abs + self.flow_rel * np.maximum(_vnorm(c0), _vnorm(tf))
+        gap = _norm_rows(c0 - tf)
+        thr = self.flow_abs + self.flow_rel * np.maximum(_norm_rows(c0), _norm_rows(tf))
         out[surrounded] = gap < thr
         return out
 

@@ -4,7 +4,8 @@ that must not move any output)."""
 import numpy as np
 import pytest
 
-from trackers.grouping import _bincount3, _normalise, _vnorm, _well_conditioned
+from estimators.geometry import _norm_rows
+from trackers.grouping import _bincount3, _normalise, _well_conditioned
 
 
 def _ref_norm(v):
@@ -17,11 +18,11 @@ def _ref_normalise(v):
 
 
 @pytest.mark.parametrize("shape", [(3,), (1, 3), (7, 3), (500, 3), (4, 9, 3), (0, 3), (6, 2), (3, 5, 2)])
-def test_vnorm_and_normalise_equal_numpy_bit_for_bit(shape):
+def test_norm_rows_and_normalise_equal_numpy_bit_for_bit(shape):
     rng = np.random.default_rng(sum(shape))
     for _ in range(20):
         v = rng.normal(size=shape) * 10.0 ** rng.integers(-30, 30, size=shape)
-        assert np.array_equal(_vnorm(v), _ref_norm(v))
+        assert np.array_equal(_norm_rows(v), _ref_norm(v))
         if shape[-1] == 3:
             out = _normalise(v)
             assert out.shape == v.shape
@@ -34,9 +35,9 @@ def test_vnorm_and_normalise_equal_numpy_bit_for_bit(shape):
             assert np.array_equal(_normalise(w), _ref_normalise(w), equal_nan=True)
 
 
-def test_vnorm_strided_input():
+def test_norm_rows_strided_input():
     v = np.random.default_rng(1).normal(size=(40, 6))[::3, 1:4]  # not contiguous
-    assert np.array_equal(_vnorm(v), _ref_norm(v))
+    assert np.array_equal(_norm_rows(v), _ref_norm(v))
 
 
 def test_bincount3_equals_stacked_bincounts():
@@ -85,14 +86,14 @@ def test_well_conditioned_near_the_threshold(cond):
     assert Ai is not None and np.array_equal(Ai, np.linalg.inv(A))
 
 
-def test_vnorm_and_normalise_sum_in_numpys_order():
+def test_norm_rows_and_normalise_sum_in_numpys_order():
     """Components of one magnitude, where the order of the sum of squares shows in the last bit of
     some norms (x^2 + z^2 + y^2 differs from numpy's x^2 + y^2 + z^2 in ~12 % of these draws)."""
     rng = np.random.default_rng(7)
     V = rng.uniform(0.5, 2.0, size=(2000, 3))
-    assert np.array_equal(_vnorm(V), _ref_norm(V))
+    assert np.array_equal(_norm_rows(V), _ref_norm(V))
     assert np.array_equal(_normalise(V), _ref_normalise(V))
     for v in V[:300]:  # the one-vector path (Python floats)
         assert np.array_equal(_normalise(v), _ref_normalise(v))
     W = rng.uniform(0.5, 2.0, size=(2000, 2))
-    assert np.array_equal(_vnorm(W), _ref_norm(W))
+    assert np.array_equal(_norm_rows(W), _ref_norm(W))
