@@ -485,6 +485,7 @@ _H_POS = np.eye(6)[:3]  # d(position) / dx and d(velocity) / dx of the state x =
 _H_VEL = np.eye(6)[3:]
 _H_POS.setflags(write=False)
 _H_VEL.setflags(write=False)
+_SLICE_POS, _SLICE_VEL = slice(0, 3), slice(3, 6)  # their columns of x
 # filterpy's ExtendedKalmanFilter(dim_x=6, dim_z=2), built once: its constructor allocates ~20
 # arrays (~40 us); a track's filter is a copy of its attributes (``_new_ekf``), whose arrays the
 # fusion never writes in place (x and P are the filter's own; the update binds new S, SI, K, y,
@@ -1230,21 +1231,20 @@ class ObstacleFusion:
         e = tr.motion_carry
         if e is None:
             return False
-        P, m = self._evidence_now_one(e, t_s)
+        m = self._rejects_zero(e, t_s)
         if not m:
             tr.motion_carry = None
         return m
 
-    def _evidence_now_one(self, e: tuple, t_s: float) -> tuple[np.ndarray, bool]:
-        """``_evidence_now`` for one evidence tuple e = (v (3,), P (3, 3), t_e): (P(t_s), rejects zero)."""
-        s = self.settings
-        v, P0, t_e = e
-        P = P0 + _EYE3 * (s.max_accel_mps2**2 * s.accel_time_s * max(t_s - t_e, 0.0))
+    def _rejects_zero(self, e: tuple, t_s: float) -> bool:
+        """``_evidence_now``'s test for one velocity evidence e = (v (3,) m/s, P (3, 3), t_e s):
+        v^T P(t_s)^-1 v > chi2_3(gate_probability), P(t_s) = ``_grown(e, t_s)``."""
+        v, P = e[0], self._grown(e, t_s)
         try:
             chi = float(v @ np.linalg.solve(P, v))
         except np.linalg.LinAlgError:  # singular (a zero prior and no process noise):
             chi = float(v @ np.linalg.pinv(P) @ v)  # the chi over what is measured
-        return P, chi > self._gate3
+        return chi > self._gate3
 
     @staticmethod
     def _restart(tr: _Track, reason: str) -> None:
@@ -2231,17 +2231,18 @@ class ObstacleFusion:
             x, P = v, R
         else:
             x0 = tr.vel_acc[0]
-            P0 = self._evidence_P(tr, t_s)  # (grown to t_s)
+            P0 = self._grown(tr.vel_acc, t_s)  # (grown to t_s)
             K = P0 @ np.linalg.inv(P0 + R)  # x = x0 + K (v - x0), P = (I - K) P0
             x = x0 + K @ (v - x0)
             P = P0 - K @ P0
             P = 0.5 * (P + P.T)
         tr.vel_acc = (x, P, t_s)
 
-    def _evidence_P(self, tr: _Track, t_s: float) -> np.ndarray:
-        """``_evidence_now``'s P(t_s) (3, 3) of one track (the same arithmetic, without the test)."""
+    def _grown(self, e: tuple, t_s: float) -> np.ndarray:
+        """The covariance (3, 3) m^2/s^2 of velocity evidence e = (v, P, t_e) grown to t_s:
+        P + q (t_s - t_e) I, q = max_accel_mps2^2 accel_time_s (``_evidence_now``'s arithmetic)."""
         q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
-        return tr.vel_acc[1] + _EYE3 * (q * max(t_s - tr.vel_acc[2], 0.0))
+        return e[1] + _EYE3 * (q * max(t_s - e[2], 0.0))
 
     def _evidence_now(self, trs: list[_Track], t_s: float) -> tuple[np.ndarray, list[bool]]:
         """The velocity evidence ``vel_acc`` = (v, P, t_e) of each track in trs (all with one)
@@ -2269,7 +2270,7 @@ class ObstacleFusion:
         monocular ambiguity), so such a track is not ranged from static points."""
         if not tr.moving or tr.kf is None:
             return False
-        return self._evidence_now_one((tr.kf.x[3:], tr.kf.P[3:, 3:], tr.t_kf), t_s)[1]
+        return self._rejects_zero((tr.kf.x[3:], tr.kf.P[3:, 3:], tr.t_kf), t_s)
 
     def _stereo_from_features(self, tr: _Track, sg: _Sighting):
         """The feature stereo fix: the median shared feature's point (``feature_point``) or the
@@ -2555,7 +2556,7 @@ class ObstacleFusion:
         position-velocity correlation."""
         kf = tr.kf
         if tr.vel_acc is not None:
-            v, P = tr.vel_acc[0], self._evidence_P(tr, tr.t_kf)
+            v, P = tr.vel_acc[0], self._grown(tr.vel_acc, tr.t_kf)
         else:
             v, P = meas
         kf.x = kf.x.copy()
@@ -3016,9 +3017,9 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     Returns True, or False (the filter untouched) when S is exactly singular (no inverse: filterpy
     raised there; degenerate settings such as a zero bearing sigma on a zero-variance state)."""
     P = kf.P
-    if H is _H_POS or H is _H_VEL:  # H = [I 0] / [0 I]: P H^T and H P H^T are P's columns and block
+    c = _SLICE_POS if H is _H_POS else _SLICE_VEL if H is _H_VEL else None
+    if c is not None:  # H = [I 0] / [0 I]: P H^T and H P H^T are P's columns and block
         # (the same values: every product but one per entry is an exact 0)
-        c = slice(0, 3) if H is _H_POS else slice(3, 6)
         PHT = P[:, c]
         S = PHT[c] + R
     else:
@@ -3032,7 +3033,7 @@ def _ekf_update(kf: ExtendedKalmanFilter, y: np.ndarray, H: np.ndarray, R: np.nd
     kf.K = K = PHT @ SI
     kf.y = y
     kf.x = kf.x + K @ y
-    if H is _H_POS or H is _H_VEL:  # K H = [K 0] / [0 K]
+    if c is not None:  # K H = [K 0] / [0 K]
         I_KH = _EYE6.copy()
         I_KH[:, c] -= K
     else:
