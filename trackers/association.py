@@ -39,9 +39,6 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
     return np.where(nn > 1e-9, res, 1.0)
 
 
-_POP8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
-
-
 def match_features(
     b0: np.ndarray,
     d0: np.ndarray,
@@ -63,38 +60,59 @@ def match_features(
     Returns:
         (K, 2) int index pairs (i0, i1), mutual best among the epipolar-consistent candidates.
     """
-    if not len(b0) or not len(b1):
+    n0, n1 = len(b0), len(b1)
+    if not n0 or not n1:
         return np.zeros((0, 2), np.intp)
-    # epipolar residual of every pair: |b1 . n_i| / |n_i|
+    # epipolar residual of every pair: |b1 . n_i| / |n_i| (in place on the (N0, N1) products)
     t = np.asarray(t_C1_C0, float)
     tn = np.linalg.norm(t)
     Rb0 = b0 @ np.asarray(R_C1_C0).T
     if tn > 0:
         n = _cross(t / tn, Rb0)
         nn = np.linalg.norm(n, axis=1)
-        res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
-        res[nn <= 1e-9] = 1.0
+        res = n @ b1.T
+        np.abs(res, out=res)
+        res /= np.where(nn > 1e-9, nn, 1.0)[:, None]
+        ok = res < np.sin(epipolar_rad)
         # both rays on the same side (for baselines much shorter than the range)
-        ok = (res < np.sin(epipolar_rad)) & ((Rb0 @ b1.T) > 0)
+        ok &= (Rb0 @ b1.T) > 0
+        ok[nn <= 1e-9] = False  # b0 along the baseline: residual 1, never below sin(epipolar_rad)
     else:
         ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
-    # descriptor distances only for the epipolar candidates
-    H = np.full(ok.shape, np.inf)
-    ii, jj = np.nonzero(ok)
-    if len(ii):
-        H[ii, jj] = _POP8[np.bitwise_xor(d0[ii], d1[jj])].sum(axis=1)
-    H[H > max_hamming] = np.inf
-    if not np.isfinite(H).any():
+    # descriptor distances only for the epipolar candidates (i0, i1), row-major
+    f = np.flatnonzero(ok)
+    ii = f // n1
+    jj = f - ii * n1
+    # Hamming distance = popcount(d0 XOR d1), 64 bits at a time (ORB's 32 bytes: 4 words)
+    w0, w1 = np.ascontiguousarray(d0, np.uint8), np.ascontiguousarray(d1, np.uint8)
+    if w0.shape[1] % 8 == 0:
+        w0, w1 = w0.view(np.uint64), w1.view(np.uint64)
+    h = np.bitwise_count(w0[ii] ^ w1[jj]).sum(axis=1, dtype=np.int64)
+    k = np.flatnonzero(h <= max_hamming)
+    if not len(k):
         return np.zeros((0, 2), np.intp)
-    j = np.argmin(H, axis=1)
-    i_back = np.argmin(H, axis=0)
-    best = H[np.arange(len(b0)), j]
-    Hs = H.copy()
-    Hs[np.arange(len(b0)), j] = np.inf
-    second = Hs.min(axis=1)
-    good = np.isfinite(best) & (i_back[j] == np.arange(len(b0))) & (best <= ratio * second + 1e-9)
-    i = np.flatnonzero(good)
-    return np.stack([i, j[i]], axis=1)
+    ii, jj, h = ii[k], jj[k], h[k]
+    hb = np.int64(max_hamming + 1)  # distances are 0..max_hamming: one digit of a sort key
+    # per i0: its best i1 (least distance, ties: least i1) and its second least distance, from the
+    # candidates sorted by the key (i0, distance, i1)
+    key = np.sort((ii * hb + h) * n1 + jj)
+    ri = key // (hb * n1)
+    rh = key // n1 - ri * hb
+    first = np.flatnonzero(np.concatenate(([True], ri[1:] != ri[:-1])))
+    i = ri[first]
+    j = key[first] % n1
+    best = rh[first]
+    nxt = first + 1
+    has2 = np.concatenate((first[1:], [len(ri)])) > nxt
+    second = np.where(has2, rh[np.minimum(nxt, len(ri) - 1)], np.inf)
+    # per i1: its best i0 (least distance, ties: least i0), keys (i1, distance, i0)
+    ck = np.sort((jj * hb + h) * n0 + ii)
+    cf = np.flatnonzero(np.concatenate(([True], ck[1:] // (hb * n0) != ck[:-1] // (hb * n0))))
+    i_back = np.full(n1, -1, np.int64)
+    i_back[ck[cf] // (hb * n0)] = ck[cf] % n0
+    # mutual best, and Lowe's ratio test: best <= ratio * second
+    good = (i_back[j] == i) & (best <= ratio * second + 1e-9)
+    return np.stack([i[good], j[good]], axis=1)
 
 
 def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) -> tuple[int, int, int, int]:
@@ -442,11 +460,21 @@ def consistent_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> tuple[np.ndarray, 
     ib = np.asarray(ids_b, np.int64).reshape(-1)
     if not len(ia):
         return ia, ib
-    pairs = np.unique(np.stack([ia, ib], axis=1), axis=0)
-    _, inv_a, cnt_a = np.unique(pairs[:, 0], return_inverse=True, return_counts=True)
-    _, inv_b, cnt_b = np.unique(pairs[:, 1], return_inverse=True, return_counts=True)
-    ok = (cnt_a[inv_a] == 1) & (cnt_b[inv_b] == 1)
-    return pairs[ok, 0], pairs[ok, 1]
+    # the distinct pairs, sorted by (a, b) (np.unique of the (K, 2) rows, without its axis path)
+    o = np.lexsort((ib, ia))
+    a, b = ia[o], ib[o]
+    first = np.empty(len(a), bool)
+    first[0] = True
+    np.not_equal(a[1:], a[:-1], out=first[1:])
+    first[1:] |= b[1:] != b[:-1]
+    a, b = a[first], b[first]
+    # each a id's partners: its run's length (a is sorted); each b id's: its count in sorted b
+    sa = np.flatnonzero(np.concatenate(([True], a[1:] != a[:-1])))
+    cnt_a = np.diff(np.append(sa, len(a)))
+    bs = np.sort(b)
+    one_b = np.searchsorted(bs, b, "right") - np.searchsorted(bs, b, "left") == 1
+    ok = np.repeat(cnt_a == 1, cnt_a) & one_b
+    return a[ok], b[ok]
 
 
 def unheld(members: list[np.ndarray], held_ids: np.ndarray, min_held: int = 3) -> np.ndarray:

@@ -458,9 +458,11 @@ class FeatureTracker:
         if grey.shape[:2] == self.shape_hw:
             x0, y0, x1, y1 = self.roi
             grey = grey[y0:y1, x0:x1]
+        # (Python floats and ints from tolist: the same float32 keypoints as float(u) - x0 from
+        # numpy scalars, without a numpy scalar conversion per coordinate)
         kps = [
-            cv2.KeyPoint(float(u) - x0, float(v) - y0, 15.0, -1, 0, 0, int(i))
-            for i, (u, v) in zip(idx, self.uv[idx], strict=True)
+            cv2.KeyPoint(u - x0, v - y0, 15.0, -1, 0, 0, i)
+            for i, (u, v) in zip(idx.tolist(), self.uv[idx].tolist(), strict=True)
         ]
         kps, des = self._orb_desc.compute(grey, kps)
         if des is None or not kps:

@@ -8,7 +8,7 @@ import pytest
 
 from estimators.rig import stereo_forward_rig
 from tests.trackers.conftest import equidistant, rot_axis
-from trackers.association import epipolar_residual, match_features
+from trackers.association import consistent_pairs, epipolar_residual, match_features
 
 
 def unit(v):
@@ -69,6 +69,78 @@ def test_matching_keeps_epipolar_pairs_and_rejects_a_lookalike_off_the_plane(ste
     assert len(got) >= 28
     assert all(j == inv[i] for i, j in got.items())
     assert 30 not in got.values()
+
+
+def _reference_matches(b0, d0, b1, d1, R, t, epipolar_rad, max_hamming, ratio=0.9):
+    """match_features by its definition, pair by pair: the epipolar residual |b1 . n| / |n| with
+    n = t_hat x R b0 (1 where |n| <= 1e-9), rays ahead, Hamming distance by counting set bits;
+    each row's best column (least distance, the first on ties), mutual, with Lowe's ratio."""
+    n0, n1 = len(b0), len(b1)
+    t_hat = np.asarray(t, float) / np.linalg.norm(t)
+    H = np.full((n0, n1), np.inf)
+    for i in range(n0):
+        n = np.cross(t_hat, R @ b0[i])
+        for j in range(n1):
+            nn = float(np.sqrt(n @ n))
+            res = abs(float(b1[j] @ n)) / nn if nn > 1e-9 else 1.0
+            if res < np.sin(epipolar_rad) and float((R @ b0[i]) @ b1[j]) > 0:
+                h = sum(bin(int(x)).count("1") for x in np.bitwise_xor(d0[i], d1[j]))
+                if h <= max_hamming:
+                    H[i, j] = h
+    out = []
+    for i in range(n0):
+        if not np.isfinite(H[i]).any():
+            continue
+        j = int(np.argmin(H[i]))
+        second = np.sort(H[i])[1] if n1 > 1 else np.inf
+        if int(np.argmin(H[:, j])) == i and H[i, j] <= ratio * second + 1e-9:
+            out.append((i, j))
+    return np.array(out, np.intp).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_matching_equals_the_pairwise_definition_with_ties(stereo, seed):
+    """Near-identical descriptors (a few flipped bits: many equal distances) on bearings of
+    which a good share are epipolar candidates: the matches (mutual best, first on ties, ratio)
+    equal the definition worked pair by pair."""
+    rig, c0, c1, T = stereo
+    rng = np.random.default_rng(seed)
+    n0, n1 = rng.integers(1, 30, 2)
+    b0 = unit(rng.normal(size=(n0, 3)) + [0, 0, 2])
+    b1 = unit(rng.normal(size=(n1, 3)) + [0, 0, 2])
+    base = rng.integers(0, 256, 32, dtype=np.uint8)
+    d0 = np.tile(base, (n0, 1))
+    d1 = np.tile(base, (n1, 1))
+    for d in (d0, d1):
+        for r in range(len(d)):
+            for _ in range(rng.integers(0, 5)):
+                d[r, rng.integers(0, 32)] ^= np.uint8(1 << int(rng.integers(0, 8)))
+    for epi_deg, max_h in ((1.0, 64), (20.0, 64), (20.0, 3), (90.0, 8)):
+        got = match_features(b0, d0, b1, d1, T.R, T.t, np.radians(epi_deg), max_h)
+        want = _reference_matches(b0, d0, b1, d1, T.R, T.t, np.radians(epi_deg), max_h)
+        np.testing.assert_array_equal(got, want)
+
+
+def test_consistent_pairs_by_hand_and_by_definition():
+    """Repeated pairs count once; an id with two partners links nothing (worked by hand), and on
+    random ids the result is the definition's: the distinct pairs, sorted, whose a and b ids
+    each appear in one distinct pair only."""
+    a, b = consistent_pairs(np.array([1, 1, 2, 3, 3, 4]), np.array([10, 10, 20, 30, 31, 20]))
+    # (3, 30) and (3, 31): a = 3 has two partners; (2, 20) and (4, 20): b = 20 has two
+    assert a.tolist() == [1] and b.tolist() == [10]
+    a, b = consistent_pairs(np.zeros(0, np.int64), np.zeros(0, np.int64))
+    assert len(a) == len(b) == 0
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        n = int(rng.integers(1, 30))
+        ia = rng.integers(0, 12, n)
+        ib = rng.integers(0, 12, n) + (2**40 if rng.random() < 0.5 else 0)
+        pairs = sorted(set(zip(ia.tolist(), ib.tolist(), strict=True)))
+        n_a = {x: sum(p[0] == x for p in pairs) for x, _ in pairs}
+        n_b = {y: sum(p[1] == y for p in pairs) for _, y in pairs}
+        want = [p for p in pairs if n_a[p[0]] == 1 and n_b[p[1]] == 1]
+        a, b = consistent_pairs(ia, ib)
+        assert list(zip(a.tolist(), b.tolist(), strict=True)) == want
 
 
 @pytest.fixture(scope="module")
