@@ -337,6 +337,11 @@ class FusionSettings:
             share 72.4 -> 75.3 %, 75.6 -> 75.4 % (errors unchanged).
         member_spread_min_n: the number of member points nearest the reported direction that
             are its neighbourhood (or all, when fewer). Default 6.
+        stereo_neighbour_n: a report ranged by its feature stereo fix alone (no static-point fix
+            this frame) gets a range-sigma term reaching the farthest in range of this many of the
+            track's other member points nearest its direction and in its depth cluster, beyond
+            their joint noise (``_stereo_neighbours``; 0 = off). Default 3 (the fewest that
+            surround a direction; the tuned stereo_hover's sphere limb needs 3, 2 leave it).
         occluder_min_members: a report whose direction from the body origin passes inside the
             angular convex hull of this many member points or more of ANOTHER track that lie nearer
             than it beyond their joint noise (``_occluded_by_members``) is hidden from the body
@@ -406,6 +411,7 @@ class FusionSettings:
     feature_avoid_outline: bool = True
     member_spread_weight: float = 1.0
     member_spread_min_n: int = 6
+    stereo_neighbour_n: int = 3
     occluder_min_members: int = 3
     feature_mad_all_weight: float = 0.5
     feature_small_n_inflate: float = 1.0
@@ -2642,7 +2648,9 @@ class ObstacleFusion:
             # (a track reported lost is not scored: its bearing is not tested)
             hid = (self._occluded_by_members(trs, rng, u, var_r)
                    if any(items[k][1] != "lost" for k in with_kf) else np.zeros(len(trs)))
-            sig = np.sqrt(var_r + hid * hid).tolist()
+            var_r = var_r + hid * hid
+            nb = self._stereo_neighbours(trs, rng, u, var_r)
+            sig = np.sqrt(var_r + nb * nb).tolist()
             rw = _dot_rows(r_W, w).tolist()
             ww = _dot_rows(w, w).tolist()
             moving = [j for j, tr in enumerate(trs) if tr.moving]
@@ -2783,6 +2791,84 @@ class ObstacleFusion:
         d = np.abs(med - rng)
         ex2 = d * d - var0 - (0.5 * math.pi) * s2 / np.maximum(k, 1)
         return np.where(k > 0, np.sqrt(s.member_spread_weight * np.maximum(ex2, 0.0)), 0.0)
+
+    def _stereo_neighbours(self, trs: list[_Track], rng: np.ndarray, u: np.ndarray,
+                           var0: np.ndarray) -> np.ndarray:
+        """The neighbour term of the range sigma (m), (K,) for the tracks trs with their reported
+        ranges rng (K,) m, unit directions u (K, 3) in W from the body origin and their range
+        variances so far var0 (K,) m^2; 0 except for a track ranged by its feature stereo fix
+        alone this frame (no static-point fix).
+
+        Such a report is one shared feature's two-ray point, filtered: its sigma is the two rays'
+        noise (k sigma_r,f), which averages out over frames. A stereo match that sits on an
+        occlusion boundary (a T-junction of the obstacle's outline and the background, a curved
+        object's limb, which is a different line from each camera) is not one physical point:
+        the two rays meet in front of or behind the surface, every frame alike, and the body's ray
+        through that point grazes the obstacle, so the range along the reported bearing differs
+        from the point's by more than the point's own error (tuned stereo_hover track 23: a point
+        at 1.384 m, 5 cm in front of a 0.3 m sphere near its limb as cam0 sees it, beside it as
+        cam1 sees it; the surface along the body's ray through it at 1.455 m; sigma 0.017 m).
+        The track's other member points of this frame (``_member_spread``'s: shared features'
+        two-ray points, and static least-squares points unless its velocity evidence rejects
+        zero) sample the surface around the bearing: of those within the report's depth
+        cluster, |r_i - r| <= feature_depth_gap_frac r (the split of ``_largest_depth_cluster``:
+        a farther cluster is another surface, behind), and not the reported point itself (within
+        1 mrad of u), the n = stereo_neighbour_n nearest in direction, with ranges r_i and sigmas
+        s_i (reports' units), give
+            extra^2 = max_i ((r_i - r)^2 - s_i^2 - var0),   extra = sqrt(max(extra^2, 0))
+        (the largest disagreement beyond the joint noise: next to a limb the other limb points
+        agree with the reported one, the interior one does not; a median would follow the
+        majority, as ``_member_spread``'s does).
+        """
+        s = self.settings
+        K = len(trs)
+        out = np.zeros(K)
+        n_nb = int(s.stereo_neighbour_n)
+        if n_nb <= 0 or not self._gidx or self._members_st is None:
+            return out
+        G = len(self._gidx)
+        j_st = np.full(G, -1, dtype=np.int64)  # the stereo-ranged tracks' report index
+        j_ls = np.full(G, -1, dtype=np.int64)
+        for j, tr in enumerate(trs):
+            if tr.feature_range is not None or tr.feature_stereo is None:
+                continue
+            gi = self._gidx.get(tr.id)
+            if gi is None:
+                continue
+            j_st[gi] = j
+            if not tr.vel_moving:  # (a moving obstacle's static points are wrong)
+                j_ls[gi] = j
+        if not (j_st >= 0).any():
+            return out
+        jj_l, r_l, b_l, s_l = [], [], [], []
+        for mem, jmap in ((self._members_st, j_st), (self._members_ls, j_ls)):
+            if mem is None or not len(mem[0]):
+                continue
+            jj = jmap[mem[0]]
+            m = jj >= 0
+            jj_l.append(jj[m])
+            r_l.append(mem[1][m])
+            b_l.append(mem[2][m])
+            s_l.append(mem[3][m])
+        jj, r, b, sr = (np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l),
+                        np.concatenate(s_l))
+        cos = _dot_rows(b, u[jj])
+        # in the depth cluster, ahead, and not the reported point itself (cos 1 mrad = 1 - 5e-7)
+        keep = ((np.abs(r - rng[jj]) <= s.feature_depth_gap_frac * rng[jj]) & (cos > 0.5)
+                & (cos < math.cos(1e-3)))
+        if not keep.any():
+            return out
+        jj, r, sr, cos = jj[keep], r[keep], sr[keep], cos[keep]
+        order = np.lexsort((-cos, jj))  # by track, nearest the reported direction first
+        cnt = np.bincount(jj, minlength=K)
+        start = np.cumsum(cnt) - cnt
+        jo = jj[order]
+        sel = order[np.arange(len(order)) - start[jo] < n_nb]
+        js = jj[sel]
+        d = r[sel] - rng[js]
+        ex2 = np.full(K, -np.inf)
+        np.maximum.at(ex2, js, d * d - sr[sel] ** 2 - var0[js])
+        return np.sqrt(np.maximum(ex2, 0.0))
 
     def _occluded_by_members(self, trs: list[_Track], rng: np.ndarray, u: np.ndarray,
                              var0: np.ndarray) -> np.ndarray:

@@ -467,6 +467,7 @@ class FrontEnd:
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
+            self._one_track_per_id(seen)
         self._remember_stereo()
         tm["associate"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -1131,6 +1132,77 @@ class FrontEnd:
             v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
             v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
             seen[b][k] = v
+
+    def _one_track_per_id(self, seen: dict[str, list[ObstacleTrack]]) -> None:
+        """One feature id, one obstacle per camera and frame: a physical-point id that two reported
+        views of one camera list (each camera's first track per global id is its reported view,
+        ``_observations``) is kept only in the view of the id's own obstacle, the global id of the
+        reference camera's grouper track that tracks it, and dropped from the others (the view is
+        replaced in ``seen`` by a copy without it; its bearing is unchanged). Without such an owner
+        among them, the view listed first keeps it.
+
+        How one id reaches two views: camera b's feature f linked to reference feature r
+        (``link_features``) sits in one of b's tracks while r, found in b's image by stereo KLT,
+        is added to another (``_add_found_members``, ``_views_found``); or b's track with f has a
+        reference view (reverse views) that lists r where the reference camera's own track of r
+        already does. Two rays under one id would be fused as one point (docs/ARCHITECTURE.md).
+        Only the reported member lists change: the trackers', groupers' and links' states do not.
+        """
+        ref = self.rig.cameras[0].name
+        gid = self._gid.get
+        g_ref = self.groupers.get(ref)
+        # owners: reference feature ids (sorted, first listing kept) -> global id of their track
+        o_trs = [t for t in seen.get(ref, ()) if g_ref is not None and g_ref.tracks.get(t.id) is t]
+        if o_trs:
+            o_ids, first = np.unique(np.concatenate([t.members for t in o_trs]), return_index=True)
+            o_g = np.repeat([gid(t.id, t.id) for t in o_trs], [len(t.members) for t in o_trs])[first]
+        else:
+            o_ids = o_g = np.zeros(0, np.int64)
+        for cam, trs in seen.items():
+            own = self.groupers[cam].tracks if cam in self.groupers else {}
+            pid = self._pid.get(cam)
+            views, done = [], set()  # (index in trs, global id, reported ids)
+            for k, t in enumerate(trs):
+                g = gid(t.id, t.id)
+                if g in done:
+                    continue
+                done.add(g)
+                n = len(t.members)
+                if not n or len(t.member_b_C) != n:
+                    continue  # reported without feature ids
+                ids = t.members
+                if pid and own.get(t.id) is t:  # as _observations reports them
+                    il = ids.tolist()
+                    ids = np.fromiter(map(pid.get, il, il), np.int64, n)
+                views.append((k, g, ids))
+            if len(views) < 2:
+                continue
+            sizes = [len(v[2]) for v in views]
+            allids = np.concatenate([v[2] for v in views])
+            which = np.repeat(np.arange(len(views)), sizes)  # each entry's view
+            order = np.argsort(allids, kind="stable")  # by id, then by view
+            sid = allids[order]
+            new_id = np.concatenate(([True], sid[1:] != sid[:-1]))
+            if new_id.all():
+                continue  # no id listed twice
+            # an entry in its id's owner's view ranks first, then the view listed first
+            g_view = np.array([v[1] for v in views], np.int64)
+            j = np.minimum(np.searchsorted(o_ids, sid), max(len(o_ids) - 1, 0))
+            is_owner = (o_ids[j] == sid) & (o_g[j] == g_view[which[order]]) if len(o_ids) else False
+            rank = which[order] + np.where(is_owner, 0, len(views))
+            starts = np.flatnonzero(new_id)
+            best = np.minimum.reduceat(rank, starts)  # per id
+            kept_sorted = rank == np.repeat(best, np.diff(np.append(starts, len(sid))))
+            kept = np.empty(len(allids), bool)
+            kept[order] = kept_sorted
+            ends = np.cumsum(sizes)
+            for vi in np.unique(which[~kept]).tolist():  # the views that drop an id
+                k, _, ids = views[vi]
+                m = kept[ends[vi] - len(ids) : ends[vi]]
+                v = _shallow_copy(trs[k])
+                v.members = ids[m]
+                v.member_b_C = trs[k].member_b_C[m]
+                trs[k] = v
 
     def _gids_in(self, camera: str) -> set[int]:
         """The global ids of ``camera``'s live local tracks (grouped and box tracks)."""
