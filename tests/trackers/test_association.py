@@ -121,6 +121,20 @@ def test_matching_equals_the_pairwise_definition_with_ties(stereo, seed):
         np.testing.assert_array_equal(got, want)
 
 
+def test_a_ray_along_the_baseline_is_no_candidate(stereo):
+    """(review of a7c4650) b0 along the baseline has no epipolar plane (t_hat x R b0 = 0, residual 1
+    by definition): it matches nothing, not even an identical descriptor along the baseline in
+    camera 1 (whose raw product |b1 . n| is 0 there)."""
+    rig, c0, c1, T = stereo
+    t_hat = np.asarray(T.t, float) / np.linalg.norm(T.t)
+    b0 = np.asarray(T.R).T @ t_hat  # R b0 = t_hat
+    b1 = np.array([t_hat, unit([0.0, 0.0, 1.0])])
+    d = np.full((1, 32), 7, np.uint8)
+    assert epipolar_residual(b0[None], b1[:1], T.R, T.t).tolist() == [1.0]
+    got = match_features(b0[None], d, b1, np.vstack([d, d ^ 0xFF]), T.R, T.t)
+    assert got.shape == (0, 2)
+
+
 def test_consistent_pairs_by_hand_and_by_definition():
     """Repeated pairs count once; an id with two partners links nothing (worked by hand), and on
     random ids the result is the definition's: the distinct pairs, sorted, whose a and b ids
