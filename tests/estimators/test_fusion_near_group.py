@@ -14,7 +14,7 @@ from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion, _near_group_choice
 from estimators.records import CameraView, ObstacleObservation
-from estimators.rig import mono_forward_rig
+from estimators.rig import mono_forward_rig, stereo_forward_rig
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
 FPS = 30.0
@@ -55,28 +55,37 @@ def test_near_group_choice_closed_form():
     s4 = s.copy()
     s4[0] = 2.5
     assert r[_near_group_choice(g, r, s4, pick, 3, 0.3)].tolist() == [12.5, 9.0, 3.2]
+    # (review of b62e8e2) the group's median's own sigma counts: 8.1 m +- 2.5 (it still agrees with
+    # 8.0 and 8.2, so the group and its median are the same) is within 2 sqrt(0.2^2 + 2.5^2) =
+    # 5.02 m of 12.5 m: unchanged, although 12.5 m lies 4.5 m beyond the anchor 8.0 m +- 0.2
+    s5 = s.copy()
+    s5[10] = 2.5
+    assert r[_near_group_choice(g, r, s5, pick, 3, 0.3)].tolist() == [12.5, 9.0, 3.2]
     # one surface's depth, not two: 4.4 m is under gap_frac 0.6 of 8.1 m (4.86 m): unchanged
     assert r[_near_group_choice(g, r, s, pick, 3, 0.6)].tolist() == [12.5, 9.0, 3.2]
     # ... and just over 0.5 of it (4.05 m): moved
     assert r[_near_group_choice(g, r, s, pick, 3, 0.5)].tolist() == [8.1, 9.0, 3.2]
 
 
-def _junction_run(near_group: bool, seed: int = 2):
+def _junction_run(near_group: bool, seed: int = 2, rig=None, fusion_out: list | None = None):
     """A mono rig flown at 5 m/s for 1.5 s past one track of eight member features: four on a
     near surface (static points around (14, 4, 0.5) m in W, 8 to 15 m away) and four T-junctions
     where its edge crosses a farther surface: their bearings move as points at 1.6 times the
     near surface's distance would, so each fits a static point there (the far surface itself is
     at twice the distance). The track's representative bearing is the junctions' mean, so the
     inner half is the junctions. Returns (the last report, near points (4, 3), junction points
-    (4, 3), the body origin)."""
+    (4, 3), the body origin). rig: another rig (its first camera sees the features), else mono;
+    fusion_out: a list the ObstacleFusion is appended to."""
     rng = np.random.default_rng(seed)
-    rig = mono_forward_rig(MODEL)
+    rig = mono_forward_rig(MODEL) if rig is None else rig
     ego = ConstantVelocity(5.0)
     spread = np.array([[0, 0.3, 0.3], [0, -0.3, 0.3], [0.2, 0, -0.3], [-0.2, 0.1, 0]])
     near = np.array([14.0, 4.0, 0.5]) + spread
     junc = np.array([22.4, 7.4, 0.8]) + spread
     pts = np.vstack([near, junc])
     fus = ObstacleFusion(rig, ego, FusionSettings(feature_near_group=near_group))
+    if fusion_out is not None:
+        fusion_out.append(fus)
     cam = rig[0]
     sigma = 5e-4
     for k in range(46):
@@ -109,11 +118,35 @@ def test_a_track_over_two_depths_is_ranged_on_its_near_surface():
     assert abs(r.range_m - d_near[j]) / d_near[j] < 0.05
 
 
+def test_the_moved_choice_names_its_own_feature():
+    # (review of b62e8e2) the track's chosen point and the feature id it carries (feature ids 0-3
+    # are the near surface's, 4-7 the junctions') move together: the id is a near feature's and
+    # the point lies within 5 % of that feature's true point (in range from the body origin)
+    fus_l: list = []
+    r, near, junc, T_W_B = _junction_run(True, fusion_out=fus_l)
+    tr = fus_l[0]._tracks[7]
+    assert tr.feature_point_fid in (0, 1, 2, 3)
+    o = T_W_B.t
+    true = near[tr.feature_point_fid]
+    assert np.linalg.norm(np.asarray(tr.feature_point) - true) < 0.05 * np.linalg.norm(true - o)
+
+
 def test_control_without_the_rule_ranges_the_junctions():
     # the control: the lower median of the inner half (the junctions) is reported, 1.6x the near
     # surface's range, its bearing on the junctions (where the true surface is at twice the near
     # range): the rule above is what changes it
     r, near, junc, T_W_B = _junction_run(False)
+    o = T_W_B.t
+    assert r.range_m is not None
+    assert r.range_m > 1.4 * float(np.max(np.linalg.norm(near - o, axis=1)))
+    assert math.isclose(r.range_m, float(np.median(np.linalg.norm(junc - o, axis=1))), rel_tol=0.1)
+
+
+def test_not_on_a_stereo_rig():
+    # (review of b62e8e2) the rule is for mono rigs only (on a stereo rig it put the demo's
+    # stereo <= 3 m over its target): the same flight seen by a stereo rig's first camera alone,
+    # with the rule on, ranges the junctions as the control does
+    r, near, junc, T_W_B = _junction_run(True, rig=stereo_forward_rig(MODEL, 0.30))
     o = T_W_B.t
     assert r.range_m is not None
     assert r.range_m > 1.4 * float(np.max(np.linalg.norm(near - o, axis=1)))
