@@ -627,8 +627,11 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     support = np.bincount(ii[agree], minlength=K)  # points agreeing with i (itself included)
     # the nearest anchor of each track (within a track the sorted order is by range)
     first = np.full(len(cnt), -1, dtype=np.int64)
-    a_idx = np.flatnonzero(support >= n_min)[::-1]
-    first[gs[a_idx]] = a_idx  # (reversed: a track's nearest anchor is written last)
+    a_idx = np.flatnonzero(support >= n_min)  # (ascending: by track, then range)
+    # each track's first anchor (np.unique's index of first occurrence; an assignment through
+    # repeated indices has no guaranteed order in numpy)
+    g_a, at = np.unique(gs[a_idx], return_index=True)
+    first[g_a] = a_idx[at]
     a_pick = np.full(len(pick), -1, dtype=np.int64)
     a_pick[live] = first[g[pick[live]]]
     # (and beyond its anchor likewise)
