@@ -647,6 +647,36 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     return out
 
 
+def _report_members(parts) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """This frame's member points of the reports' tracks, from member sets in the given order.
+
+    parts: pairs (members, j_of_group): members ``(g (M,) group index, r (M,) range from the body
+    origin m, b (M, 3) unit direction in W from the body origin, s (M,) range sigma m in the
+    reports' units)`` (``_members_ls``, ``_members_st``) or None; j_of_group (G,) int the report
+    index of each group's track, -1 for a group whose points are not wanted. Returns (jj, r, b, s)
+    of the wanted points (jj (N,) report index), the parts' points in order, or None when there
+    are none (N = 0)."""
+    jj_l, r_l, b_l, s_l = [], [], [], []
+    for mem, jmap in parts:
+        if mem is None or not len(mem[0]):
+            continue
+        jj = jmap[mem[0]]
+        m = jj >= 0
+        jj_l.append(jj[m])
+        r_l.append(mem[1][m])
+        b_l.append(mem[2][m])
+        s_l.append(mem[3][m])
+    if not jj_l:
+        return None
+    if len(jj_l) == 1:
+        jj, r, b, sr = jj_l[0], r_l[0], b_l[0], s_l[0]
+    else:
+        jj, r, b, sr = np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l), np.concatenate(s_l)
+    if not len(jj):
+        return None
+    return jj, r, b, sr
+
+
 _NO_FEATURES = np.zeros((0, 3))
 _NO_FEATURES.setflags(write=False)
 _NO_IDS = np.zeros(0, dtype=np.int64)
@@ -2953,24 +2983,10 @@ class ObstacleFusion:
                 j_st[gi] = j
             elif not tr.vel_moving:  # (a moving obstacle's static points are wrong)
                 j_ls[gi] = j
-        jj_l, r_l, b_l, s_l = [], [], [], []
-        for mem, jmap in ((self._members_ls, j_ls), (self._members_st, j_st)):
-            if mem is None or not len(mem[0]):
-                continue
-            jj = jmap[mem[0]]
-            m = jj >= 0
-            jj_l.append(jj[m])
-            r_l.append(mem[1][m])
-            b_l.append(mem[2][m])
-            s_l.append(mem[3][m])
-        if not jj_l:
+        got = _report_members(((self._members_ls, j_ls), (self._members_st, j_st)))
+        if got is None:
             return out
-        if len(jj_l) == 1:
-            jj, r, b, sr = jj_l[0], r_l[0], b_l[0], s_l[0]
-        else:
-            jj, r, b, sr = np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l), np.concatenate(s_l)
-        if not len(jj):
-            return out
+        jj, r, b, sr = got
         cos = _dot_rows(b, u[jj])
         order = np.lexsort((-cos, jj))  # by track, nearest the reported direction first
         cnt = np.bincount(jj, minlength=K)
@@ -3006,8 +3022,9 @@ class ObstacleFusion:
         two-ray points, and static least-squares points unless its velocity evidence rejects
         zero) sample the surface around the bearing: of those within the report's depth
         cluster, |r_i - r| <= feature_depth_gap_frac r (the split of ``_largest_depth_cluster``:
-        a farther cluster is another surface, behind), and not the reported point itself (within
-        1 mrad of u), the n = stereo_neighbour_n nearest in direction, with ranges r_i and sigmas
+        a farther cluster is another surface, behind), within 60 deg of u (cos > 0.5) and not the
+        reported point itself (within 1 mrad of u), the n = stereo_neighbour_n nearest in
+        direction (fewer when fewer qualify), with ranges r_i and sigmas
         s_i (reports' units), give
             extra^2 = max_i ((r_i - r)^2 - s_i^2 - var0),   extra = sqrt(max(extra^2, 0))
         (the largest disagreement beyond the joint noise: next to a limb the other limb points
@@ -3034,20 +3051,12 @@ class ObstacleFusion:
                 j_ls[gi] = j
         if not (j_st >= 0).any():
             return out
-        jj_l, r_l, b_l, s_l = [], [], [], []
-        for mem, jmap in ((self._members_st, j_st), (self._members_ls, j_ls)):
-            if mem is None or not len(mem[0]):
-                continue
-            jj = jmap[mem[0]]
-            m = jj >= 0
-            jj_l.append(jj[m])
-            r_l.append(mem[1][m])
-            b_l.append(mem[2][m])
-            s_l.append(mem[3][m])
-        jj, r, b, sr = (np.concatenate(jj_l), np.concatenate(r_l), np.concatenate(b_l),
-                        np.concatenate(s_l))
+        got = _report_members(((self._members_st, j_st), (self._members_ls, j_ls)))
+        if got is None:
+            return out
+        jj, r, b, sr = got
         cos = _dot_rows(b, u[jj])
-        # in the depth cluster, ahead, and not the reported point itself (cos 1 mrad = 1 - 5e-7)
+        # in the depth cluster, within 60 deg of u, not the reported point itself (cos 1 mrad = 1 - 5e-7)
         keep = ((np.abs(r - rng[jj]) <= s.feature_depth_gap_frac * rng[jj]) & (cos > 0.5)
                 & (cos < math.cos(1e-3)))
         if not keep.any():
