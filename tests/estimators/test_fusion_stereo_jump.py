@@ -103,3 +103,22 @@ def test_stereo_jumps_closed_form():
     one = np.array([0.05])
     assert fus._stereo_jumps(np.array([7]), np.array([[0.0, 1.4, 4.0]]), one, 0.3).tolist() == [False]
     assert fus._stereo_jumps(np.array([7]), np.array([[0.0, 0.6, 4.0]]), one, 0.4).tolist() == [True]
+
+
+def test_the_stereo_neighbour_term_reaches_the_reported_sigma(monkeypatch):
+    # (review of 4f994d8) the report's range sigma is sqrt(var + nb^2) with nb the
+    # _stereo_neighbours term: a term of 2 m for every report (stubbed here) makes every ranged
+    # report's sigma at least 2 m, where the same scene without it stays below 2 m (0.52 m at most); the stub
+    # is called with one range, direction and variance per report
+    calls = []
+
+    def stub(self, trs, rng, u, var0):
+        calls.append((len(trs), rng.shape, u.shape, var0.shape))
+        return np.full(len(trs), 2.0)
+
+    plain = [r.range_sigma_m for _k, _t, r in _run(FusionSettings(), T_s=0.4) if r.range_m is not None]
+    monkeypatch.setattr(ObstacleFusion, "_stereo_neighbours", stub)
+    with_nb = [r.range_sigma_m for _k, _t, r in _run(FusionSettings(), T_s=0.4) if r.range_m is not None]
+    assert plain and max(plain) < 2.0
+    assert len(with_nb) == len(plain) and min(with_nb) >= 2.0
+    assert calls and all(c == (1, (1,), (1, 3), (1,)) for c in calls)
