@@ -19,6 +19,7 @@ from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import mono_forward_rig, stereo_forward_rig
+from tests.estimators.fusion_helpers import noisy_bearing
 
 FPS = 30.0
 T_JUMP_S = 1.0
@@ -36,14 +37,6 @@ def _near_points(o_W: np.ndarray) -> np.ndarray:
     return o_W + NEAR_RANGE_M * u / np.linalg.norm(u, axis=1)[:, None]
 
 
-def _bearing(cam, T_W_B, p_W, sigma, rng):
-    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-    b = p_C / np.linalg.norm(p_C)
-    e = rng.normal(scale=sigma, size=3)
-    b = b + e - (e @ b) * b
-    return b / np.linalg.norm(b)
-
-
 def _run(settings: FusionSettings, jump: bool = True, frames: int = 45, sigma: float = 5e-4, seed: int = 3,
          stereo: bool = False):
     """[(report, true range of the points the corners are on now (3,))] per frame; stereo: a
@@ -52,6 +45,7 @@ def _run(settings: FusionSettings, jump: bool = True, frames: int = 45, sigma: f
     rig = stereo_forward_rig(model, 0.3) if stereo else mono_forward_rig(model)
     ego = ConstantVelocity(5.0)
     rng = np.random.default_rng(seed)
+    bearing = noisy_bearing(rng, sigma)
     fus = ObstacleFusion(rig, ego, settings)
     near = _near_points(ego.pose_at(T_JUMP_S).t)
     out = []
@@ -61,7 +55,7 @@ def _run(settings: FusionSettings, jump: bool = True, frames: int = 45, sigma: f
         pts = near if (jump and t >= T_JUMP_S - 1e-9) else FAR_W
         views = []
         for cam in rig:
-            b = np.array([_bearing(cam, T_W_B, p, sigma, rng) for p in pts])
+            b = np.array([bearing(cam, T_W_B, p) for p in pts])
             views.append(CameraView(cam.name, b.mean(axis=0) / np.linalg.norm(b.mean(axis=0)), [0, 0], 0.01,
                                     feature_ids=np.arange(3), feature_b_C=b))
         (r,) = fus.step([ObstacleObservation(7, k, t, "confirmed", tuple(views))], k, t)
