@@ -378,10 +378,11 @@ class FusionSettings:
         member_spread_min_n: the number of member points nearest the reported direction that
             are its neighbourhood (or all, when fewer). Default 6.
         stereo_neighbour_n: a report ranged by its feature stereo fix alone (no static-point fix
-            this frame) gets a range-sigma term reaching the farthest in range of this many of the
-            track's other member points nearest its direction and in its depth cluster, beyond
-            their joint noise (``_stereo_neighbours``; 0 = off). Default 3 (the fewest that
-            surround a direction; the tuned stereo_hover's sphere limb needs 3, 2 leave it).
+            this frame) gets a range-sigma term: the largest range disagreement beyond their joint
+            noise, max_i (r_i - r)^2 - s_i^2 - var0, over this many of the track's other member
+            points nearest its direction and in its depth cluster (``_stereo_neighbours``; 0 = off).
+            Default 3 (the fewest that surround a direction; the tuned stereo_hover's sphere limb
+            needs 3, 2 leave it).
         static_own_stereo: on a stereo rig, a report ranged by its static-point fix (one member
             feature's least-squares point over its rays of all frames and both cameras,
             ``feature_point``) whose feature also has a two-ray point this frame (its two

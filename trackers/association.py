@@ -53,10 +53,12 @@ def match_features(
     """Descriptor matches between two cameras' features that satisfy the epipolar constraint.
 
     Args:
-        b0, b1: (N0, 3), (N1, 3) unit bearings in cameras 0 and 1; d0, d1: their (N, 32) ORB descriptors.
+        b0, b1: (N0, 3), (N1, 3) unit bearings in cameras 0 and 1; d0, d1: their (N, 32) uint8 ORB
+            descriptors (any uint8 width; read 64 bits at a time when it is a multiple of 8 bytes).
         R_C1_C0, t_C1_C0: camera 0 -> camera 1 transform (p_C1 = R p_C0 + t, metres).
         epipolar_rad: largest angle of b1 out of b0's epipolar plane.
-        max_hamming: largest descriptor distance (bits of 256); ratio: Lowe's ratio test.
+        max_hamming: largest descriptor distance, a whole number of bits (of 256: it is one digit
+            of the integer sort keys); ratio: Lowe's ratio test.
     Returns:
         (K, 2) int index pairs (i0, i1), mutual best among the epipolar-consistent candidates.
     """
