@@ -574,6 +574,16 @@ def tangent_basis(u: np.ndarray) -> np.ndarray:
     return np.stack([e1, _cross(u, e1)], axis=1)
 
 
+def _nearest_per_group(g: np.ndarray, cos: np.ndarray, G: int, n: int) -> np.ndarray:
+    """Indices (into g) of each group's n members of largest cos (fewer when a group has fewer),
+    for groups g (K,) in [0, G) and cosines cos (K,) of each member's direction to its group's
+    reported direction: the n nearest in direction, ties by index."""
+    order = np.lexsort((-cos, g))  # by group, nearest the reported direction first
+    cnt = np.bincount(g, minlength=G)
+    start = np.cumsum(cnt) - cnt
+    return order[np.arange(len(order)) - start[g[order]] < n]
+
+
 def _group_lower_median_index(g: np.ndarray, v: np.ndarray, cnt: np.ndarray, q: float = 0.5) -> np.ndarray:
     """Index into v (K,) of the lower q-quantile (default the lower median) of each non-empty group
     g (K,) (cnt (G,) = the group sizes): element floor((n - 1) q) of the group sorted by v ->
@@ -2989,12 +2999,7 @@ class ObstacleFusion:
             return out
         jj, r, b, sr = got
         cos = _dot_rows(b, u[jj])
-        order = np.lexsort((-cos, jj))  # by track, nearest the reported direction first
-        cnt = np.bincount(jj, minlength=K)
-        start = np.cumsum(cnt) - cnt
-        jo = jj[order]
-        rank = np.arange(len(order)) - start[jo]
-        sel = order[rank < s.member_spread_min_n]
+        sel = _nearest_per_group(jj, cos, K, s.member_spread_min_n)
         js = jj[sel]
         k = np.bincount(js, minlength=K)
         med = _group_median(js, r[sel], K)
@@ -3063,11 +3068,7 @@ class ObstacleFusion:
         if not keep.any():
             return out
         jj, r, sr, cos = jj[keep], r[keep], sr[keep], cos[keep]
-        order = np.lexsort((-cos, jj))  # by track, nearest the reported direction first
-        cnt = np.bincount(jj, minlength=K)
-        start = np.cumsum(cnt) - cnt
-        jo = jj[order]
-        sel = order[np.arange(len(order)) - start[jo] < n_nb]
+        sel = _nearest_per_group(jj, cos, K, n_nb)
         js = jj[sel]
         d = r[sel] - rng[js]
         ex2 = np.full(K, -np.inf)
