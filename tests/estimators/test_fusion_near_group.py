@@ -15,6 +15,7 @@ from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion, _near_group_choice
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import mono_forward_rig, stereo_forward_rig
+from tests.estimators.fusion_helpers import noisy_bearing
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
 FPS = 30.0
@@ -88,15 +89,11 @@ def _junction_run(near_group: bool, seed: int = 2, rig=None, fusion_out: list | 
         fusion_out.append(fus)
     cam = rig[0]
     sigma = 5e-4
+    bearing = noisy_bearing(rng, sigma)
     for k in range(46):
         t = k / FPS
-        T_C_W = cam.T_C_B @ ego.pose_at(t).inverse()
-        fb = []
-        for f in pts:
-            bb = _unit(T_C_W.apply(f))
-            e = rng.normal(scale=sigma, size=3)
-            fb.append(_unit(bb + e - (e @ bb) * bb))
-        fb = np.array(fb)
+        T_W_B = ego.pose_at(t)
+        fb = np.array([bearing(cam, T_W_B, f) for f in pts])
         view = CameraView("cam0", _unit(fb[4:].mean(axis=0)), [0, 0], sigma, feature_ids=np.arange(8),
                           feature_b_C=fb)
         (r,) = fus.step([ObstacleObservation(7, k, t, "confirmed", (view,))], k, t)

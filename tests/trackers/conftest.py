@@ -118,6 +118,19 @@ def rot_axis(axis, angle_rad: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * K @ K
 
 
+def turned_pair_rig(model, turn_deg: float = 3.0):
+    """(rig, R_1_0): two cameras with one centre, cam1 = cam0 (forward) turned turn_deg about the
+    camera y axis, so a world point at infinity seen along b_0 by cam0 is seen along
+    b_1 = R_1_0 b_0 by cam1 (render cam1's frame with ``SphereScene.render(R_1_0.T, ...)``)."""
+    from estimators.rig import Camera, Rig, forward_T_C_B
+    from estimators.se3 import Pose
+
+    R_1_0 = rot_axis([0, 1, 0], np.radians(turn_deg)).T  # b_1 = R_1_0 b_0
+    T0 = forward_T_C_B()
+    T1 = Pose(R_1_0 @ np.asarray(T0.R), R_1_0 @ np.asarray(T0.t))  # T_C1_B = R_1_0 T_C0_B
+    return Rig((Camera("cam0", model, T0), Camera("cam1", model, T1))), R_1_0
+
+
 def assert_same_feature_tracks(oa, ob) -> None:
     """Two front ends' observations of one frame are the same feature tracks: ids, statuses, labels,
     and every view's bearings and feature ids, bit for bit."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.trackers.conftest import equidistant, rot_axis
+from tests.trackers.conftest import equidistant, rot_axis, turned_pair_rig
 from trackers.association import unheld
 
 
@@ -27,15 +27,10 @@ def test_unheld_counts_members_among_last_frames_matches():
 def _rotation_rig():
     """(rig, R_1_0, frames(k) -> (cam0 frame, cam1 frame)): cam1 = cam0 turned 3 degrees about y,
     same centre; a blank sky with a textured disc (14 deg radius) moving 0.5 deg per frame."""
-    from estimators.rig import Camera, Rig, forward_T_C_B
-    from estimators.se3 import Pose
     from tests.trackers.conftest import Patch, SphereScene
 
     model = equidistant(640, 480)
-    R_1_0 = rot_axis([0, 1, 0], np.radians(3.0)).T  # b_1 = R_1_0 b_0
-    T0 = forward_T_C_B()
-    T1 = Pose(R_1_0 @ np.asarray(T0.R), R_1_0 @ np.asarray(T0.t))  # T_C1_B = R_1_0 T_C0_B
-    rig = Rig((Camera("cam0", model, T0), Camera("cam1", model, T1)))
+    rig, R_1_0 = turned_pair_rig(model)
     scene = SphereScene(model, blank_env=True)
     d0 = np.array([0.2, 0.0, 1.0]) / np.hypot(0.2, 1.0)
 

@@ -8,20 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from tests.trackers.conftest import Patch, SphereScene, equidistant, rot_axis
+from tests.trackers.conftest import Patch, SphereScene, equidistant, rot_axis, turned_pair_rig
 
 
 def _two_patch_rig():
     """(rig, R_1_0, frames(k)): cam1 = cam0 turned 3 degrees about y, same centre; a blank sky with
     two textured discs (12 deg radius) 50 deg apart, drifting 0.4 deg per frame."""
-    from estimators.rig import Camera, Rig, forward_T_C_B
-    from estimators.se3 import Pose
-
     model = equidistant(480, 360)
-    R_1_0 = rot_axis([0, 1, 0], np.radians(3.0)).T  # b_1 = R_1_0 b_0
-    T0 = forward_T_C_B()
-    T1 = Pose(R_1_0 @ np.asarray(T0.R), R_1_0 @ np.asarray(T0.t))  # T_C1_B = R_1_0 T_C0_B
-    rig = Rig((Camera("cam0", model, T0), Camera("cam1", model, T1)))
+    rig, R_1_0 = turned_pair_rig(model)
     scene = SphereScene(model, blank_env=True)
     dA = np.array([0.45, 0.0, 1.0]) / np.hypot(0.45, 1.0)
     dB = np.array([-0.45, 0.0, 1.0]) / np.hypot(0.45, 1.0)
