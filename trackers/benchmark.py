@@ -12,13 +12,14 @@ it without them. ``poses`` in the result says whether any frame had one.
 
 Mapping tracks to ground truth: a reported track's view in camera c is on obstacle k when the ray
 from the camera centre along the view's bearing passes through obstacle k's shape (sphere, pole as
-a capsule, box/wall, drone as its bounding sphere; shapes from ``scene.yaml``, positions from
-``gt.jsonl``) inflated by ``margin_px`` pixels at that range; the nearest such obstacle along the
-ray wins (occlusion). An obstacle is *covered* in a frame when some reported track is on it; it
-counts from half a second after it first became visible (``visible`` in any camera). The id of an
-obstacle's track is sticky (kept while it stays on the obstacle); a change to another id while the
-obstacle is covered is an id switch; the id stays while its track lives and is not on another
-obstacle, even if its representative point strays off for a frame (CLEAR-MOT style).
+a capsule, box/wall, a drone as the box holding its body and lights, ``drone_shape``; shapes from
+``scene.yaml``, positions from ``gt.jsonl``) inflated by ``margin_px`` pixels at that range; the
+nearest such obstacle along the ray wins (occlusion). An obstacle is *covered* in a frame when
+some reported track is on it; it counts from half a second after it first became visible
+(``visible`` in any camera). The id of an obstacle's track is sticky (kept while it stays on the
+obstacle); a change to another id while the obstacle is covered is an id switch; the id stays
+while its track lives and is not on another obstacle, even if its representative point strays off
+for a frame (CLEAR-MOT style).
 """
 
 from __future__ import annotations
@@ -136,9 +137,32 @@ def shapes_for_frame(specs: dict[int, dict], gt_obstacles: list[dict]) -> dict[i
                 half_size_m=np.asarray(size, float) / 2,
                 yaw_rad=float(np.radians(sp.get("yaw_deg", 0.0))),
             )
-        else:  # drone and anything else: bounding sphere
+        elif kind == "drone":
+            out[o["id"]] = drone_shape(sp, c, np.asarray(o.get("v_W", (0.0, 0.0, 0.0)), float))
+        else:  # anything else: bounding sphere
             out[o["id"]] = Shape("sphere", c, r_m=float(o.get("radius_m", 0.5)))
     return out
+
+
+def drone_shape(spec: dict, bound_c_W: np.ndarray, v_W: np.ndarray) -> Shape:
+    """A drone's shape in W: the simulator's flat body (``size_m``, default 0.5 x 0.5 x 0.12) with
+    its three nav lights (spheres of ``light_radius_m``, default 0.05, their centres half a radius
+    beyond the body's left, right and tail edges) as the one box that holds them all, turned by
+    the drone's yaw (its heading when it moves faster than 0.1 m/s horizontally, else ``yaw_deg``).
+
+    Not its bounding sphere: that sphere is as tall as the body is wide (a 0.5 x 0.12 m body seen
+    from the side fills a fifth of it), so a ray past the drone onto what lies behind it was put
+    on the drone. ``bound_c_W`` is gt.jsonl's ``p_W``, the centre of the bounding box of the parts'
+    bounding spheres' centres: the body's centre sits ``(sx / 2 + lr / 2) / 2`` ahead of it."""
+    sx, sy, sz = (float(s) for s in (spec.get("size_m") or (0.5, 0.5, 0.12)))
+    lr = float(spec.get("light_radius_m", 0.05))
+    yaw = float(np.radians(spec.get("yaw_deg", 0.0)))
+    if np.hypot(v_W[0], v_W[1]) > 0.1:
+        yaw = float(np.arctan2(v_W[1], v_W[0]))
+    fwd = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    c_W = bound_c_W + fwd * (sx / 2 + lr / 2) / 2
+    half = np.array([sx / 2 + 1.5 * lr, sy / 2 + 1.5 * lr, max(sz / 2, lr)])
+    return Shape("box", c_W, half_size_m=half, yaw_rad=yaw)
 
 
 def merged_depth_kind(

@@ -195,3 +195,57 @@ def test_merged_by_depth_classification(range_m, others, kind):
     got, ratios = merged_depth_kind(range_m, others, 1.5)
     assert got == kind
     assert ratios == pytest.approx([o / range_m for o in others])
+
+
+@pytest.mark.parametrize(
+    "drone",
+    [
+        # crossing (heading along its velocity), climbing too; seen from the side
+        "{id: 4, kind: drone, position_m: [0.5, -5.0, 3.0], light_radius_m: 0.06,"
+        " motion: {kind: constant_velocity, velocity_mps: [0.6, 0.4, 0.5]}}",
+        # hovering, turned by yaw_deg, another body size
+        "{id: 4, kind: drone, position_m: [6.0, 1.0, 2.6], yaw_deg: 30, size_m: [0.6, 0.4, 0.1]}",
+    ],
+)
+def test_drone_shape_holds_the_simulators_drone_not_its_bounding_sphere(tmp_path, drone):
+    """A drone is the box that holds the simulator's drone (body and lights), not its bounding
+    sphere: every ray pipeline.sim.raycast puts on the drone hits the shape (margin 0), and of the
+    rays through the bounding sphere that miss the drone (what lies behind it) most miss the shape
+    (the box's corners beyond the round lights are all it adds)."""
+    import yaml
+
+    from estimators.se3 import Pose
+    from pipeline.sim.groundtruth import obstacle_truth
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.scene import load_scenario
+    from pipeline.sim.world import World, raycast
+    from trackers.benchmark import shapes_for_frame
+
+    p = tmp_path / "drone.yaml"
+    p.write_text(
+        "name: drone\nseed: 1\nduration_s: 1.0\nfps: 30\nrig: {kind: mono, resolution: [320, 240]}\n"
+        "observer: {kind: hover, start: {position_m: [0, 0, 2.5]}}\nground: {z_m: 0.0}\n"
+        f"obstacles:\n  - {drone}\n"
+    )
+    scn = load_scenario(p)
+    world = World(scn)
+    t_s = 0.5
+    rig = build_rig(scn.rig)
+    line = obstacle_truth(world, rig, Pose(np.eye(3), np.array([0.0, 0.0, 2.5])), np.zeros(3), t_s)
+    (gt,) = line
+    specs = {4: yaml.safe_load(drone)}
+    shape = shapes_for_frame(specs, [gt])[4]
+    o = np.array([0.0, 0.0, 2.5])
+    c = np.asarray(gt["p_W"], float)
+    r = float(gt["radius_m"])
+    rng = np.random.default_rng(7)
+    pts = c + rng.uniform(-r, r, (20000, 3))  # rays towards points of the bounding sphere's cube
+    d = (pts - o) / np.linalg.norm(pts - o, axis=1, keepdims=True)
+    _, who = raycast(world, t_s, o, d)
+    on_shape = np.isfinite(ray_hits(o, d, shape, 0.0))
+    in_sphere = np.isfinite(ray_hits(o, d, Shape("sphere", c, r_m=r), 0.0))
+    on_drone = who == 4
+    assert on_drone.sum() > 500
+    assert np.all(on_shape[on_drone])
+    past = in_sphere & ~on_drone
+    assert past.sum() > 2000 and on_shape[past].mean() < 0.25
