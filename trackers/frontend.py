@@ -467,7 +467,6 @@ class FrontEnd:
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
-            self._one_track_per_id(seen)
         self._remember_stereo()
         tm["associate"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -923,15 +922,23 @@ class FrontEnd:
         those matches cannot hold a view for (fewer than 3: confirmed, or left by its linked
         reference track, since the last retry, or its matches lost) is searched in full
         (``_unheld_rows``), so a view persists while >= 3 of its features are found.
+
+        One feature id, one obstacle per camera and frame: where found members meet an id already
+        listed, once all views are built, camera b's feature linked to a reference member found
+        for another view leaves its view (``_release_found``) and a reverse view drops the ids the
+        reference camera's tracks list (``_drop_listed``). Two rays under one id would be fused as
+        one point. Only the reported member lists change: the trackers', groupers' and links'
+        states do not.
         """
         ref = self.rig.cameras[0].name
         out: dict[str, list[ObstacleTrack]] = {}
         if ref not in greys or ref not in self.trackers:
             return out
+        to_release: dict[str, tuple[dict[int, int], list[ObstacleTrack]]] = {}  # _release_found's, per b
         for b in self.cams:
             if b == ref or b not in greys or not seen.get(ref):
                 continue
-            self._add_found_members(seen, ref, b)
+            n_found = self._add_found_members(seen, ref, b)
             gid = self._gid.get
             have = {gid(t.id, t.id) for t in seen.get(b, [])}
             todo = [
@@ -939,8 +946,10 @@ class FrontEnd:
                 for t in seen[ref]
                 if t.status == "confirmed" and gid(t.id, t.id) not in have and len(t.members) >= 3
             ]
-            for v in self._views_found(ref, b, todo, None):
-                out.setdefault(b, []).append(v)
+            views = self._views_found(ref, b, todo, None)
+            to_release[b] = (n_found, views)
+            if views:
+                out[b] = views
         # reverse_views, the other way round: another camera's confirmed track whose global id has
         # no view in the reference camera this frame (the obstacle's reference features are
         # ungrouped, or in a reference track on another obstacle) gets a reference view from its
@@ -951,6 +960,12 @@ class FrontEnd:
             todo = self._unviewed_in_ref(seen, b)
             for v in self._views_found(b, ref, todo, self._pid.get(b)):
                 out.setdefault(ref, []).append(v)
+        # one feature id, one obstacle per camera: b's reported tracks change only now (the
+        # reverse views take b's own grouper tracks, _unviewed_in_ref)
+        for b, (n_found, views) in to_release.items():
+            self._release_found(seen[b], n_found, views, b)
+        if ref in out:
+            self._drop_listed(seen[ref], out[ref])
         return out
 
     def _unviewed_in_ref(self, seen: dict[str, list[ObstacleTrack]], b: str) -> list[ObstacleTrack]:
@@ -1070,16 +1085,19 @@ class FrontEnd:
         T = self._T_b_a[(a, b)]
         return depth_consistent(b_a[idx], bb, own[idx], T.R, T.t, spread, 3.0 * self._rad_px[b])
 
-    def _add_found_members(self, seen: dict[str, list[ObstacleTrack]], ref: str, b: str) -> None:
+    def _add_found_members(self, seen: dict[str, list[ObstacleTrack]], ref: str, b: str) -> dict[int, int]:
         """Replace, in ``seen[b]``, camera b's grouper tracks that share a global id with a confirmed
         reference track by copies whose members also hold the reference members found in b's image
         by stereo KLT (ids: the reference ids; bearings: where KLT found them, (K, 3) unit in C_b).
         b's own members keep their ids mapped to the reference ones (``link_features``); a reference
-        id already among them is not added twice."""
+        id already among them is not added twice.
+
+        Returns:
+            {index in ``seen[b]`` of a copy: how many found members end its member list}."""
         ft = self.trackers[ref]
         grouper = self.groupers.get(b)
         if grouper is None or not seen.get(b):
-            return
+            return {}
         gid = self._gid.get
         label = self.label
         refs: dict[int, ObstacleTrack] = {}
@@ -1095,14 +1113,14 @@ class FrontEnd:
             and len(tb.member_b_C) == len(tb.members)
         ]
         if not slots:
-            return
+            return {}
         mem = np.concatenate([tr.members for _, _, tr in slots])
         own = np.repeat(np.arange(len(slots)), [len(tr.members) for _, _, tr in slots])
         rows, which = self._rows(ft, mem)
         own, mem = own[which], mem[which]
         idx, _, bb = self._stereo(ref, b, rows)
         if not len(idx):
-            return
+            return {}
         pid = self._pid.get(b, {})
         # b's own members under their reference ids, all slots at once (run of slot si: lo..hi)
         tb_mem = [tb.members for _, tb, _ in slots]
@@ -1122,6 +1140,7 @@ class FrontEnd:
         cnt_f = np.bincount(own_f, minlength=len(slots))
         end_f = np.cumsum(cnt_f)
         end_b = np.cumsum(n_b)
+        n_found: dict[int, int] = {}
         for si, (k, tb, _) in enumerate(slots):
             if not cnt_f[si]:
                 continue
@@ -1132,77 +1151,106 @@ class FrontEnd:
             v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
             v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
             seen[b][k] = v
+            n_found[k] = int(fhi - flo)
+        return n_found
 
-    def _one_track_per_id(self, seen: dict[str, list[ObstacleTrack]]) -> None:
-        """One feature id, one obstacle per camera and frame: a physical-point id that two reported
-        views of one camera list (each camera's first track per global id is its reported view,
-        ``_observations``) is kept only in the view of the id's own obstacle, the global id of the
-        reference camera's grouper track that tracks it, and dropped from the others (the view is
-        replaced in ``seen`` by a copy without it; its bearing is unchanged). Without such an owner
-        among them, the view listed first keeps it.
-
-        How one id reaches two views: camera b's feature f linked to reference feature r
-        (``link_features``) sits in one of b's tracks while r, found in b's image by stereo KLT,
-        is added to another (``_add_found_members``, ``_views_found``); or b's track with f has a
-        reference view (reverse views) that lists r where the reference camera's own track of r
-        already does. Two rays under one id would be fused as one point (docs/ARCHITECTURE.md).
-        Only the reported member lists change: the trackers', groupers' and links' states do not.
-        """
-        ref = self.rig.cameras[0].name
+    def _reported_views(self, trs: list[ObstacleTrack], done: set[int]) -> list[int]:
+        """Indices into ``trs`` (one camera's tracks, in order) of the views ``_observations`` reports
+        with feature ids: each global id's first track (``done``: the global ids already taken,
+        updated), when it lists members with per-feature bearings."""
         gid = self._gid.get
-        g_ref = self.groupers.get(ref)
-        # owners: reference feature ids (sorted, first listing kept) -> global id of their track
-        o_trs = [t for t in seen.get(ref, ()) if g_ref is not None and g_ref.tracks.get(t.id) is t]
-        if o_trs:
-            o_ids, first = np.unique(np.concatenate([t.members for t in o_trs]), return_index=True)
-            o_g = np.repeat([gid(t.id, t.id) for t in o_trs], [len(t.members) for t in o_trs])[first]
-        else:
-            o_ids = o_g = np.zeros(0, np.int64)
-        for cam, trs in seen.items():
-            own = self.groupers[cam].tracks if cam in self.groupers else {}
-            pid = self._pid.get(cam)
-            views, done = [], set()  # (index in trs, global id, reported ids)
-            for k, t in enumerate(trs):
-                g = gid(t.id, t.id)
-                if g in done:
-                    continue
-                done.add(g)
-                n = len(t.members)
-                if not n or len(t.member_b_C) != n:
-                    continue  # reported without feature ids
-                ids = t.members
-                if pid and own.get(t.id) is t:  # as _observations reports them
-                    il = ids.tolist()
-                    ids = np.fromiter(map(pid.get, il, il), np.int64, n)
-                views.append((k, g, ids))
-            if len(views) < 2:
+        out = []
+        for k, t in enumerate(trs):
+            g = gid(t.id, t.id)
+            if g in done:
                 continue
-            sizes = [len(v[2]) for v in views]
-            allids = np.concatenate([v[2] for v in views])
-            which = np.repeat(np.arange(len(views)), sizes)  # each entry's view
-            order = np.argsort(allids, kind="stable")  # by id, then by view
-            sid = allids[order]
-            new_id = np.concatenate(([True], sid[1:] != sid[:-1]))
-            if new_id.all():
-                continue  # no id listed twice
-            # an entry in its id's owner's view ranks first, then the view listed first
-            g_view = np.array([v[1] for v in views], np.int64)
-            j = np.minimum(np.searchsorted(o_ids, sid), max(len(o_ids) - 1, 0))
-            is_owner = (o_ids[j] == sid) & (o_g[j] == g_view[which[order]]) if len(o_ids) else False
-            rank = which[order] + np.where(is_owner, 0, len(views))
-            starts = np.flatnonzero(new_id)
-            best = np.minimum.reduceat(rank, starts)  # per id
-            kept_sorted = rank == np.repeat(best, np.diff(np.append(starts, len(sid))))
-            kept = np.empty(len(allids), bool)
-            kept[order] = kept_sorted
-            ends = np.cumsum(sizes)
-            for vi in np.unique(which[~kept]).tolist():  # the views that drop an id
-                k, _, ids = views[vi]
-                m = kept[ends[vi] - len(ids) : ends[vi]]
-                v = _shallow_copy(trs[k])
-                v.members = ids[m]
-                v.member_b_C = trs[k].member_b_C[m]
-                trs[k] = v
+            done.add(g)
+            n = len(t.members)
+            if n and len(t.member_b_C) == n:
+                out.append(k)
+        return out
+
+    def _release_found(
+        self, trs: list[ObstacleTrack], n_found: dict[int, int], derived: list[ObstacleTrack], b: str
+    ) -> None:
+        """One feature id, one obstacle per camera and frame, camera b's side: a reference member
+        found in b's image by stereo KLT for its own obstacle's view (``_add_found_members``'
+        copies, whose members at index k of ``trs`` = ``seen[b]`` end with ``n_found[k]`` found
+        ones; ``derived``: ``_views_found``'s new views, all found) is that physical point in b, so
+        b's own feature linked to the same reference id (``link_features``: a link between
+        neighbouring corners along the epipolar line, or b grouped that point with another
+        obstacle) leaves the other view it sits in. Only reported views (``_reported_views``) take
+        part; a view that loses members is replaced in ``trs`` by a copy listing the rest under
+        their reported ids, with their bearings (its own bearing unchanged). Two rays under one id
+        would be fused as one point (docs/ARCHITECTURE.md). A reference id is found for one
+        obstacle only (its reference track's), and b's features hold distinct reference ids, so
+        nothing else lists an id twice in b."""
+        done: set[int] = set()
+        views = self._reported_views(trs, done)
+        found = [t.members for k in self._reported_views(derived, done) for t in (derived[k],)]
+        parts = []  # (index in trs, own-part length): reported views with members of b's own
+        for k in views:
+            t = trs[k]
+            n, nf = len(t.members), n_found.get(k, 0)
+            if nf:
+                found.append(t.members[n - nf :])
+            if nf < n:
+                parts.append((k, n - nf))
+        if not found or not parts:
+            return
+        own = self.groupers[b].tracks
+        pid = self._pid.get(b)
+        # own parts under their reported ids (a grouper's own track through _pid, as _observations)
+        ids = np.concatenate([trs[k].members[:m] for k, m in parts])
+        if pid:
+            mapped = [own.get(trs[k].id) is trs[k] for k, _ in parts]
+            if any(mapped):
+                need = np.repeat(mapped, [m for _, m in parts])
+                il = ids[need].tolist()
+                ids[need] = np.fromiter(map(pid.get, il, il), np.int64, len(il))
+        drop = np.isin(ids, np.concatenate(found))
+        if not drop.any():
+            return
+        ends = np.cumsum([m for _, m in parts])
+        for pi in np.unique(np.searchsorted(ends, np.flatnonzero(drop), side="right")).tolist():
+            k, m = parts[pi]
+            t = trs[k]
+            lo, hi = int(ends[pi]) - m, int(ends[pi])
+            keep = ~drop[lo:hi]
+            v = _shallow_copy(t)
+            v.members = np.concatenate([ids[lo:hi][keep], t.members[m:]])
+            v.member_b_C = np.concatenate([t.member_b_C[:m][keep], t.member_b_C[m:]])
+            trs[k] = v
+
+    def _drop_listed(self, trs: list[ObstacleTrack], extra: list[ObstacleTrack]) -> None:
+        """One feature id, one obstacle per camera and frame, the reference camera's side: the
+        reverse views ``extra`` (``_views_found`` into the reference camera, members under their
+        physical-point ids) drop the ids that the reference camera's reported views ``trs`` (its
+        own tracks: a reference feature is its own obstacle's point) or an earlier reverse view
+        already list. Only reported views take part (``_reported_views``); a view that loses
+        members is replaced in ``extra`` by a copy without them (its bearing unchanged)."""
+        done: set[int] = set()
+        listed = [trs[k].members for k in self._reported_views(trs, done)]
+        rev = self._reported_views(extra, done)
+        if not rev:
+            return
+        ids = np.concatenate([extra[k].members for k in rev])
+        drop = np.isin(ids, np.concatenate(listed)) if listed else np.zeros(len(ids), bool)
+        _, first = np.unique(ids, return_index=True)  # an id an earlier reverse view lists
+        if len(first) < len(ids):
+            later = np.ones(len(ids), bool)
+            later[first] = False
+            drop |= later
+        if not drop.any():
+            return
+        ends = np.cumsum([len(extra[k].members) for k in rev])
+        for ri in np.unique(np.searchsorted(ends, np.flatnonzero(drop), side="right")).tolist():
+            t = extra[rev[ri]]
+            m = ~drop[int(ends[ri]) - len(t.members) : int(ends[ri])]
+            v = _shallow_copy(t)
+            v.members = t.members[m]
+            v.member_b_C = t.member_b_C[m]
+            extra[rev[ri]] = v
 
     def _gids_in(self, camera: str) -> set[int]:
         """The global ids of ``camera``'s live local tracks (grouped and box tracks)."""

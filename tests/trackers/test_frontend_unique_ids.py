@@ -1,4 +1,4 @@
-"""One feature id, one obstacle per camera and frame (FrontEnd._one_track_per_id): a wrong link of
+"""One feature id, one obstacle per camera and frame (FrontEnd._release_found): a wrong link of
 camera b's feature to a reference feature of ANOTHER obstacle (as descriptor links can pair
 neighbouring corners along the epipolar line) must not make b list that reference id in two
 tracks (at the linked feature and where stereo KLT found the reference feature): the id stays in
