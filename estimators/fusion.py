@@ -114,7 +114,10 @@ from estimators import geometry
 from estimators.egomotion import EgoMotion
 from estimators.errors import ConfigError, InputError
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
-from estimators.geometry import _cross  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
+from estimators.geometry import (
+    _cross,  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
+    _isin,  # np.isin of integer arrays without its overhead
+)
 from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
 from estimators.se3 import Pose
@@ -1378,7 +1381,7 @@ class ObstacleFusion:
         for (tr, _sg, _st), nk, o, nn in zip(work, n.tolist(), off, n_new.tolist(), strict=True):
             if nk >= m and tr.n_members >= m and (tr.kf is not None or tr.history):
                 if tr.t_members != t_prev:  # not seen in the previous frame: against its last member set
-                    nn = float(nk - np.count_nonzero(np.isin(ids[o:o + nk], tr.member_ids)))
+                    nn = float(nk - np.count_nonzero(_isin(ids[o:o + nk], tr.member_ids)))
                 if nn > frac * nk:
                     ev = self._motion_evidence(tr, t_s) if s.restart_keeps_motion else None
                     self._restart(tr, "member features replaced: filter restarted")
@@ -2267,7 +2270,7 @@ class ObstacleFusion:
         nid, sel = np.unique(fid, return_index=True)
         if last is not None and len(last[0]):
             hid, hp, hs, ht = last
-            old = (t_s - ht <= s.lost_after_s) & ~np.isin(hid, nid)
+            old = (t_s - ht <= s.lost_after_s) & ~_isin(hid, nid)
             nid = np.concatenate([hid[old], nid])
             order = np.argsort(nid, kind="stable")
             self._st_last = (nid[order], np.concatenate([hp[old], p_W[sel]])[order],

@@ -178,6 +178,17 @@ def _norm_rows(x: np.ndarray, keepdims: bool = False) -> np.ndarray:
     return n[..., None] if keepdims else n
 
 
+def _isin(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.isin(a, b)`` of integer arrays a (N,) and b (M,): the same (N,) bool answer, by a binary
+    search of a's values in sorted b (~15 us a call on a few hundred ids, against np.isin's ~80-100:
+    its dtype and range checks and one sort of both arrays together)."""
+    if not len(b) or not len(a):
+        return np.zeros(len(a), bool)
+    s = np.sort(b)
+    i = np.minimum(np.searchsorted(s, a), len(s) - 1)
+    return s[i] == a
+
+
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b of float (3,) or (N, 3) arrays (broadcast like ``np.cross``), bit-identical to it.
 

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 # np.cross and np.linalg.norm(x, axis=1) bit for bit, without their axis handling
-from estimators.geometry import _cross, _norm_rows
+from estimators.geometry import _cross, _isin, _norm_rows
 
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
@@ -501,7 +501,7 @@ def unheld(members: list[np.ndarray], held_ids: np.ndarray, min_held: int = 3) -
     ids = [np.asarray(m, np.int64).reshape(-1) for m in members]
     # one membership test for all tracks' members; count each track's held ones (run of its members)
     owner = np.repeat(np.arange(n), [len(m) for m in ids])
-    hit = np.isin(np.concatenate(ids), held)
+    hit = _isin(np.concatenate(ids), held)
     return np.bincount(owner[hit], minlength=n) < min_held
 
 

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
+from estimators.geometry import _isin
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera
 from trackers.association import (
@@ -576,7 +577,7 @@ class FrontEnd:
                 held = last >= 0
                 retry = self._retry_rows.get((a, b))
                 if retry is not None and len(retry):
-                    held |= np.isin(todo, retry)
+                    held |= _isin(todo, retry)
                 keep = np.flatnonzero(held)
                 todo, guess, last = todo[keep], guess[keep], last[keep]
         if len(todo):
@@ -1136,7 +1137,7 @@ class FrontEnd:
         own_f = own[idx]  # non-decreasing: each slot's found members are one run
         found = mem[idx]
         key = np.int64(1) << 40
-        keep_all = ~np.isin(slot_b * key + allm, own_f * key + found)
+        keep_all = ~_isin(slot_b * key + allm, own_f * key + found)
         cnt_f = np.bincount(own_f, minlength=len(slots))
         end_f = np.cumsum(cnt_f)
         end_b = np.cumsum(n_b)
@@ -1208,7 +1209,7 @@ class FrontEnd:
                 need = np.repeat(mapped, [m for _, m in parts])
                 il = ids[need].tolist()
                 ids[need] = np.fromiter(map(pid.get, il, il), np.int64, len(il))
-        drop = np.isin(ids, np.concatenate(found))
+        drop = _isin(ids, np.concatenate(found))
         if not drop.any():
             return
         ends = np.cumsum([m for _, m in parts])
@@ -1235,7 +1236,7 @@ class FrontEnd:
         if not rev:
             return
         ids = np.concatenate([extra[k].members for k in rev])
-        drop = np.isin(ids, np.concatenate(listed)) if listed else np.zeros(len(ids), bool)
+        drop = _isin(ids, np.concatenate(listed)) if listed else np.zeros(len(ids), bool)
         _, first = np.unique(ids, return_index=True)  # an id an earlier reverse view lists
         if len(first) < len(ids):
             later = np.ones(len(ids), bool)

@@ -1,13 +1,13 @@
-"""geometry's small-array helpers (_cross, _norm, _norm_rows) are bit-identical to numpy's np.cross and
-np.linalg.norm, which they replace in the hot path: the triangulations and bounds must not change by one
-ulp (tracks.jsonl is compared byte for byte across speed changes)."""
+"""geometry's small-array helpers (_cross, _norm, _norm_rows, _isin) are bit-identical to numpy's
+np.cross, np.linalg.norm and np.isin, which they replace in the hot path: the triangulations and
+bounds must not change by one ulp (tracks.jsonl is compared byte for byte across speed changes)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from estimators.geometry import _cross, _norm, _norm_rows
+from estimators.geometry import _cross, _isin, _norm, _norm_rows
 
 SHAPES = [((3,), (3,)), ((7, 3), (7, 3)), ((1, 3), (9, 3)), ((3,), (5, 3))]
 
@@ -40,3 +40,21 @@ def test_norms_are_bit_identical_to_numpy():
                 assert np.array_equal(_norm_rows(m), np.linalg.norm(m, axis=1))
                 assert np.array_equal(_norm_rows(m, keepdims=True), np.linalg.norm(m, axis=1, keepdims=True))
     assert _norm(np.array([3.0, 4.0, 0.0])) == 5.0
+
+
+def test_isin_equals_numpy_on_integer_ids():
+    rng = np.random.default_rng(5)
+    key = np.int64(1) << 40
+    for _ in range(400):
+        na, nb = (int(n) for n in rng.integers(0, 40, 2))
+        hi = int(rng.choice([3, 50, 10**6]))  # tie-heavy to sparse
+        a = rng.integers(-hi, hi, na) + rng.integers(0, 3, na) * key
+        b = rng.integers(-hi, hi, nb) + rng.integers(0, 3, nb) * key
+        want = np.isin(a, b)
+        got = _isin(a, b)
+        assert got.dtype == bool and got.shape == want.shape and np.array_equal(got, want)
+    # every value of b present, the largest and smallest beyond b's ends, empty either side
+    b = np.array([7, 3, 3, 11], np.int64)
+    assert _isin(np.array([3, 11, 7, 12, 2], np.int64), b).tolist() == [True, True, True, False, False]
+    assert _isin(np.zeros(0, np.int64), b).shape == (0,)
+    assert _isin(np.array([1, 2], np.int64), np.zeros(0, np.int64)).tolist() == [False, False]
