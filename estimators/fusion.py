@@ -2455,7 +2455,7 @@ class ObstacleFusion:
         R_mid = (Q * (rq + (q * dt / 12.0)[:, None])[:, None, :]) @ QT
         for k, (tr, _ref, _a0, _a1) in enumerate(due):
             tr.feature_velocity = (v[k], R_end[k])
-            self._velocity_evidence(tr, v[k], R_mid[k], t_s - 0.5 * float(dt[k]))
+        self._velocity_evidence([tr for tr, _ref, _a0, _a1 in due], v, R_mid, (t_s - 0.5 * dt).tolist())
 
     def _chi2_gate(self, k: int) -> float:
         """chi2_k(gate_probability), cached per degrees of freedom k >= 1."""
@@ -2465,21 +2465,33 @@ class ObstacleFusion:
             g = _CHI2_PPF[key] = chi2_ppf(*key)
         return g
 
-    def _velocity_evidence(self, tr: _Track, v: np.ndarray, R: np.ndarray, t_s: float) -> None:
-        """Fuse one feature velocity v (3,) m/s, covariance R (3, 3), into the track's velocity
-        evidence ``vel_acc`` (a constant-velocity filter: P += q dt I between measurements,
-        q = max_accel_mps2^2 accel_time_s, the moving filter's process noise; then the Kalman
-        update with H = I). ``vel_moving`` is decided from it each frame (``_evidence_now``)."""
-        if tr.vel_acc is None:
-            x, P = v, R
-        else:
-            x0 = tr.vel_acc[0]
-            P0 = self._grown(tr.vel_acc, t_s)  # (grown to t_s)
-            K = P0 @ np.linalg.inv(P0 + R)  # x = x0 + K (v - x0), P = (I - K) P0
-            x = x0 + K @ (v - x0)
-            P = P0 - K @ P0
-            P = 0.5 * (P + P.T)
-        tr.vel_acc = (x, P, t_s)
+    def _velocity_evidence(self, trs: list[_Track], V: np.ndarray, R: np.ndarray, T: list[float]) -> None:
+        """Fuse feature velocities V (K, 3) m/s, covariances R (K, 3, 3), measured at T (K,) s, one
+        per track of trs (distinct tracks), into each track's velocity evidence ``vel_acc`` (a
+        constant-velocity filter: P += q dt I between measurements, q = max_accel_mps2^2
+        accel_time_s, the moving filter's process noise, ``_grown``; then the Kalman update with
+        H = I: K = P0 (P0 + R)^-1, x = x0 + K (v - x0), P = (I - K) P0 made symmetric). A track
+        without evidence starts from its measurement. All tracks at once: numpy's stacked inv and
+        matmul make LAPACK's and BLAS's per-matrix calls, so the numbers are one track's at a
+        time. ``vel_moving`` is decided from the evidence each frame (``_evidence_now``)."""
+        old = [k for k, tr in enumerate(trs) if tr.vel_acc is not None]
+        for k, tr in enumerate(trs):
+            if tr.vel_acc is None:
+                tr.vel_acc = (V[k], R[k], T[k])
+        if not old:
+            return
+        q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
+        e = [trs[k].vel_acc for k in old]
+        X0 = np.array([x for x, _P, _t in e])
+        # _grown's P + q (t - t_e) I, one track per row
+        age = np.array([max(T[k] - t_e, 0.0) for k, (_x, _P, t_e) in zip(old, e, strict=True)])
+        P0 = np.array([P for _x, P, _t in e]) + _EYE3 * (q * age)[:, None, None]
+        K = P0 @ np.linalg.inv(P0 + R[old])
+        x = X0 + (K @ (V[old] - X0)[:, :, None])[:, :, 0]
+        P = P0 - K @ P0
+        P = 0.5 * (P + P.transpose(0, 2, 1))
+        for j, k in enumerate(old):
+            trs[k].vel_acc = (x[j], P[j], T[k])
 
     def _grown(self, e: tuple, t_s: float) -> np.ndarray:
         """The covariance (3, 3) m^2/s^2 of velocity evidence e = (v, P, t_e) grown to t_s:

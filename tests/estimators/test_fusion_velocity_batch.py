@@ -123,3 +123,40 @@ def test_batched_feature_velocities_equal_the_per_track_formulas():
     # track 3: a fresh reference; track 4: not in the batch at all
     assert tracks[3].feature_velocity is None and [r[0] for r in tracks[3].vel_ref] == [t1]
     assert tracks[4].vel_ref is None and tracks[4].feature_velocity is None
+
+
+def test_velocity_evidence_of_several_tracks_equals_one_kalman_update_each():
+    """``ObstacleFusion._velocity_evidence`` updates every due track's evidence in one batch: each
+    must equal the docstring's filter for that track alone, written out here (P grown by q (t -
+    t_e) I, K = P0 (P0 + R)^-1, x = x0 + K (v - x0), P = (I - K) P0 symmetrised), bit for bit; a
+    track without evidence starts from its measurement; tracks must not mix."""
+    rng = np.random.default_rng(5)
+    s = FusionSettings()
+    fus = ObstacleFusion(stereo_forward_rig(Equidistant.from_deg_per_px(0.15, 640, 640), 0.3),
+                         ConstantVelocity(0.0), s)
+    q = s.max_accel_mps2**2 * s.accel_time_s
+    tracks = [_Track(k, "orb") for k in range(6)]
+    before = {}
+    for k, tr in enumerate(tracks):
+        if k % 3 != 1:  # tracks 1 and 4 have no evidence yet
+            A = rng.normal(size=(3, 3))
+            tr.vel_acc = (rng.normal(size=3), A @ A.T + 0.05 * np.eye(3), 0.1 * k)
+            before[k] = tr.vel_acc
+    V = rng.normal(size=(6, 3))
+    B = rng.normal(size=(6, 3, 3))
+    R = B @ B.transpose(0, 2, 1) + 0.02 * np.eye(3)
+    T = [0.9 + 0.01 * k for k in range(6)]
+    T[5] = 0.0  # measured before its evidence's time: no growth (max(t - t_e, 0))
+    fus._velocity_evidence(tracks, V, R, T)
+    for k, tr in enumerate(tracks):
+        x, P, t = tr.vel_acc
+        assert t == T[k]
+        if k not in before:
+            assert np.array_equal(x, V[k]) and np.array_equal(P, R[k])
+            continue
+        x0, P0, t0 = before[k]
+        P0 = P0 + np.eye(3) * (q * max(T[k] - t0, 0.0))
+        K = P0 @ np.linalg.inv(P0 + R[k])
+        P_want = P0 - K @ P0
+        assert np.array_equal(x, x0 + K @ (V[k] - x0))
+        assert np.array_equal(P, 0.5 * (P_want + P_want.T))
