@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
+from estimators.geometry import _isin
 from trackers.detectors.base import Detector
 from trackers.detectors.orb import OrbDetector, bucket
 
@@ -826,7 +827,7 @@ class FeatureTracker:
         key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
         re = np.flatnonzero(reacq_all >= 0)
         cand = order[reacq_all[order] < 0]
-        cand = cand[~np.isin(key[cand], key[re])]
+        cand = cand[~_isin(key[cand], key[re])]
         _, first = np.unique(key[cand], return_index=True)
         new_idx = cand[np.sort(first)][: max(free, 0)]
         keep = list(re) + list(new_idx)
@@ -941,7 +942,7 @@ class FeatureTracker:
         near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
             pc[:, 0, None, None] + d[None, None, :]
         )
-        return np.flatnonzero(np.isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel())), pred
+        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel())), pred
 
     def _match_lost(self, uv: np.ndarray, desc: np.ndarray, t_s: float) -> np.ndarray:
         """For each new keypoint, the index of the lost feature it re-acquires, or -1."""
