@@ -112,3 +112,28 @@ def test_nothing_listed_twice_changes_nothing():
     before = extra[0]
     fe._drop_listed([a0, b0, c0], extra)
     assert extra[0] is before
+
+
+def test_derive_views_applies_both_rules_to_the_views_it_returns():
+    """_derive_views itself, its view builders stubbed (they return hand-built views): the reverse
+    view it returns for the reference camera no longer lists the id the reference camera's own
+    track lists, and camera b's track gives up the id found for another obstacle's view (without
+    the two calls in _derive_views the views come back unchanged; fisheye-des demo's tracks.jsonl
+    differs without either)."""
+    fe, (a0, b0, c0, a1_own, b1) = _front_end()
+    fe.cams = {"cam0": None, "cam1": None}
+    fe.trackers = {"cam0": None, "cam1": None}
+    fe.reverse_views = True
+    c1 = _track(3, "cam1", [30, 31, 32])  # C0's view found in cam1 (global 300: B1's 70 -> 30)
+    e = _track(8, "cam0", [11, 90, 91])  # a reverse view (global 800) listing A0's 11
+    fe._gid[8] = 800
+    fe._add_found_members = lambda seen, ref, b: {}
+    fe._unviewed_in_ref = lambda seen, b: [b1]
+    fe._views_found = lambda a, b, todo, pid: [c1] if (a, b) == ("cam0", "cam1") else [e]
+    seen = {"cam0": [a0, b0, c0], "cam1": [a1_own, b1]}
+    out = fe._derive_views(seen, {"cam0": None, "cam1": None})
+    assert [t.members.tolist() for t in out["cam0"]] == [[90, 91]]
+    assert out["cam1"] == [c1]
+    assert seen["cam1"][0] is a1_own
+    assert seen["cam1"][1].members.tolist() == [10, 20, 77]  # 70 (-> 30) left for C's view
+    assert seen["cam0"] == [a0, b0, c0]
