@@ -2469,7 +2469,7 @@ class ObstacleFusion:
         """Fuse feature velocities V (K, 3) m/s, covariances R (K, 3, 3), measured at T (K,) s, one
         per track of trs (distinct tracks), into each track's velocity evidence ``vel_acc`` (a
         constant-velocity filter: P += q dt I between measurements, q = max_accel_mps2^2
-        accel_time_s, the moving filter's process noise, ``_grown``; then the Kalman update with
+        accel_time_s, the moving filter's process noise, ``_grown_all``; then the Kalman update with
         H = I: K = P0 (P0 + R)^-1, x = x0 + K (v - x0), P = (I - K) P0 made symmetric). A track
         without evidence starts from its measurement. All tracks at once: numpy's stacked inv and
         matmul make LAPACK's and BLAS's per-matrix calls, so the numbers are one track's at a
@@ -2480,12 +2480,9 @@ class ObstacleFusion:
                 tr.vel_acc = (V[k], R[k], T[k])
         if not old:
             return
-        q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
         e = [trs[k].vel_acc for k in old]
         X0 = np.array([x for x, _P, _t in e])
-        # _grown's P + q (t - t_e) I, one track per row
-        age = np.array([max(T[k] - t_e, 0.0) for k, (_x, _P, t_e) in zip(old, e, strict=True)])
-        P0 = np.array([P for _x, P, _t in e]) + _EYE3 * (q * age)[:, None, None]
+        P0 = self._grown_all(e, [T[k] for k in old])
         K = P0 @ np.linalg.inv(P0 + R[old])
         x = X0 + (K @ (V[old] - X0)[:, :, None])[:, :, 0]
         P = P0 - K @ P0
@@ -2495,9 +2492,16 @@ class ObstacleFusion:
 
     def _grown(self, e: tuple, t_s: float) -> np.ndarray:
         """The covariance (3, 3) m^2/s^2 of velocity evidence e = (v, P, t_e) grown to t_s:
-        P + q (t_s - t_e) I, q = max_accel_mps2^2 accel_time_s (``_evidence_now``'s arithmetic)."""
+        P + q (t_s - t_e) I, q = max_accel_mps2^2 accel_time_s (``_grown_all``: several at once)."""
         q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
         return e[1] + _EYE3 * (q * max(t_s - e[2], 0.0))
+
+    def _grown_all(self, es: list[tuple], T: list[float]) -> np.ndarray:
+        """``_grown`` of several velocity evidences es = [(v, P, t_e), ...], each to its time in T
+        (s): (K, 3, 3) m^2/s^2, the same numbers one at a time."""
+        q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
+        age = np.array([max(t - e[2], 0.0) for e, t in zip(es, T, strict=True)])
+        return np.array([e[1] for e in es]).reshape(len(es), 3, 3) + _EYE3 * (q * age)[:, None, None]
 
     def _evidence_now(self, trs: list[_Track], t_s: float) -> tuple[np.ndarray, list[bool]]:
         """The velocity evidence ``vel_acc`` = (v, P, t_e) of each track in trs (all with one)
@@ -2505,12 +2509,8 @@ class ObstacleFusion:
         evidence filter's process noise), (K, 3, 3) m^2/s^2, and whether it rejects zero velocity
         now, v^T P(t_s)^-1 v > chi2_3(gate_probability) (K bools): evidence that is no longer
         renewed stops deciding "moving" as its covariance grows."""
-        s = self.settings
-        q = s.max_accel_mps2**2 * s.accel_time_s
         V = np.array([tr.vel_acc[0] for tr in trs]).reshape(len(trs), 3)
-        P = np.array([tr.vel_acc[1] for tr in trs]).reshape(len(trs), 3, 3)
-        age = np.array([max(t_s - tr.vel_acc[2], 0.0) for tr in trs])
-        P += np.eye(3)[None] * (q * age)[:, None, None]
+        P = self._grown_all([tr.vel_acc for tr in trs], [t_s] * len(trs))
         chi = np.einsum("ki,ki->k", V, np.linalg.solve(P, V[:, :, None])[:, :, 0])
         return P, (chi > self._gate3).tolist()
 
