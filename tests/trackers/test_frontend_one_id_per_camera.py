@@ -137,3 +137,25 @@ def test_derive_views_applies_both_rules_to_the_views_it_returns():
     assert seen["cam1"][0] is a1_own
     assert seen["cam1"][1].members.tolist() == [10, 20, 77]  # 70 (-> 30) left for C's view
     assert seen["cam0"] == [a0, b0, c0]
+
+
+def test_views_without_feature_bearings_neither_lose_nor_take_ids():
+    """A view whose members have no per-feature bearings is reported without feature ids
+    (_observations), so it lists no id twice: it keeps its members, and its members take no id
+    from another view."""
+    fe, (a0, b0, c0, a1_own, b1) = _front_end()
+    fe._gid.update({4: 400, 8: 800, 9: 900})
+    # cam1: A1's copy found 10 and 11 (2 found); a view of global 800 lists 10 without bearings
+    a1_view = _track(5, "cam1", [51, 10, 11])
+    no_b = _track(8, "cam1", [10], with_b=False)
+    trs = [a1_view, no_b]
+    fe._release_found(trs, {0: 2}, [], "cam1")
+    assert trs[0] is a1_view and trs[1] is no_b
+    # cam0: a reference track without bearings lists 11 (E keeps it); a reverse view without
+    # bearings keeps 12, which A0 lists
+    ref_no_b = _track(4, "cam0", [11], with_b=False)
+    e, f = _track(8, "cam0", [11, 90]), _track(9, "cam0", [12], with_b=False)
+    extra = [e, f]
+    a0_12 = _track(1, "cam0", [12])  # A0 listing 12 alone
+    fe._drop_listed([a0_12, ref_no_b], extra)
+    assert extra[0] is e and extra[1] is f
