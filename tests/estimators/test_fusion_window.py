@@ -1,0 +1,97 @@
+"""On a mono rig, a report whose direction has, inside the tracked window's angle, a member point
+at another depth gets a range sigma that reaches that depth (``ObstacleFusion._window_neighbours``).
+
+Truth by hand: a mono rig (camera at the body origin, 0.15 deg per px: 382 px per rad, so the
+window angle of feature_window_px 5.5 is 5.5 / 382 = 0.0144 rad = 0.83 deg) flies along +x at
+5 m/s for 20 frames at 30 fps, so the body ends at o = (19 / 6, 0, 0). Track 2: three corners of
+a far wall at (20 + 0.05 i, 6, 0.05 i), i = -1, 0, 1 (17.9-18.0 m from o, within 0.2 deg of each
+other). Track 1: three corners of a near plate halfway along o's ray toward the far wall's middle
+corner, the first of them turned 0.4 deg off that ray (inside every far corner's window angle)
+or 3 deg off (outside it), the others 0.3 m beyond it in that direction (~9 m from o; the plate
+does not surround the far corners' directions: ``_occluded_by_members`` leaves them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from estimators.cameras import Equidistant
+from estimators.egomotion import ConstantVelocity
+from estimators.fusion import FusionSettings, ObstacleFusion
+from estimators.records import CameraView, ObstacleObservation
+from estimators.rig import mono_forward_rig
+
+MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
+FPS = 30.0
+FRAMES = 20
+SPEED = 5.0
+FAR = [np.array([20.0 + 0.05 * i, 6.0, 0.05 * i]) for i in (-1, 0, 1)]
+O_END = np.array([SPEED * (FRAMES - 1) / FPS, 0.0, 0.0])
+
+
+def _near_plate(off_deg: float) -> list[np.ndarray]:
+    """The near plate's corners: halfway along o_end's ray toward FAR[1], turned off_deg about x."""
+    d = FAR[1] - O_END
+    half = 0.5 * float(np.linalg.norm(d))
+    u = d / np.linalg.norm(d)
+    w = np.cross(u, [1.0, 0.0, 0.0])
+    w /= np.linalg.norm(w)
+    a = math.radians(off_deg)
+    p0 = O_END + half * (math.cos(a) * u + math.sin(a) * w)
+    v = np.cross(u, w)
+    return [p0, p0 + 0.3 * w, p0 + 0.3 * w + 0.3 * v]  # (away from the far corners: not around them)
+
+
+def _bearing(cam, T_W_B, p_W):
+    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
+    return p_C / np.linalg.norm(p_C)
+
+
+def _far_report(off_deg: float, settings: FusionSettings | None = None):
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(SPEED)
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    near = _near_plate(off_deg)
+    cam = rig[rig.names[0]]
+    for k in range(FRAMES):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        obs = []
+        for tid, pts, ids in ((1, near, np.arange(3)), (2, FAR, np.arange(100, 103))):
+            fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
+            obs.append(ObstacleObservation(tid, k, t, "confirmed", (
+                CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids, feature_b_C=fb),)))
+        reps = fus.step(obs, k, t)
+    assert T_W_B.t == pytest.approx(O_END)
+    return next(r for r in reps if r.id == 2)
+
+
+def test_a_member_point_at_another_depth_inside_the_window_angle_widens_the_sigma():
+    r = _far_report(0.4)
+    r_far = [float(np.linalg.norm(p - O_END)) for p in FAR]
+    assert min(r_far) - 1e-3 <= r.range_m <= max(r_far) + 1e-3  # a far corner's own point
+    r_near = max(float(np.linalg.norm(p - O_END)) for p in _near_plate(0.4))  # ~9 m
+    assert r.range_sigma_m >= 0.95 * (r.range_m - r_near)
+    # the same scene without the term: the far point's own sigma
+    r_off = _far_report(0.4, FusionSettings(feature_window_px=0.0))
+    assert r_off.range_m == pytest.approx(r.range_m)
+    assert r_off.range_sigma_m < 0.1 * (r.range_m - r_near)
+
+
+def test_a_member_point_outside_the_window_angle_leaves_the_sigma():
+    r = _far_report(3.0)
+    r_off = _far_report(3.0, FusionSettings(feature_window_px=0.0))
+    assert r.range_m == pytest.approx(r_off.range_m)
+    assert r.range_sigma_m == r_off.range_sigma_m < 1.0
+
+
+def test_the_window_angle_follows_the_rig_focal_length():
+    # the same 5.5 px on a lens of half the pixels per radian is twice the angle
+    fus = ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(SPEED))
+    coarse = ObstacleFusion(mono_forward_rig(Equidistant.from_deg_per_px(0.30, 640, 640)),
+                            ConstantVelocity(SPEED))
+    assert fus._window_rad == pytest.approx(5.5 * math.radians(0.15))
+    assert coarse._window_rad == pytest.approx(2.0 * fus._window_rad)
