@@ -1,4 +1,4 @@
-"""On a mono rig, a report whose direction has, inside the tracked window's angle, a member point
+"""On any rig, a report whose direction has, inside the tracked window's angle, a member point
 at another depth gets a range sigma that reaches that depth (``ObstacleFusion._window_neighbours``).
 
 Truth by hand: a mono rig (camera at the body origin, 0.15 deg per px: 382 px per rad, so the
@@ -22,7 +22,7 @@ from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.records import CameraView, ObstacleObservation
-from estimators.rig import mono_forward_rig
+from estimators.rig import mono_forward_rig, stereo_forward_rig
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
 FPS = 30.0
@@ -95,3 +95,44 @@ def test_the_window_angle_follows_the_rig_focal_length():
                             ConstantVelocity(SPEED))
     assert fus._window_rad == pytest.approx(5.5 * math.radians(0.15))
     assert coarse._window_rad == pytest.approx(2.0 * fus._window_rad)
+
+
+def _far_report_stereo(off_deg: float, settings: FusionSettings | None = None):
+    """The scene above seen by a stereo rig (baseline 0.3 m, cam0 at y = +0.15 m): both tracks in
+    both cameras, every ray exact."""
+    rig = stereo_forward_rig(MODEL, 0.30)
+    ego = ConstantVelocity(SPEED)
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    near = _near_plate(off_deg)
+    for k in range(FRAMES):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        obs = []
+        for tid, pts, ids in ((1, near, np.arange(3)), (2, FAR, np.arange(100, 103))):
+            views = []
+            for cam in rig:
+                fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
+                views.append(CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids,
+                                        feature_b_C=fb))
+            obs.append(ObstacleObservation(tid, k, t, "confirmed", tuple(views)))
+        reps = fus.step(obs, k, t)
+    return next(r for r in reps if r.id == 2)
+
+
+def test_on_a_stereo_rig_a_member_point_inside_the_window_angle_widens_the_sigma_too():
+    # (the occlusion term off: from the body origin between the two cameras the plate's corners
+    # enclose the far corner's direction, and that term alone would reach the plate's depth)
+    on = FusionSettings(occluder_min_members=0)
+    off = FusionSettings(occluder_min_members=0, feature_window_px=0.0)
+    r = _far_report_stereo(0.4, on)
+    r_far = [float(np.linalg.norm(p - O_END)) for p in FAR]
+    assert r.range_m is not None and "mono" in r.source  # the static-point fix
+    assert min(r_far) - 1e-3 <= r.range_m <= max(r_far) + 1e-3
+    r_near = max(float(np.linalg.norm(p - O_END)) for p in _near_plate(0.4))
+    assert r.range_sigma_m >= 0.95 * (r.range_m - r_near)
+    r_off = _far_report_stereo(0.4, off)
+    assert r_off.range_m == pytest.approx(r.range_m)
+    assert r_off.range_sigma_m < 0.1 * (r.range_m - r_near)
+    # outside the window angle: nothing
+    r3, r3_off = _far_report_stereo(3.0, on), _far_report_stereo(3.0, off)
+    assert r3.range_sigma_m == r3_off.range_sigma_m < 1.0
