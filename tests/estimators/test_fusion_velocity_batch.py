@@ -128,7 +128,8 @@ def test_batched_feature_velocities_equal_the_per_track_formulas():
 def test_velocity_evidence_of_several_tracks_equals_one_kalman_update_each():
     """``ObstacleFusion._velocity_evidence`` updates every due track's evidence in one batch: each
     must equal the docstring's filter for that track alone, written out here (P grown by q (t -
-    t_e) I, K = P0 (P0 + R)^-1, x = x0 + K (v - x0), P = (I - K) P0 symmetrised), bit for bit; a
+    t_e) I, K = P0 (P0 + R)^-1, x = x0 + K (v - x0), P = (I - K) P0 symmetrised), to 1e-12 (bit for
+    bit on this machine; numpy's stacked and single 3x3 inverses may round apart on another CPU); a
     track without evidence starts from its measurement; tracks must not mix."""
     rng = np.random.default_rng(5)
     s = FusionSettings()
@@ -158,5 +159,5 @@ def test_velocity_evidence_of_several_tracks_equals_one_kalman_update_each():
         P0 = P0 + np.eye(3) * (q * max(T[k] - t0, 0.0))
         K = P0 @ np.linalg.inv(P0 + R[k])
         P_want = P0 - K @ P0
-        assert np.array_equal(x, x0 + K @ (V[k] - x0))
-        assert np.array_equal(P, 0.5 * (P_want + P_want.T))
+        np.testing.assert_allclose(x, x0 + K @ (V[k] - x0), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(P, 0.5 * (P_want + P_want.T), rtol=1e-12, atol=1e-12)
