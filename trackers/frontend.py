@@ -133,6 +133,14 @@ def _shallow_copy(obj):
     return new
 
 
+def _physical_ids(pid: dict[int, int], ids: np.ndarray) -> np.ndarray:
+    """Feature ids (N,) of one camera under their physical-point ids: through ``pid`` (that
+    camera's feature id -> the reference camera's id of the same point, ``FrontEnd._pid``), an id
+    without an entry unchanged."""
+    il = ids.tolist()
+    return np.fromiter(map(pid.get, il, il), np.int64, len(il))
+
+
 def _count_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> dict[tuple[int, int], int]:
     """Votes per (a's track id, b's track id) pair: {pair: count}, pairs in the order of their
     first vote (the order ``_associate``'s best-partner choice breaks ties by).
@@ -1035,8 +1043,7 @@ class FrontEnd:
         uv, okp = self.cams[b].model.bearing_to_pixel(reps)
         found = mem[idx]
         if pid:  # under their physical-point ids
-            fl = found.tolist()
-            found = np.fromiter(map(pid.get, fl, fl), np.int64, len(fl))
+            found = _physical_ids(pid, found)
         out = []
         for k, (ti, lo, hi) in enumerate(zip(gl, los, his, strict=True)):
             if not okp[k]:
@@ -1128,7 +1135,7 @@ class FrontEnd:
         n_b = np.array([len(m) for m in tb_mem])
         allm = np.concatenate(tb_mem)
         if pid:
-            allm = np.fromiter(map(pid.get, allm.tolist(), allm.tolist()), np.int64, len(allm))
+            allm = _physical_ids(pid, allm)
         slot_b = np.repeat(np.arange(len(slots)), n_b)
         # a reference id found by KLT is placed where KLT found it, also when one of b's members
         # is linked to it (descriptor links on a near object can pair neighbouring corners along
@@ -1188,7 +1195,7 @@ class FrontEnd:
         nothing else lists an id twice in b."""
         done: set[int] = set()
         views = self._reported_views(trs, done)
-        found = [t.members for k in self._reported_views(derived, done) for t in (derived[k],)]
+        found = [derived[k].members for k in self._reported_views(derived, done)]
         parts = []  # (index in trs, own-part length): reported views with members of b's own
         for k in views:
             t = trs[k]
@@ -1207,8 +1214,7 @@ class FrontEnd:
             mapped = [own.get(trs[k].id) is trs[k] for k, _ in parts]
             if any(mapped):
                 need = np.repeat(mapped, [m for _, m in parts])
-                il = ids[need].tolist()
-                ids[need] = np.fromiter(map(pid.get, il, il), np.int64, len(il))
+                ids[need] = _physical_ids(pid, ids[need])
         drop = _isin(ids, np.concatenate(found))
         if not drop.any():
             return
@@ -1303,8 +1309,7 @@ class FrontEnd:
                     fb, fi = no_b, no_ids
                 pid = self._pid.get(cam)
                 if pid and len(fi) and cam in own_tracks and own_tracks[cam].get(tr.id) is tr:
-                    ids = fi.tolist()
-                    fi = np.fromiter(map(pid.get, ids, ids), np.int64, len(ids))
+                    fi = _physical_ids(pid, fi)
                 f = self.scale[cam]
                 views.append(
                     CameraView(
