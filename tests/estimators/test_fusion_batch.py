@@ -326,13 +326,25 @@ def test_stereo_velocity_from_the_shared_features_own_displacements():
 def test_posterior_sigma_closed_form():
     from estimators.fusion import _posterior_sigma
 
-    # k = 2.5, many rays (2n / (2n - 3) = 1 to 1e-6): chi 1 and 6.25 (sqrt 2.5 = k) keep the
-    # sigma; chi 25 (sqrt 5 = 2 k) doubles it; chi 0 (rays that meet exactly) keeps it (never below
-    # the typical k)
-    many = np.full(4, 1.5e6)
-    out = _posterior_sigma(np.array([0.1, 0.1, 0.1, 0.3]), np.array([1.0, 6.25, 25.0, 0.0]), many, 2.5)
-    np.testing.assert_allclose(out, [0.1, 0.1, 0.2, 0.3], rtol=1e-5)
-    # the fitted point's 3 dof: n = 3 rays leave 2n - 3 = 3 of 6 residual dof, so chi 12.5 is a
-    # variance factor of 12.5 * 6 / 3 = 25 (sqrt 5 = 2 k: doubled); n = 1 floors 2n - 3 at 1
-    out = _posterior_sigma(np.array([0.1, 0.1]), np.array([12.5, 12.5]), np.array([3.0, 1.0]), 2.5)
-    np.testing.assert_allclose(out, [0.2, 0.1 * math.sqrt(12.5 * 2.0) / 2.5], rtol=1e-12)
+    # the conjugate (scaled inverse chi-square) estimate of a feature's noise variance factor:
+    # a prior of nu0 dof at the nominal sigma_f (factor 1) pooled with the fit's own 2n - 3
+    # residual dof at s2 = chi 2n / (2n - 3):  s2_post = (nu0 + 2n chi) / (nu0 + 2n - 3)
+    # many rays (2n = 3e6): the prior does not count, s2_post = chi (to 1e-6)
+    many = np.full(3, 1.5e6)
+    out = _posterior_sigma(np.array([0.1, 0.1, 0.3]), np.array([1.0, 4.0, 0.25]), many, 3.0)
+    np.testing.assert_allclose(out, [0.1, 0.2, 0.15], rtol=1e-5)
+    # n = 3 rays, nu0 = 3: (3 + 6 chi) / 6; chi 0.5 is its expectation at the nominal noise
+    # ((2n - 3) / 2n = 1/2): factor 1 for any nu0; chi 4: 27 / 6 = 4.5
+    out = _posterior_sigma(np.array([0.1, 0.1, 0.1]), np.array([0.5, 0.5, 4.0]), np.array([3.0, 3.0, 3.0]),
+                           3.0)
+    np.testing.assert_allclose(out, [0.1, 0.1, 0.1 * math.sqrt(4.5)], rtol=1e-12)
+    np.testing.assert_allclose(_posterior_sigma(np.array([0.1]), np.array([0.5]), np.array([3.0]), 0.0),
+                               [0.1], rtol=1e-12)
+    # a strong prior keeps the nominal noise whatever the fit says; nu0 = 0: the fit's own factor
+    np.testing.assert_allclose(_posterior_sigma(np.array([0.1]), np.array([9.0]), np.array([4.0]), 1e12),
+                               [0.1], rtol=1e-9)
+    np.testing.assert_allclose(_posterior_sigma(np.array([0.1]), np.array([9.0]), np.array([4.0]), 0.0),
+                               [0.1 * math.sqrt(9.0 * 8.0 / 5.0)], rtol=1e-12)
+    # n = 1 ray (2n - 3 = -1): the denominator nu0 + 2n - 3 floored at 1; nu0 = 3: (3 + 2 chi) / 2
+    out = _posterior_sigma(np.array([0.1, 0.1]), np.array([2.0, 2.0]), np.array([1.0, 1.0]), 3.0)
+    np.testing.assert_allclose(out, [0.1 * math.sqrt(3.5)] * 2, rtol=1e-12)

@@ -68,6 +68,22 @@ def test_near_group_choice_closed_form():
     assert r[_near_group_choice(g, r, s, pick, 3, 0.5)].tolist() == [8.1, 9.0, 3.2]
 
 
+def test_near_group_spans_a_surfaces_relief():
+    # a near surface of 4 points at 7.52 / 7.53 / 7.81 / 7.83 m, sigma 0.05 m each: relief beyond
+    # their noise (7.81 - 7.53 = 0.28 m > 2 sqrt(0.05^2 + 0.05^2) = 0.141 m) but within gap_frac
+    # 0.3 of the nearer range (2.26 m): one group, anchor 7.52 m, lower median 7.53 m; the choice
+    # 16.6 m lies beyond it by 9.07 m > max(2 sqrt(0.05^2 + 0.05^2), 0.3 * 7.53 = 2.26) m: moved.
+    # By the noise alone no point has 3 agreeing (7.52 / 7.53 and 7.81 / 7.83 pairs): unchanged.
+    r = np.array([16.6, 7.81, 7.52, 16.7, 7.83, 7.53])
+    g = np.zeros(len(r), dtype=np.int64)
+    s = np.full(len(r), 0.05)
+    pick = np.array([0])
+    assert r[_near_group_choice(g, r, s, pick, 3, 0.3)].tolist() == [7.53]
+    # the far pair 16.6 / 16.7 m is 8.8 m beyond the near surface (> 0.3 * 7.8 m): not one surface
+    # with it; with gap_frac 0 only the noise counts: no anchor
+    assert r[_near_group_choice(g, r, s, pick, 3, 0.0)].tolist() == [16.6]
+
+
 def _junction_run(near_group: bool, seed: int = 2, rig=None, fusion_out: list | None = None):
     """A mono rig flown at 5 m/s for 1.5 s past one track of eight member features: four on a
     near surface (static points around (14, 4, 0.5) m in W, 8 to 15 m away) and four T-junctions

@@ -1,5 +1,7 @@
-"""The static-point fix on a stereo rig: its range sigma is stereo_point_sigma_k sigma_r,f (plus the
-floor), sigma_r,f the first-order sigma of the feature's least-squares point. Expected values from
+"""The static-point fix on a stereo rig: its range sigma is stereo_point_sigma_k sqrt(s2) sigma_r,f
+(plus the floor), sigma_r,f the first-order sigma of the feature's least-squares point, s2 its noise
+variance factor (``_posterior_sigma``: exact rays miss by 0, so s2 = nu0 / (nu0 + 2n - 3), n the
+rays' forgetting weights summed). Expected values from
 the definitions written here: the normal equations A = sum_i w_i (I - b_i b_i^T) of the feature's
 rays from both cameras of every frame, their forgetting weights w_i = exp(-(t - t_i) / memory) and
 depths d_i = b_i . (p - c_i), summed by hand for a flight whose geometry is set by hand."""
@@ -54,8 +56,9 @@ def _run(settings: FusionSettings, frames: int = 16):
     return r, log
 
 
-def _first_order_sigma(j: int, log, sigma_f: float, memory_s: float) -> float:
-    """sigma_f sqrt(D2) sqrt(u^T A^-1 u) of point j from every ray of the flight (both cameras)."""
+def _first_order_sigma(j: int, log, sigma_f: float, memory_s: float) -> tuple[float, float]:
+    """sigma_f sqrt(D2) sqrt(u^T A^-1 u) of point j from every ray of the flight (both cameras), and
+    the rays' forgetting weights summed (n)."""
     t_last, o, _ = log[-1]
     p = POINTS_W[j]
     A = np.zeros((3, 3))
@@ -69,7 +72,7 @@ def _first_order_sigma(j: int, log, sigma_f: float, memory_s: float) -> float:
             wd2 += w * d * d
             wsum += w
     u = _unit(p - o)
-    return sigma_f * math.sqrt(wd2 / wsum) * math.sqrt(float(u @ np.linalg.solve(A, u)))
+    return sigma_f * math.sqrt(wd2 / wsum) * math.sqrt(float(u @ np.linalg.solve(A, u))), wsum
 
 
 def test_a_stereo_rigs_static_point_is_ranged_with_the_stereo_k():
@@ -82,10 +85,17 @@ def test_a_stereo_rigs_static_point_is_ranged_with_the_stereo_k():
     dist = np.linalg.norm(POINTS_W - o, axis=1)
     j = int(np.argmin(np.abs(dist - r.range_m)))
     assert r.range_m == pytest.approx(dist[j], rel=1e-6)  # exact rays: the point itself
-    sig_r = _first_order_sigma(j, log, s.feature_sigma_rad, s.feature_memory_s)
+    sig_r, n = _first_order_sigma(j, log, s.feature_sigma_rad, s.feature_memory_s)
+    nu0 = s.feature_noise_prior_dof
+    post = math.sqrt(nu0 / max(nu0 + 2.0 * n - 3.0, 1.0))  # exact rays: chi 0 (and chi_now 0)
     assert s.stereo_point_sigma_k == 1.0
-    assert r.range_sigma_m == pytest.approx(s.stereo_point_sigma_k * sig_r, rel=1e-6)
-    # the mono rigs' k (feature_point_sigma_k, 2) does not scale it; stereo_point_sigma_k does
-    r2, _ = _run(FusionSettings(**base, feature_point_sigma_k=3.0, stereo_point_sigma_k=1.5))
+    assert r.range_sigma_m == pytest.approx(s.stereo_point_sigma_k * post * sig_r, rel=1e-6)
+    # the mono rigs' k (mono_point_sigma_k) and the per-ray k (feature_point_sigma_k) do not scale
+    # it; stereo_point_sigma_k does
+    r2, _ = _run(FusionSettings(**base, feature_point_sigma_k=3.0, mono_point_sigma_k=3.0,
+                                stereo_point_sigma_k=1.5))
     assert r2.range_m == pytest.approx(r.range_m, rel=1e-9)
-    assert r2.range_sigma_m == pytest.approx(1.5 * sig_r, rel=1e-6)
+    assert r2.range_sigma_m == pytest.approx(1.5 * post * sig_r, rel=1e-6)
+    # a strong prior (nu0 -> inf) keeps the nominal noise: factor 1, k sigma_r,f
+    r3, _ = _run(FusionSettings(**base, feature_noise_prior_dof=1e12))
+    assert r3.range_sigma_m == pytest.approx(sig_r, rel=1e-6)
