@@ -173,17 +173,27 @@ def open_capture(ref: str | int | Path) -> cv2.VideoCapture:
 
 
 def is_grey_video(path: str | Path) -> bool:
-    """Whether the video file ``path``'s stream decodes to one (H, W) uint8 plane without colour
-    conversion (e.g. the simulator's ``--grey`` FFV1): its first frame read with ``CAP_PROP_CONVERT_RGB``
-    off is 2-D with the container's width and height. Raises SourceError when it cannot be opened."""
+    """Whether the video file ``path``'s stream is itself grey (e.g. the simulator's ``--grey`` FFV1):
+    its decoder's pixel format is one 8-bit grey plane (``CAP_PROP_CODEC_PIXEL_FORMAT`` ``Y800``) and
+    its first frame read with ``CAP_PROP_CONVERT_RGB`` off is (H, W) uint8 of the container's size.
+    A colour YUV stream (MJPEG, MPEG-4, H.264) also reads as one (H, W) plane then, its luma: it is
+    not grey. Raises SourceError when it cannot be opened."""
     cap = open_capture(path)
     try:
         cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
         ok, img = cap.read()
         w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        fmt = int(cap.get(cv2.CAP_PROP_CODEC_PIXEL_FORMAT))
     finally:
         cap.release()
-    return bool(ok) and img is not None and img.ndim == 2 and img.dtype == np.uint8 and img.shape == (h, w)
+    return (
+        fmt == cv2.VideoWriter_fourcc(*"Y800")
+        and bool(ok)
+        and img is not None
+        and img.ndim == 2
+        and img.dtype == np.uint8
+        and img.shape == (h, w)
+    )
 
 
 class VideoSource(Source):

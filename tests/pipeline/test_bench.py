@@ -363,6 +363,32 @@ def write_grey_video(path: Path, values: list[int], size: tuple[int, int] = (64,
     return path
 
 
+@pytest.mark.parametrize("fourcc, ext", [("MJPG", "avi"), ("mp4v", "mp4")])
+def test_a_colour_yuv_video_is_not_grey(tmp_path, fourcc, ext):
+    """A colour MJPEG or MPEG-4 video (what a USB camera records) decodes without conversion to one
+    plane too, its luma; it is still colour: the default detector (orb+navlights) needs it in colour."""
+    from pipeline.config import PipelineConfig
+    from pipeline.run import reads_grey
+
+    p = tmp_path / f"cam0.{ext}"
+    w = cv2.VideoWriter(str(p), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*fourcc), 30.0, (64, 48), True)
+    if not w.isOpened():
+        pytest.skip(f"OpenCV cannot write {fourcc} here")
+    frame = np.zeros((48, 64, 3), np.uint8)
+    frame[:, :32] = (0, 0, 255)  # red | green halves
+    frame[:, 32:] = (0, 255, 0)
+    for _ in range(3):
+        w.write(frame)
+    w.release()
+    cap = cv2.VideoCapture(str(p), cv2.CAP_FFMPEG)
+    cap.set(cv2.CAP_PROP_CONVERT_RGB, 0)
+    assert cap.read()[1].shape == (48, 64)  # the decoder's luma plane
+    cap.release()
+    assert bench.is_grey_video(p) is False
+    cfg = PipelineConfig()
+    assert cfg.detector.name == "orb+navlights" and reads_grey(cfg, [p]) is False
+
+
 def test_grey_video_is_read_without_conversion_and_colour_one_is_converted(tmp_path):
     g = write_grey_video(tmp_path / "cam0.mkv", [0, 100])
     c = write_video(tmp_path / "cam1.mkv", [30, 60])
