@@ -2,13 +2,23 @@
 coverage of the visible obstacles, id switches, features tracked beyond 90 degrees off-axis.
 
     python -m trackers.benchmark SCENE_DIR [--detector orb+navlights] [--threads 1] [--frames N] [--no-poses]
+                                 [--mjpeg QUALITY]
 
 The front end gets the scene's true body poses (``T_W_B`` in ``gt.jsonl``) for its rotation
 compensation, as the pipeline gets the trajectory's: ``--no-poses`` (``use_poses=False``) measures
 it without them. ``poses`` in the result says whether any frame had one.
 
 ``SCENE_DIR`` is the output of ``fisheye-des simulate`` (``<cam>.mkv``, ``<cam>.timestamps.txt``,
-``camchain.yaml``, ``gt.jsonl``, ``scene.yaml``). Reads files only; imports nothing from ``pipeline``.
+``camchain.yaml``, ``gt.jsonl``, ``scene.yaml``). Reads files only (``--mjpeg`` writes its MJPEG copies beside
+the videos); imports nothing from ``pipeline``.
+
+The scene's videos are lossless colour FFV1, which no camera delivers and which cost far more to
+decode (9-10 ms CPU a 1280x720 frame, 42-48 ms at 1920x1080) than the front end's own work. ``--mjpeg Q``
+decodes the frames as a USB camera delivers them instead: each camera's video re-encoded once as
+MJPEG (JPEG quality ``Q``, 4:2:2 chroma as a UVC camera's MJPEG; ``mjpeg_copy``), every packet
+decoded by libjpeg-turbo (``cv2.imdecode``) straight to grey when the detector needs no colour, else
+to BGR. Decoding, the front end and the scoring then all run on those decoded frames (their JPEG
+artefacts included); ``video`` in the result says what was decoded.
 
 Mapping tracks to ground truth: a reported track's view in camera c is on obstacle k when the ray
 from the camera centre along the view's bearing passes through obstacle k's shape (sphere, pole as
@@ -26,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +46,7 @@ import cv2
 import numpy as np
 import yaml
 
-from estimators.errors import SourceError
+from estimators.errors import InputError, SourceError
 from estimators.se3 import Pose, quat_to_rot
 
 
@@ -376,11 +387,50 @@ class _Explainer:
         }
 
 
-def open_scene(scene_dir: Path, threads: int | None = None):
+def mjpeg_copy(video: Path, quality: int) -> Path:
+    """``video`` re-encoded as a camera's MJPEG: ``<stem>.q<quality>.mjpeg`` beside it, each frame one
+    baseline JPEG (``quality`` 1-100, 4:2:2 chroma), the JPEGs back to back (FFmpeg's raw ``mjpeg``
+    format: a VideoCapture with ``CAP_PROP_FORMAT`` -1 reads them back one packet a frame).
+
+    Made once and reused while it is newer than ``video`` (written to a temporary file, then renamed:
+    a killed run leaves no partial copy). Raises InputError for a quality outside 1..100, SourceError
+    when ``video`` cannot be read."""
+    if not 1 <= int(quality) <= 100:
+        raise InputError(f"benchmark: expected a JPEG quality in 1..100, got {quality}")
+    out = video.with_name(f"{video.stem}.q{int(quality)}.mjpeg")
+    if out.exists() and out.stat().st_mtime_ns >= video.stat().st_mtime_ns:
+        return out
+    cap = cv2.VideoCapture(str(video), cv2.CAP_FFMPEG)
+    if not cap.isOpened():
+        raise SourceError(f"benchmark: cannot open video {video}")
+    params = [
+        cv2.IMWRITE_JPEG_QUALITY,
+        int(quality),
+        cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+        cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422,
+    ]
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.part")
+    try:
+        with tmp.open("wb") as f:
+            while True:
+                ok, img = cap.read()
+                if not ok:
+                    break
+                f.write(cv2.imencode(".jpg", img, params)[1].tobytes())
+        os.replace(tmp, out)
+    finally:
+        cap.release()
+        tmp.unlink(missing_ok=True)
+    return out
+
+
+def open_scene(scene_dir: Path, threads: int | None = None, mjpeg_quality: int | None = None):
     """(rig, captures {cam: VideoCapture}, timestamps {cam: {frame: t_s}}, gt {frame: line}, specs).
 
     ``threads``: the video decoder's threads (None: FFmpeg's default, one per core). Decoding with
-    its own threads runs ahead of the reads, so its CPU time would be booked to whatever runs then."""
+    its own threads runs ahead of the reads, so its CPU time would be booked to whatever runs then.
+    ``mjpeg_quality``: read each camera's ``mjpeg_copy`` at that quality instead, as undecoded JPEG
+    packets (``CAP_PROP_FORMAT`` -1; the caller decodes them)."""
     from estimators.calibration import load_kalibr
 
     scene_dir = Path(scene_dir)
@@ -388,10 +438,14 @@ def open_scene(scene_dir: Path, threads: int | None = None):
     caps, stamps = {}, {}
     for cam in rig.cameras:
         p = scene_dir / f"{cam.name}.mkv"
+        if mjpeg_quality is not None:
+            p = mjpeg_copy(p, mjpeg_quality)
         params = [] if threads is None else [cv2.CAP_PROP_N_THREADS, int(threads)]
         cap = cv2.VideoCapture(str(p), cv2.CAP_FFMPEG, params)
         if not cap.isOpened():
             raise SourceError(f"benchmark: cannot open video {p}")
+        if mjpeg_quality is not None and not cap.set(cv2.CAP_PROP_FORMAT, -1):
+            raise SourceError(f"benchmark: cannot read {p}'s packets undecoded")
         caps[cam.name] = cap
         st = {}
         for line in (scene_dir / f"{cam.name}.timestamps.txt").read_text().splitlines():
@@ -422,6 +476,7 @@ def run_benchmark(
     margin_px: float = 2.0,
     use_poses: bool = True,
     explain: bool = False,
+    mjpeg_quality: int | None = None,
     **frontend_options: Any,
 ) -> dict[str, Any]:
     """Run the FrontEnd over a simulated scene and measure it (see the module docstring).
@@ -441,14 +496,32 @@ def run_benchmark(
     front end, as the pipeline passes its trajectory's poses; False: none (no rotation compensation).
     ``explain``: also ``explain``, the cause of every coverage gap and id switch (``_Explainer``;
     CPU time per frame then includes the analysis, so rates are not comparable).
+    ``mjpeg_quality``: decode and score the frames of the scene's MJPEG copy at that JPEG quality
+    (``mjpeg_copy``; see the module docstring) instead of its lossless videos. ``video`` in the
+    result says what was decoded: ``format`` (the stream's codec tag: ``ffv1``, ``mjpg``), to what
+    (``decoded_to``: ``bgr``, or ``grey`` from MJPEG when no part of the detector needs colour) and
+    the JPEG ``quality``.
     """
     from trackers.frontend import STAGES, FrontEnd
 
     cv2.setNumThreads(int(threads))
-    rig, caps, stamps, gt, specs = open_scene(Path(scene_dir), threads=int(threads))
+    rig, caps, stamps, gt, specs = open_scene(
+        Path(scene_dir), threads=int(threads), mjpeg_quality=mjpeg_quality
+    )
     fe = FrontEnd(rig, detector=detector, **frontend_options)
-    ex = _Explainer(fe) if explain else None
+    # a composite detector's box part may need colour (orb+navlights) where the composite does not
+    colour = fe.detector.needs_colour or getattr(fe.detector, "box_part", fe.detector).needs_colour
+    jpeg_flag = cv2.IMREAD_COLOR if colour else cv2.IMREAD_GRAYSCALE
     names = [c.name for c in rig.cameras]
+    fourcc = int(caps[names[0]].get(cv2.CAP_PROP_FOURCC))
+    video: dict[str, Any] = {
+        "format": "".join(chr((fourcc >> 8 * i) & 0xFF) for i in range(4)).strip().lower()
+    }
+    if mjpeg_quality is None:
+        video["decoded_to"] = "bgr"
+    else:
+        video.update(quality=int(mjpeg_quality), decoded_to="bgr" if colour else "grey")
+    ex = _Explainer(fe) if explain else None
     frames = sorted(stamps[names[0]])
     if max_frames:
         frames = frames[:max_frames]
@@ -477,8 +550,8 @@ def run_benchmark(
         for n in names:
             ok, img = caps[n].read()
             if not ok:
-                raise SourceError(f"benchmark: {n}.mkv ended before frame {f}")
-            imgs[n] = img
+                raise SourceError(f"benchmark: {n}'s video ended before frame {f}")
+            imgs[n] = img if mjpeg_quality is None else cv2.imdecode(img, jpeg_flag)
         t1 = time.perf_counter()
         c1 = time.process_time()
         t_s = stamps[names[0]][f]
@@ -583,6 +656,7 @@ def run_benchmark(
         "resolution": f"{w}x{h}",
         "cameras": len(names),
         "detector": detector,
+        "video": video,
         "threads": threads,
         "poses": posed,
         "frames": nf,
@@ -634,6 +708,14 @@ def main(argv: list[str] | None = None) -> None:
     )
     ap.add_argument("--explain", action="store_true", help="the cause of every coverage gap and id switch")
     ap.add_argument(
+        "--mjpeg",
+        type=int,
+        default=None,
+        metavar="QUALITY",
+        help="decode (and score) the frames as a USB camera delivers them: the scene's videos re-encoded "
+        "once as MJPEG at this JPEG quality (e.g. 90), decoded to grey unless the detector needs colour",
+    )
+    ap.add_argument(
         "--set",
         action="append",
         default=[],
@@ -656,6 +738,7 @@ def main(argv: list[str] | None = None) -> None:
         max_frames=a.frames,
         use_poses=a.poses,
         explain=a.explain,
+        mjpeg_quality=a.mjpeg,
         **opts,
     )
     print(json.dumps(res, indent=2))

@@ -10,7 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trackers.benchmark import Shape, merged_depth_kind, ray_hit_distance, ray_hits, run_benchmark
+from estimators.errors import InputError
+from trackers.benchmark import (
+    Shape,
+    merged_depth_kind,
+    mjpeg_copy,
+    ray_hit_distance,
+    ray_hits,
+    run_benchmark,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "configs" / "scenarios"
@@ -175,6 +183,80 @@ def test_cli_no_poses_flag(ci_scene, capsys):
     for argv, expect in (([], True), (["--poses"], True), (["--no-poses"], False)):
         main([str(ci_scene), "--frames", "3", *argv])
         assert json.loads(capsys.readouterr().out)["poses"] is expect
+
+
+def _lossless_frames(video: Path, n: int) -> list[np.ndarray]:
+    import cv2
+
+    cap = cv2.VideoCapture(str(video), cv2.CAP_FFMPEG)
+    frames = [cap.read()[1] for _ in range(n)]
+    cap.release()
+    return frames
+
+
+def _psnr_db(a: np.ndarray, b: np.ndarray) -> float:
+    return float(10 * np.log10(255.0**2 / np.mean((a.astype(float) - b.astype(float)) ** 2)))
+
+
+def test_mjpeg_copy_is_a_cameras_mjpeg(ci_scene):
+    """The copy is one baseline JPEG per frame of the video (4:2:2 chroma, as a UVC camera's MJPEG),
+    back to back; FFmpeg's own MJPEG decoder reads it as a video of as many frames, each close to
+    the lossless frame (JPEG quality 90: well above 35 dB) but not equal to it; made once."""
+    import cv2
+
+    video = ci_scene / "cam0.mkv"
+    out = mjpeg_copy(video, 90)
+    assert out == ci_scene / "cam0.q90.mjpeg"
+    n = sum(1 for ln in (ci_scene / "cam0.timestamps.txt").read_text().splitlines() if ln.strip())
+    data = out.read_bytes()
+    # SOI markers (0xFFD8 never occurs inside entropy-coded data: 0xFF there is followed by 0x00)
+    assert data.count(b"\xff\xd8\xff") == n
+    sof = data.index(b"\xff\xc0")  # baseline DCT frame header: Nf, then (id, HV sampling, table) each
+    assert data[sof + 9] == 3
+    assert [data[sof + 11 + 3 * k] for k in range(3)] == [0x21, 0x11, 0x11]  # Y 2x1: 4:2:2
+    cap = cv2.VideoCapture(str(out), cv2.CAP_FFMPEG)
+    decoded = []
+    while True:
+        ok, img = cap.read()
+        if not ok:
+            break
+        decoded.append(img)
+    assert len(decoded) == n
+    lossless = _lossless_frames(video, n)
+    psnr = [_psnr_db(a, b) for a, b in zip(decoded, lossless, strict=True)]
+    assert min(psnr) > 35.0 and max(psnr) < 80.0
+    stamp = out.stat().st_mtime_ns
+    assert mjpeg_copy(video, 90) == out and out.stat().st_mtime_ns == stamp
+    with pytest.raises(InputError, match="quality"):
+        mjpeg_copy(video, 0)
+
+
+@pytest.mark.parametrize("detector, decoded_to", [("orb", "grey"), ("orb+navlights", "bgr")])
+def test_mjpeg_frames_are_what_the_front_end_sees(ci_scene, monkeypatch, detector, decoded_to):
+    """``mjpeg_quality``: the front end (and so the coverage scoring) gets the decoded JPEG frames,
+    grey when no part of the detector needs colour, BGR for navlights; the result says so."""
+    import cv2
+
+    from trackers.frontend import FrontEnd
+
+    seen: list[np.ndarray] = []
+    process = FrontEnd.process
+
+    def spy(self, images, *a, **kw):
+        seen.append(images["cam0"].copy())
+        return process(self, images, *a, **kw)
+
+    monkeypatch.setattr(FrontEnd, "process", spy)
+    res = run_benchmark(ci_scene, detector=detector, max_frames=4, mjpeg_quality=90)
+    assert res["video"] == {"format": "mjpg", "quality": 90, "decoded_to": decoded_to}
+    lossless = _lossless_frames(ci_scene / "cam0.mkv", 4)
+    if decoded_to == "grey":
+        lossless = [cv2.cvtColor(b, cv2.COLOR_BGR2GRAY) for b in lossless]
+    assert len(seen) == 4
+    for img, ref in zip(seen, lossless, strict=True):
+        assert img.shape == ref.shape and img.dtype == np.uint8
+        assert 35.0 < _psnr_db(img, ref) < 80.0  # the JPEG's frame, not the lossless one
+    assert run_benchmark(ci_scene, max_frames=1)["video"] == {"format": "ffv1", "decoded_to": "bgr"}
 
 
 @pytest.mark.parametrize(
