@@ -1,9 +1,9 @@
 """The static-point fix on a stereo rig: its range sigma is stereo_point_sigma_k sqrt(s2) sigma_r,f
-(plus the floor; on a mono rig with mono_point_sigma_k), sigma_r,f the first-order sigma of the feature's least-squares point, s2 its noise
-variance factor (``_posterior_sigma``: exact rays miss by 0, so s2 = nu0 / (nu0 + 2n - 3), n the
-rays' forgetting weights summed). Expected values from
-the definitions written here: the normal equations A = sum_i w_i (I - b_i b_i^T) of the feature's
-rays from both cameras of every frame, their forgetting weights w_i = exp(-(t - t_i) / memory) and
+(plus the floor; on a mono rig with mono_point_sigma_k), sigma_r,f the first-order sigma of the
+feature's least-squares point, s2 its noise variance factor (``_posterior_sigma``: exact rays miss by
+0, so s2 = nu0 / (nu0 + 2n - 3), n the rays' forgetting weights summed). Expected values from the
+definitions written here: the normal equations A = sum_i w_i (I - b_i b_i^T) of the feature's
+rays from every camera of every frame, their forgetting weights w_i = exp(-(t - t_i) / memory) and
 depths d_i = b_i . (p - c_i), summed by hand for a flight whose geometry is set by hand."""
 
 from __future__ import annotations
