@@ -236,3 +236,27 @@ def test_format_scenes_lists_only_the_metrics_a_scene_has():
     assert lines[0] == "per scene:"
     assert "mono 2.00 % / 2.00 % (n 1)" in lines[1] and "stereo" not in lines[1]
     assert "stereo<=3m 1.00 % (n 1)" in lines[2] and "mono " not in lines[2]
+
+
+def test_the_replay_key_hashes_the_front_ends_sources_not_its_benchmark_tool():
+    """A recording replays while the front end's sources are unchanged: the key is the sha1 of every
+    trackers/*.py (path, then bytes, sorted by path) except trackers/benchmark.py, the benchmark tool
+    nothing of the front end imports (its edits must not force every recording to be tracked again)."""
+    import hashlib
+    from pathlib import Path
+
+    from pipeline.accuracy import _trackers_hash
+
+    root = Path(__file__).resolve().parents[2] / "trackers"
+    files = sorted(root.rglob("*.py"))
+    assert (root / "benchmark.py") in files and (root / "frontend.py") in files
+
+    def sha(paths):
+        h = hashlib.sha1()
+        for p in paths:
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+        return h.hexdigest()
+
+    assert _trackers_hash() == sha([p for p in files if p.name != "benchmark.py" or p.parent != root])
+    assert _trackers_hash() != sha(files)
