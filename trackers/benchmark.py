@@ -46,7 +46,7 @@ import cv2
 import numpy as np
 import yaml
 
-from estimators.errors import InputError, SourceError
+from estimators.errors import FisheyeDesError, InputError, SourceError
 from estimators.se3 import Pose, quat_to_rot
 
 
@@ -551,7 +551,11 @@ def run_benchmark(
             ok, img = caps[n].read()
             if not ok:
                 raise SourceError(f"benchmark: {n}'s video ended before frame {f}")
-            imgs[n] = img if mjpeg_quality is None else cv2.imdecode(img, jpeg_flag)
+            if mjpeg_quality is not None:
+                img = cv2.imdecode(img, jpeg_flag)
+                if img is None:
+                    raise SourceError(f"benchmark: {n}'s MJPEG frame {f} does not decode as a JPEG")
+            imgs[n] = img
         t1 = time.perf_counter()
         c1 = time.process_time()
         t_s = stamps[names[0]][f]
@@ -731,16 +735,19 @@ def main(argv: list[str] | None = None) -> None:
             opts.setdefault(group, {})[name] = yaml.safe_load(val)
         else:  # a top-level FrontEnd option, e.g. max_width=960
             opts[group] = yaml.safe_load(val)
-    res = run_benchmark(
-        a.scene_dir,
-        detector=a.detector,
-        threads=a.threads,
-        max_frames=a.frames,
-        use_poses=a.poses,
-        explain=a.explain,
-        mjpeg_quality=a.mjpeg,
-        **opts,
-    )
+    try:
+        res = run_benchmark(
+            a.scene_dir,
+            detector=a.detector,
+            threads=a.threads,
+            max_frames=a.frames,
+            use_poses=a.poses,
+            explain=a.explain,
+            mjpeg_quality=a.mjpeg,
+            **opts,
+        )
+    except FisheyeDesError as e:  # bad input: its message, not a traceback
+        ap.exit(2, f"error: {e}\n")
     print(json.dumps(res, indent=2))
 
 

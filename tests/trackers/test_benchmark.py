@@ -331,3 +331,18 @@ def test_drone_shape_holds_the_simulators_drone_not_its_bounding_sphere(tmp_path
     assert np.all(on_shape[on_drone])
     past = in_sphere & ~on_drone
     assert past.sum() > 2000 and on_shape[past].mean() < 0.25
+
+
+def test_the_command_reports_bad_input_without_a_traceback(ci_scene, tmp_path, capsys):
+    """python -m trackers.benchmark: a JPEG quality outside 1..100 or a folder that is no scene ends
+    with exit status 2 and the message naming what was wrong, not a traceback."""
+    from trackers.benchmark import main
+
+    with pytest.raises(SystemExit) as e:
+        main([str(ci_scene), "--mjpeg", "0"])
+    assert e.value.code == 2
+    assert "expected a JPEG quality in 1..100, got 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main([str(tmp_path)])
+    assert e.value.code == 2
+    assert "camchain.yaml" in capsys.readouterr().err
