@@ -45,6 +45,7 @@ from pipeline.sources import (
     VideoSource,
     is_grey_video,
 )
+from trackers.detectors import GREY_DETECTORS
 
 __all__ = [
     "RunningStats",
@@ -66,8 +67,6 @@ __all__ = [
     "frozen_gc",
 ]
 
-# detectors that work on grey images: their videos are decoded straight to grey (see inputs.grey)
-GREY_DETECTORS = ("orb", "kornia")
 
 VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".ts")
 

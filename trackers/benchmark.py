@@ -16,9 +16,9 @@ The scene's videos are lossless colour FFV1, which no camera delivers and which 
 decode (9-10 ms CPU a 1280x720 frame, 42-48 ms at 1920x1080) than the front end's own work. ``--mjpeg Q``
 decodes the frames as a USB camera delivers them instead: each camera's video re-encoded once as
 MJPEG (JPEG quality ``Q``, 4:2:2 chroma as a UVC camera's MJPEG; ``mjpeg_copy``), every packet
-decoded by libjpeg-turbo (``cv2.imdecode``) straight to grey when the detector needs no colour, else
-to BGR. Decoding, the front end and the scoring then all run on those decoded frames (their JPEG
-artefacts included); ``video`` in the result says what was decoded.
+decoded by libjpeg-turbo (``cv2.imdecode``) straight to grey for a grey detector (``GREY_DETECTORS``,
+the pipeline's rule), else to BGR. Decoding, the front end and the scoring then all run on those decoded
+frames (their JPEG artefacts included); ``video`` in the result says what was decoded.
 
 Mapping tracks to ground truth: a reported track's view in camera c is on obstacle k when the ray
 from the camera centre along the view's bearing passes through obstacle k's shape (sphere, pole as
@@ -48,6 +48,7 @@ import yaml
 
 from estimators.errors import FisheyeDesError, InputError, SourceError
 from estimators.se3 import Pose, quat_to_rot
+from trackers.detectors import GREY_DETECTORS
 
 
 @dataclass
@@ -499,7 +500,7 @@ def run_benchmark(
     ``mjpeg_quality``: decode and score the frames of the scene's MJPEG copy at that JPEG quality
     (``mjpeg_copy``; see the module docstring) instead of its lossless videos. ``video`` in the
     result says what was decoded: ``format`` (the stream's codec tag: ``ffv1``, ``mjpg``), to what
-    (``decoded_to``: ``bgr``, or ``grey`` from MJPEG when no part of the detector needs colour) and
+    (``decoded_to``: ``bgr``, or ``grey`` from MJPEG for a grey detector, ``GREY_DETECTORS``) and
     the JPEG ``quality``.
     """
     from trackers.frontend import STAGES, FrontEnd
@@ -509,8 +510,7 @@ def run_benchmark(
         Path(scene_dir), threads=int(threads), mjpeg_quality=mjpeg_quality
     )
     fe = FrontEnd(rig, detector=detector, **frontend_options)
-    # a composite detector's box part may need colour (orb+navlights) where the composite does not
-    colour = fe.detector.needs_colour or getattr(fe.detector, "box_part", fe.detector).needs_colour
+    colour = str(detector).lower() not in GREY_DETECTORS  # the pipeline's rule
     jpeg_flag = cv2.IMREAD_COLOR if colour else cv2.IMREAD_GRAYSCALE
     names = [c.name for c in rig.cameras]
     fourcc = int(caps[names[0]].get(cv2.CAP_PROP_FOURCC))
@@ -717,7 +717,7 @@ def main(argv: list[str] | None = None) -> None:
         default=None,
         metavar="QUALITY",
         help="decode (and score) the frames as a USB camera delivers them: the scene's videos re-encoded "
-        "once as MJPEG at this JPEG quality (e.g. 90), decoded to grey unless the detector needs colour",
+        "once as MJPEG at this JPEG quality (e.g. 90), decoded to grey for a grey detector (orb, kornia)",
     )
     ap.add_argument(
         "--set",

@@ -19,6 +19,8 @@ from trackers.benchmark import (
     ray_hits,
     run_benchmark,
 )
+from trackers.detectors import register_detector
+from trackers.detectors.orb import OrbDetector
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "configs" / "scenarios"
@@ -231,10 +233,21 @@ def test_mjpeg_copy_is_a_cameras_mjpeg(ci_scene):
         mjpeg_copy(video, 0)
 
 
-@pytest.mark.parametrize("detector, decoded_to", [("orb", "grey"), ("orb+navlights", "bgr")])
+class _PluginOrb(OrbDetector):
+    """A plug-in detector (not in GREY_DETECTORS) that itself needs no colour: like torch's user
+    models, the pipeline gives it colour frames, so the benchmark does too."""
+
+
+register_detector("test_plugin_orb")(_PluginOrb)
+
+
+@pytest.mark.parametrize(
+    "detector, decoded_to", [("orb", "grey"), ("orb+navlights", "bgr"), ("test_plugin_orb", "bgr")]
+)
 def test_mjpeg_frames_are_what_the_front_end_sees(ci_scene, monkeypatch, detector, decoded_to):
     """``mjpeg_quality``: the front end (and so the coverage scoring) gets the decoded JPEG frames,
-    grey when no part of the detector needs colour, BGR for navlights; the result says so."""
+    grey for a grey detector (orb), BGR for any other (orb+navlights, a plug-in), as the pipeline
+    decodes them; the result says so."""
     import cv2
 
     from trackers.frontend import FrontEnd

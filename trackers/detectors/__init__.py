@@ -10,6 +10,7 @@ Adding one is one new module here with ``@register_detector("name")`` and its im
 from trackers.detectors import composite, kornia_det, navlights, orb, torch_det  # noqa: F401  (register built-ins)
 from trackers.detectors.base import (
     ENTRY_POINT_GROUP,
+    GREY_DETECTORS,
     Detections,
     Detector,
     available_detectors,
@@ -20,6 +21,7 @@ from trackers.detectors.base import (
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "GREY_DETECTORS",
     "Detections",
     "Detector",
     "available_detectors",

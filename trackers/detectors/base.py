@@ -135,6 +135,12 @@ class Detections:
         )
 
 
+#: detectors that work on grey images: a video for one of them is decoded straight to grey (the pipeline's
+#: ``inputs.grey`` default, ``trackers.benchmark --mjpeg``); any other (navlights, a composite with a
+#: box part, torch and plug-ins, whose models may take colour) gets colour frames
+GREY_DETECTORS = ("orb", "kornia")
+
+
 def to_grey(image: np.ndarray) -> np.ndarray:
     """(H, W) uint8 grey or (H, W, 3) uint8 BGR -> (H, W) uint8 grey (a view when already grey)."""
     import cv2
