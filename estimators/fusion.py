@@ -2109,14 +2109,14 @@ class ObstacleFusion:
             gc, rc = g[cand], r[cand]
             sel = _group_lower_median_index(gc, rc, np.bincount(gc, minlength=G), s.feature_point_quantile)
             pick = np.flatnonzero(cand)[sel]  # into g, r, p, rows
-            if s.feature_near_group and ncam == 1:  # (every fit member point, in the reports' units)
-                s_rep = np.hypot(k_pt * sig_r, s.feature_range_floor_frac * r)
+            s_rep = np.hypot(k_pt * sig_r, s.feature_range_floor_frac * r)  # every fit member's report sigma
+            if s.feature_near_group and ncam == 1:
                 pick = _near_group_choice(g, r, s_rep, pick, n_min, s.feature_depth_gap_frac)
             gp = g[pick]
             z = np.zeros(G)
             z[gp] = r[pick]
             sig = np.zeros(G)
-            sig[gp] = np.hypot(k_pt * sig_r[pick], s.feature_range_floor_frac * r[pick])
+            sig[gp] = s_rep[pick]
             point = np.zeros((G, 3))
             point[gp] = p[pick]
             row_id = np.zeros(fs.size, dtype=np.int64)  # feature id of each store row
