@@ -806,8 +806,6 @@ class FeatureTracker:
         uv = uv[inside]
         if not len(uv):
             return
-        # prefer keypoints in thin cells: round-robin over the grid, strongest first
-        order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
         desc_all = (
             det.descriptors
             if det.descriptors is not None
@@ -815,23 +813,33 @@ class FeatureTracker:
             and det.descriptors.dtype == np.uint8
             else None
         )
+        # a full tracker's ORB described only the keypoints near a lost feature (_worth_describing:
+        # ORB's compute keeps their positions), so all of them are re-acquisition candidates and no
+        # new feature is kept: neither the search for candidates nor the spacing of new ones again
+        only_reacq = orb and free <= 0
         # re-acquisition first: lost features come back whatever the free capacity (their slots
         # are still held), so live features may briefly exceed max_features by the lost pool
         reacq_all = np.full(len(uv), -1, np.intp)
         if desc_all is not None and len(self.lost_ids):
-            reacq_all = self._match_lost(uv, desc_all, t_s)
-        # spacing among the new ones: at most one per min_distance_px cell of a coarse grid (the
-        # first in ``order`` wins), none in a cell of a re-acquired feature
-        cell = max(1.0, self.min_distance_px)
-        gw = int(self.shape_hw[1] // cell) + 2
-        key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+            pred = self._lost_predictions(t_s)
+            cand = np.arange(len(uv)) if only_reacq else self._near_lost(uv, pred)
+            reacq_all = self._match_lost(uv, desc_all, cand, pred)
         re = np.flatnonzero(reacq_all >= 0)
-        cand = order[reacq_all[order] < 0]
-        cand = cand[~_isin(key[cand], key[re])]
-        _, first = np.unique(key[cand], return_index=True)
-        new_idx = cand[np.sort(first)][: max(free, 0)]
-        keep = list(re) + list(new_idx)
-        keep = np.asarray(keep, np.intp)
+        if only_reacq:
+            keep = re
+        else:
+            # prefer keypoints in thin cells: round-robin over the grid, strongest first
+            order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
+            # spacing among the new ones: at most one per min_distance_px cell of a coarse grid
+            # (the first in ``order`` wins), none in a cell of a re-acquired feature
+            cell = max(1.0, self.min_distance_px)
+            gw = int(self.shape_hw[1] // cell) + 2
+            key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+            cand = order[reacq_all[order] < 0]
+            cand = cand[~_isin(key[cand], key[re])]
+            _, first = np.unique(key[cand], return_index=True)
+            new_idx = cand[np.sort(first)][: max(free, 0)]
+            keep = np.asarray(list(re) + list(new_idx), np.intp)
         uv = uv[keep]
         desc = None if desc_all is None else desc_all[keep]
         reacq = reacq_all[keep]
@@ -843,7 +851,7 @@ class FeatureTracker:
         as many again as there are re-acquisition candidates, whose cells new ones avoid) of one per
         min_distance_px cell. Only these get ORB descriptors (at 720p ~600 -> ~100 per detection).
         With no room (``free`` <= 0) no new feature is kept, so only the re-acquisition candidates."""
-        near, _ = self._near_lost(uv, t_s) if len(self.lost_ids) else (np.zeros(0, np.intp), None)
+        near = self._near_lost(uv, self._lost_predictions(t_s)) if len(self.lost_ids) else np.zeros(0, np.intp)
         if free <= 0:
             return near
         cell = max(1.0, self.min_distance_px)
@@ -924,14 +932,18 @@ class FeatureTracker:
         out[got] = (near[got] @ self.vel[old]) / cnt[got, None]
         return out
 
-    def _near_lost(self, uv: np.ndarray, t_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(indices of the keypoints uv (N, 2) px that may re-acquire a lost feature: in a grid cell
-        of the search radius next to a lost feature's predicted position, pred (L, 2) px: those
-        predictions, last seen + v (px/s) * time since (s))."""
+    def _lost_predictions(self, t_s: float) -> np.ndarray:
+        """(L, 2) px: where each lost feature is expected at time t_s (s), last seen + v (px/s) *
+        time since (s)."""
         dt = np.maximum(float(t_s) - self.lost_t, 0.0).astype(np.float32)
-        pred = self.lost_uv + self.lost_vel * dt[:, None]
+        return self.lost_uv + self.lost_vel * dt[:, None]
+
+    def _near_lost(self, uv: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        """Indices of the keypoints uv (N, 2) px that may re-acquire a lost feature: in a grid cell
+        of the search radius next to a lost feature's predicted position, pred (L, 2) px
+        (``_lost_predictions``)."""
         if not len(pred) or not len(uv):
-            return np.zeros(0, np.intp), pred
+            return np.zeros(0, np.intp)
         r = self.reacquire_radius_px
         gw = int(self.shape_hw[1] // r) + 3
         kc = (uv // r).astype(np.int64)
@@ -942,12 +954,13 @@ class FeatureTracker:
         near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
             pc[:, 0, None, None] + d[None, None, :]
         )
-        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel())), pred
+        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel()))
 
-    def _match_lost(self, uv: np.ndarray, desc: np.ndarray, t_s: float) -> np.ndarray:
-        """For each new keypoint, the index of the lost feature it re-acquires, or -1."""
+    def _match_lost(self, uv: np.ndarray, desc: np.ndarray, cand: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        """For each new keypoint uv (N, 2) px with descriptor desc (N, 32), the index of the lost
+        feature it re-acquires, or -1; only the candidates ``cand`` (indices, ``_near_lost``) are
+        matched against the lost features' predicted positions pred (L, 2) px."""
         out = np.full(len(uv), -1, np.intp)
-        cand, pred = self._near_lost(uv, t_s)
         r = self.reacquire_radius_px
         if not len(cand):
             return out
