@@ -702,7 +702,7 @@ def _nearest_per_group(g: np.ndarray, cos: np.ndarray, G: int, n: int) -> np.nda
     reported direction: the n nearest in direction, ties by index."""
     order = np.lexsort((-cos, g))  # by group, nearest the reported direction first
     cnt = np.bincount(g, minlength=G)
-    start = np.cumsum(cnt) - cnt
+    start = cnt.cumsum() - cnt
     return order[np.arange(len(order)) - start[g[order]] < n]
 
 
@@ -711,7 +711,7 @@ def _group_lower_median_index(g: np.ndarray, v: np.ndarray, cnt: np.ndarray, q: 
     g (K,) (cnt (G,) = the group sizes): element floor((n - 1) q) of the group sorted by v ->
     (number of non-empty groups,), in group order."""
     order = np.lexsort((v, g))
-    start = np.cumsum(cnt) - cnt
+    start = cnt.cumsum() - cnt
     nz = cnt > 0
     return order[start[nz] + np.floor((cnt[nz] - 1) * q + 1e-9).astype(np.int64)]
 
@@ -744,7 +744,7 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     g_sorted = g[order]
     cnt = np.bincount(g_sorted)
     r_min = np.full(len(cnt), np.inf)
-    r_min[cnt > 0] = r[order[(np.cumsum(cnt) - cnt)[cnt > 0]]]
+    r_min[cnt > 0] = r[order[(cnt.cumsum() - cnt)[cnt > 0]]]
     rm = r_min[g[pick]]
     live = r[pick] - rm > np.maximum(z * s[pick], gap_frac * rm)
     if not live.any():
@@ -755,18 +755,18 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     K = len(order)
     gs, rs, ss = g[order], r[order], s[order]
     cnt = np.bincount(gs)
-    start = np.cumsum(cnt) - cnt
+    start = cnt.cumsum() - cnt
     # every ordered pair (i, j) of points of one track (positions in the sorted order)
     n_i = cnt[gs]
-    off = np.cumsum(n_i) - n_i  # i's pairs are ii[off[i]:off[i] + n_i[i]]
-    ii = np.repeat(np.arange(K), n_i)
+    off = n_i.cumsum() - n_i  # i's pairs are ii[off[i]:off[i] + n_i[i]]
+    ii = np.arange(K).repeat(n_i)
     jj = start[gs][ii] + (np.arange(len(ii)) - off[ii])
     agree = np.abs(rs[ii] - rs[jj]) <= np.maximum(z * np.sqrt(ss[ii] ** 2 + ss[jj] ** 2),
                                                   gap_frac * np.minimum(rs[ii], rs[jj]))
     support = np.bincount(ii[agree], minlength=K)  # points agreeing with i (itself included)
     # the nearest anchor of each track (within a track the sorted order is by range)
     first = np.full(len(cnt), -1, dtype=np.int64)
-    a_idx = np.flatnonzero(support >= n_min)  # (ascending: by track, then range)
+    a_idx = (support >= n_min).nonzero()[0]  # (ascending: by track, then range)
     # each track's first anchor (np.unique's index of first occurrence; an assignment through
     # repeated indices has no guaranteed order in numpy)
     g_a, at = np.unique(gs[a_idx], return_index=True)
@@ -775,7 +775,7 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     a_pick[live] = first[g[pick[live]]]
     # (and beyond its anchor likewise)
     r_a = rs[np.maximum(a_pick, 0)]
-    due = np.flatnonzero((a_pick >= 0) & (r[pick] - r_a > np.maximum(z * s[pick], gap_frac * r_a)))
+    due = ((a_pick >= 0) & (r[pick] - r_a > np.maximum(z * s[pick], gap_frac * r_a))).nonzero()[0]
     for m in due.tolist():
         c, a = int(pick[m]), int(a_pick[m])
         sl = slice(off[a], off[a] + n_i[a])
@@ -897,17 +897,17 @@ class _FeatureRays:
         the order of their first appearance (an id can repeat within one call: several cameras)."""
         known = self.ids
         if len(known):
-            pos = np.minimum(np.searchsorted(known, ids), len(known) - 1)
+            pos = np.minimum(known.searchsorted(ids), len(known) - 1)
             found = known[pos] == ids
             rows = np.where(found, self.id_rows[pos], -1)
         else:
             found = np.zeros(len(ids), dtype=bool)
             rows = np.full(len(ids), -1, dtype=np.int64)
-        new = np.flatnonzero(~found)
+        new = (~found).nonzero()[0]
         if len(new):
             uniq, first, inv = np.unique(ids[new], return_index=True, return_inverse=True)
             rank = np.empty(len(uniq), dtype=np.int64)
-            rank[np.argsort(first, kind="stable")] = np.arange(len(uniq))
+            rank[first.argsort(kind="stable")] = np.arange(len(uniq))
             r_new = self.size + rank  # row of each new id (by first appearance)
             self._grow(self.size + len(uniq))
             self.b0[r_new] = b_W[new[first]]
@@ -917,7 +917,7 @@ class _FeatureRays:
             rows[new] = r_new[inv.reshape(-1)]
             all_ids = np.concatenate([known, uniq])
             all_rows = np.concatenate([self.id_rows, r_new])
-            order = np.argsort(all_ids, kind="stable")
+            order = all_ids.argsort(kind="stable")
             self.ids, self.id_rows = all_ids[order], all_rows[order]
         return rows
 
@@ -946,13 +946,13 @@ class _FeatureRays:
         rest = None
         if not unique:  # a row repeated (a feature's rays from several cameras): the sums take
             # its rays in call order (np.add.at's): the first of every row, then the second ones...
-            order = np.argsort(rows, kind="stable")
+            order = rows.argsort(kind="stable")
             rs = rows[order]
             brk = np.ones(M, dtype=bool)
             np.not_equal(rs[1:], rs[:-1], out=brk[1:])
             if not brk.all():
-                start = np.flatnonzero(brk)
-                rank = np.arange(M) - np.repeat(start, np.diff(np.append(start, M)))
+                start = brk.nonzero()[0]
+                rank = np.arange(M) - start.repeat(np.diff(np.append(start, M)))
                 rest = (order, rank)
                 first = order[brk]
                 rows_all, new_all = rows, new
@@ -1018,7 +1018,7 @@ def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac
     than gap_frac of it (r_(i+1) > (1 + gap_frac) r_i); the cluster with the most entries is kept
     (of equal ones the nearest). Members of another object or of the background behind a track's
     obstacle form their own clusters and drop out before the median."""
-    idx = np.flatnonzero(m)
+    idx = m.nonzero()[0]
     out = np.zeros(len(g), dtype=bool)
     if not len(idx):
         return out
@@ -1027,7 +1027,7 @@ def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac
     gs, rs = gm[order], rm[order]
     brk = np.ones(len(gs), dtype=bool)
     brk[1:] = (gs[1:] != gs[:-1]) | (rs[1:] > (1.0 + gap_frac) * rs[:-1])
-    cl = np.cumsum(brk) - 1  # cluster id, clusters in (group, range) order
+    cl = brk.cumsum() - 1  # cluster id, clusters in (group, range) order
     size = np.bincount(cl)
     cg = gs[brk]  # group of each cluster
     # per group the first cluster of the largest size: sort clusters by (group, -size, id)
@@ -1064,17 +1064,17 @@ def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = 
     out = np.zeros(M, dtype=bool)
     if M == 0:
         return out
-    start = np.flatnonzero(np.diff(view, prepend=view[0] - 1))
+    start = np.diff(view, prepend=view[0] - 1).nonzero()[0]
     cnt = np.diff(np.append(start, M))
     if todo is None:
         todo = np.ones(len(start), dtype=bool)
-    out[np.repeat(todo & (cnt <= 3), cnt)] = True
+    out[(todo & (cnt <= 3)).repeat(cnt)] = True
     big = todo & (cnt > 3)
     if not big.any():
         return out
-    idx = np.flatnonzero(np.repeat(big, cnt))  # the rows of the views to test
+    idx = big.repeat(cnt).nonzero()[0]  # the rows of the views to test
     nb = cnt[big]
-    sb = np.cumsum(nb) - nb  # their views' starts in idx
+    sb = nb.cumsum() - nb  # their views' starts in idx
     B = b_W[idx]
     m = np.add.reduceat(B, sb, axis=0)
     m /= np.sqrt(_dot_rows(m, m))[:, None]
@@ -1083,14 +1083,14 @@ def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = 
     e1 = _cross(m, e)
     e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
     e2 = _cross(m, e1)
-    vid = np.repeat(np.arange(len(m)), nb)
+    vid = np.arange(len(m)).repeat(nb)
     den = np.maximum(_dot_rows(B, m[vid]), 1e-9)
     P = np.stack([_dot_rows(B, e1[vid]), _dot_rows(B, e2[vid])], axis=1) / den[:, None]
     P = P.astype(np.float32)  # (cv2.convexHull takes 32-bit points)
     hull = cv2.convexHull
     hits = [hull(P[a:a + n], returnPoints=False) for a, n in zip(sb.tolist(), nb.tolist(), strict=True)]
     lens = [len(h) for h in hits]
-    out[idx[np.concatenate(hits).ravel() + np.repeat(sb, lens)]] = True
+    out[idx[np.concatenate(hits).ravel() + sb.repeat(lens)]] = True
     return out
 
 
@@ -1112,7 +1112,7 @@ def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
     order = np.lexsort((v, g))
     vs = v[order]
     cnt = np.bincount(g, minlength=n_groups)
-    start = np.cumsum(cnt) - cnt
+    start = cnt.cumsum() - cnt
     lo = np.minimum(start + np.maximum(cnt - 1, 0) // 2, len(v) - 1)
     hi = np.minimum(start + cnt // 2, len(v) - 1)
     return np.where(cnt > 0, 0.5 * (vs[lo] + vs[hi]), 0.0)
@@ -1440,19 +1440,19 @@ class ObstacleFusion:
         B /= np.sqrt(B[:, 0] * B[:, 0] + B[:, 1] * B[:, 1] + B[:, 2] * B[:, 2])[:, None]
         b_rows = list(B)
         nv = np.array(n_v, dtype=np.int64)
-        first_view = np.cumsum(nv) - nv  # each track's first view
+        first_view = nv.cumsum() - nv  # each track's first view
         feats = None
         FB = None
         if M:
             ids = np.concatenate(fid_l)
             FB = np.concatenate([v.feature_b_C for v in allv])
-            fcam = np.repeat(vcam, fcnt)
+            fcam = vcam.repeat(fcnt)
             FB = _rotate_rows(FB, fcam, R_W_C)
             trk = np.arange(len(vs_l), dtype=np.int64)  # each view's track
             if not one:
-                trk = np.repeat(trk, nv)
-            feats = (ids, FB, c_W[fcam], np.repeat(trk, fcnt), fcam, B[first_view])
-        offs = (np.cumsum(fcnt) - fcnt).tolist()
+                trk = trk.repeat(nv)
+            feats = (ids, FB, c_W[fcam], trk.repeat(fcnt), fcam, B[first_view])
+        offs = (fcnt.cumsum() - fcnt).tolist()
         o_W = T_W_B.t
         mk = _View
         sig_l = [float(v.sigma_rad if v.sigma_rad > floor else floor) for v in allv]
@@ -1493,20 +1493,20 @@ class ObstacleFusion:
         tids = np.fromiter((tr.id for tr, _sg, _st in work), dtype=np.int64, count=G)
         owner = tids[g]
         n = np.bincount(g, minlength=G)
-        order = np.argsort(ids, kind="stable")
+        order = ids.argsort(kind="stable")
         self._prev_members = (ids[order], owner[order])
         if s.member_reset_frac >= 1.0 or prev is None or not len(prev[0]):
-            off = (np.cumsum(n) - n).tolist()
+            off = (n.cumsum() - n).tolist()
             for (tr, _sg, _st), nk, o in zip(work, n.tolist(), off, strict=True):
                 tr.n_members, tr.t_members = nk, t_s
                 tr.member_ids = ids[o:o + nk]
             return
         pid, ptr = prev
-        j = np.minimum(np.searchsorted(pid, ids), len(pid) - 1)
+        j = np.minimum(pid.searchsorted(ids), len(pid) - 1)
         new = ~((pid[j] == ids) & (ptr[j] == owner))  # not this track's member last frame
         n_new = np.bincount(g, weights=new, minlength=G)
         m = 2  # fewest member rays now and then (one ray's share is 0 or 1)
-        off = (np.cumsum(n) - n).tolist()  # (feats are grouped track by track, in work's order)
+        off = (n.cumsum() - n).tolist()  # (feats are grouped track by track, in work's order)
         frac = s.member_reset_frac
         for (tr, _sg, _st), nk, o, nn in zip(work, n.tolist(), off, n_new.tolist(), strict=True):
             if nk >= m and tr.n_members >= m and (tr.kf is not None or tr.history):
@@ -1624,7 +1624,7 @@ class ObstacleFusion:
             filter is dropped and the range is not reported until the members range it again.
         """
         fid = tr.point_fid
-        seen = [(v, int(np.flatnonzero(v.feature_ids == fid)[0]))
+        seen = [(v, int((v.feature_ids == fid).nonzero()[0][0]))
                 for v in sg.views if (v.feature_ids == fid).any()]
         if seen and tr.point_is_feature and self._slid_fids is not None and fid in self._slid_fids:
             tr.kf = None  # the feature slid off the point the state stands for (_slid_features)
@@ -1759,7 +1759,7 @@ class ObstacleFusion:
         ok = (tri.valid & (sig_r <= self.settings.stereo_max_rel_sigma * tri.range_m)
               & (tri.miss_m <= 4.0 * math.sqrt(2.0) * sigma * np.maximum(tri.depth_a_m, tri.depth_b_m)))
         out: list = [None] * len(sightings)
-        k = np.flatnonzero(ok)
+        k = ok.nonzero()[0]
         if len(k):
             c_mid = 0.5 * (c_a[k] + c_b[k])
             R = _ray_covariances(tri.p[k] - c_mid, sig_r[k], sigma[k])
@@ -1956,7 +1956,7 @@ class ObstacleFusion:
         g, rows, b_now, c_now = g[first], rows[first], b_now[first], c_now[first]
         n_min = s.feature_min_count
         b0 = fs.b0[rows]
-        cosp = np.clip(np.sum(b0 * b_now, axis=1), -1.0, 1.0)
+        cosp = np.sum(b0 * b_now, axis=1).clip(-1.0, 1.0)
         # (tracks with fewer than feature_min_count features get no feature range, but their
         # features' points still tell the spread of depths around the track: _member_spread)
         # parallax floor: theta >= 10 sigma_f, the bearing noise at most a tenth of the parallax,
@@ -2085,7 +2085,7 @@ class ObstacleFusion:
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
             g, rows, b_now, p, r, sig_r = (g[fit], rows[fit], b_now[fit], p[fit], r[fit], sig_post[fit])
         b_rep = feats[5]  # (G, 3) first views' bearings
-        ang = np.arccos(np.clip(np.sum(b_now * b_rep[g], axis=1), -1.0, 1.0))
+        ang = np.arccos(np.sum(b_now * b_rep[g], axis=1).clip(-1.0, 1.0))
         inner = ang <= _group_median(g, ang, G)[g]
         cnt_in = np.bincount(g[inner], minlength=G)
         if s.feature_inner_half:
@@ -2101,14 +2101,14 @@ class ObstacleFusion:
             # (of the inner ones off the track's outline, when it has two or more: _outline_flags)
             if avoid_ls and len(edge_keys):  # (np.isin's answer: a search in the sorted unique keys)
                 key = g * key_n + rows
-                at = np.minimum(np.searchsorted(edge_keys, key), len(edge_keys) - 1)
+                at = np.minimum(edge_keys.searchsorted(key), len(edge_keys) - 1)
                 cand = inner & (edge_keys[at] != key)
             else:
                 cand = inner.copy()
             cand |= inner & (np.bincount(g[cand], minlength=G) < 2)[g]
             gc, rc = g[cand], r[cand]
             sel = _group_lower_median_index(gc, rc, np.bincount(gc, minlength=G), s.feature_point_quantile)
-            pick = np.flatnonzero(cand)[sel]  # into g, r, p, rows
+            pick = cand.nonzero()[0][sel]  # into g, r, p, rows
             s_rep = np.hypot(k_pt * sig_r, s.feature_range_floor_frac * r)  # every fit member's report sigma
             if s.feature_near_group and ncam == 1:
                 pick = _near_group_choice(g, r, s_rep, pick, n_min, s.feature_depth_gap_frac)
@@ -2135,7 +2135,7 @@ class ObstacleFusion:
             # median), so widen by (1 + k / n)
             sig = sig * (1.0 + s.feature_small_n_inflate / np.maximum(n_in, 1))
         present = np.bincount(g, minlength=G) > 0
-        for k in np.flatnonzero(present).tolist():
+        for k in present.nonzero()[0].tolist():
             tr = work[k][0]
             if chi_med[k] > s.feature_static_chi:
                 tr.reason = "member features do not fit static points (moving obstacle?)"
@@ -2229,13 +2229,13 @@ class ObstacleFusion:
             return
         gi_a = np.array(ga_l, dtype=np.int64)
         ida, idb = np.concatenate(ida_l), np.concatenate(idb_l)
-        ga = np.repeat(gi_a[:, 0], gi_a[:, 1])
-        gb = np.repeat(gi_a[:, 0], gi_a[:, 2])
+        ga = gi_a[:, 0].repeat(gi_a[:, 1])
+        gb = gi_a[:, 0].repeat(gi_a[:, 2])
         # global index of each entry: its view's offset + its position in the view
-        ia_all = np.repeat(np.array(ia_l, dtype=np.int64) - (np.cumsum(gi_a[:, 1]) - gi_a[:, 1]),
-                           gi_a[:, 1]) + np.arange(len(ida))
-        ib_all = np.repeat(np.array(ib_l, dtype=np.int64) - (np.cumsum(gi_a[:, 2]) - gi_a[:, 2]),
-                           gi_a[:, 2]) + np.arange(len(idb))
+        ia_all = ((np.array(ia_l, dtype=np.int64) - (gi_a[:, 1].cumsum() - gi_a[:, 1])).repeat(gi_a[:, 1])
+                  + np.arange(len(ida)))
+        ib_all = ((np.array(ib_l, dtype=np.int64) - (gi_a[:, 2].cumsum() - gi_a[:, 2])).repeat(gi_a[:, 2])
+                  + np.arange(len(idb)))
         lo = min(int(ida.min()), int(idb.min()))
         span = max(int(ida.max()), int(idb.max())) - lo + 1
         if span < 2**40 and len(work) < 2**22:
@@ -2276,7 +2276,7 @@ class ObstacleFusion:
         ok = (good & (dep_a > 0) & (dep_b > 0) & (sr <= s.stereo_max_rel_sigma * r)
               & (miss <= 4.0 * math.sqrt(2.0) * s.feature_sigma_rad * depth))
         if s.stereo_jump_check and ok.any():
-            okk = np.flatnonzero(ok)
+            okk = ok.nonzero()[0]
             ok[okk[self._stereo_jumps(ids[ia][okk], 0.5 * (q_a[okk] + q_b[okk]), sr[okk],
                                       work[0][1].t_s)]] = False
         if not ok.any():
@@ -2298,7 +2298,7 @@ class ObstacleFusion:
             k_f = s.feature_point_sigma_k  # (the tracked features' measured error over sigma_f)
             self._feature_velocity(work, gg, fid, p_mid, k_f * sr,
                                    k_f * s.feature_sigma_rad * depth[ok] / math.sqrt(2.0), u_mid)
-        ang = np.arccos(np.clip(np.sum(b * b_rep[gg], axis=1), -1.0, 1.0))
+        ang = np.arccos(np.sum(b * b_rep[gg], axis=1).clip(-1.0, 1.0))
         n_min = max(1, s.stereo_feature_min_count)
         cnt = np.bincount(gg, minlength=G)
         inner = ang <= _group_median(gg, ang, G)[gg]
@@ -2317,7 +2317,7 @@ class ObstacleFusion:
             # the choice no median to be robust with)
             cand = inner
             if s.feature_avoid_outline:
-                ang2 = np.maximum(ang, np.arccos(np.clip(np.sum(b_2 * rep_b[gg], axis=1), -1.0, 1.0)))
+                ang2 = np.maximum(ang, np.arccos(np.sum(b_2 * rep_b[gg], axis=1).clip(-1.0, 1.0)))
                 inner2 = ang2 <= _group_median(gg, ang2, G)[gg]
                 inner2 |= (np.bincount(gg[inner2], minlength=G) < n_min)[gg]
                 off = inner2 & ~on_edge
@@ -2325,11 +2325,11 @@ class ObstacleFusion:
             gc = gg[cand]
             sel = _group_lower_median_index(gc, r[cand], np.bincount(gc, minlength=G),
                                             s.feature_point_quantile)
-            cand_idx = np.flatnonzero(cand)
+            cand_idx = cand.nonzero()[0]
             chosen = np.full(G, -1, dtype=np.int64)
             chosen[gc[sel]] = cand_idx[sel]  # (index into the shared features)
             prev = {}
-            for k in np.flatnonzero(cnt >= n_min).tolist():
+            for k in (cnt >= n_min).nonzero()[0].tolist():
                 f_prev = work[k][0].feature_stereo_fid
                 if f_prev is not None:
                     prev[(k, f_prev)] = None
@@ -2338,7 +2338,7 @@ class ObstacleFusion:
                                   strict=True):
                     if key in prev:
                         chosen[key[0]] = j
-            for k in np.flatnonzero(cnt >= n_min).tolist():
+            for k in (cnt >= n_min).nonzero()[0].tolist():
                 j = int(chosen[k])
                 zk = float(r[j])
                 tr = work[k][0]
@@ -2356,7 +2356,7 @@ class ObstacleFusion:
         sig = np.sqrt((1.4826 * mad) ** 2 + s2 / np.maximum(n_in, 1))
         med_all = _group_median(gg, r, G)
         struct = s.stereo_spread_weight * 1.4826 * _group_median(gg, np.abs(r - med_all[gg]), G)
-        for k in np.flatnonzero(cnt >= n_min).tolist():
+        for k in (cnt >= n_min).nonzero()[0].tolist():
             zk = float(z[k])
             work[k][0].feature_stereo = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
             work[k][0].struct_sigma_m = float(struct[k])
@@ -2386,14 +2386,14 @@ class ObstacleFusion:
         last = self._st_last
         if last is not None and len(last[0]):
             hid, hp, hs, ht = last
-            j = np.minimum(np.searchsorted(hid, fid), len(hid) - 1)
+            j = np.minimum(hid.searchsorted(fid), len(hid) - 1)
             m = hid[j] == fid
             if m.any():
                 jm = j[m]
                 v = self._velocity_prior_sigma(t_s) * np.maximum(t_s - ht[jm], 0.0)
                 dp = p_W[m] - hp[jm]
                 var = s.feature_point_sigma_k ** 2 * (sr[m] ** 2 + hs[jm] ** 2) + v * v
-                bad[np.flatnonzero(m)[_dot_rows(dp, dp) > self._gate3 * var]] = True
+                bad[m.nonzero()[0][_dot_rows(dp, dp) > self._gate3 * var]] = True
         # this frame's points (accepted or not) become their ids' last ones; ids unseen for
         # lost_after_s are dropped
         nid, sel = np.unique(fid, return_index=True)
@@ -2401,7 +2401,7 @@ class ObstacleFusion:
             hid, hp, hs, ht = last
             old = (t_s - ht <= s.lost_after_s) & ~_isin(hid, nid)
             nid = np.concatenate([hid[old], nid])
-            order = np.argsort(nid, kind="stable")
+            order = nid.argsort(kind="stable")
             self._st_last = (nid[order], np.concatenate([hp[old], p_W[sel]])[order],
                              np.concatenate([hs[old], sr[sel]])[order],
                              np.concatenate([ht[old], np.full(len(sel), t_s)])[order])
@@ -2461,7 +2461,7 @@ class ObstacleFusion:
         # each track's shared features sorted by id (ids are unique within a track)
         order = np.lexsort((fid, gg))
         gs = gg[order]
-        starts = np.flatnonzero(np.diff(gs, prepend=-1))  # each track's run in order
+        starts = np.diff(gs, prepend=-1).nonzero()[0]  # each track's run in order
         ends = np.append(starts[1:], len(gs))
         f_s, P_s, S_s, T_s, U_s = fid[order], p_mid[order], sr[order], st[order], u[order]
         due: list[tuple[_Track, tuple, int, int]] = []  # (track, its reference, run start, end)
@@ -2493,8 +2493,8 @@ class ObstacleFusion:
         n_now = np.array([a1 - a0 for _tr, _ref, a0, a1 in due], dtype=np.int64)
         f_ref = np.concatenate([ref[1] for _tr, ref, _a0, _a1 in due])
         now = np.concatenate([np.arange(a0, a1) for _tr, _ref, a0, a1 in due])
-        d_ref = np.repeat(np.arange(D), n_ref)
-        d_now = np.repeat(np.arange(D), n_now)
+        d_ref = np.arange(D).repeat(n_ref)
+        d_now = np.arange(D).repeat(n_now)
         lo = min(int(f_ref.min()), int(f_s[now].min()))
         span = max(int(f_ref.max()), int(f_s[now].max())) - lo + 1
         if span < 2**40 and D < 2**22:
@@ -2521,12 +2521,12 @@ class ObstacleFusion:
         R_T = np.concatenate([ref[4] for _tr, ref, _a0, _a1 in due])[ka]
         R_U = np.concatenate([ref[5] for _tr, ref, _a0, _a1 in due])[ka]
         # the due tracks with >= 2 shared ids, renumbered 0..G-1
-        dk = (np.cumsum(ok) - 1)[dk]
+        dk = (ok.cumsum() - 1)[dk]
         due = [d for d, o in zip(due, ok.tolist(), strict=True) if o]
         m_ov = np.array(m_due, dtype=float)[ok]
         n = n[ok]
         G = len(due)
-        start = np.cumsum(n) - n
+        start = n.cumsum() - n
         dt = np.array([t_s - ref[0] for _tr, ref, _a0, _a1 in due])
         kb = now[kb]
         N_P, N_S, N_T, N_U = P_s[kb], S_s[kb], T_s[kb], U_s[kb]
@@ -3299,8 +3299,8 @@ class ObstacleFusion:
         span = max(int(fid_s.max()), int(qf.max())) - lo + 1
         k_s = gs * span + (fid_s - lo)
         k_q = qg * span + (qf - lo)
-        order = np.argsort(k_s, kind="stable")
-        at = order[np.minimum(np.searchsorted(k_s[order], k_q), len(k_s) - 1)]
+        order = k_s.argsort(kind="stable")
+        at = order[np.minimum(k_s[order].searchsorted(k_q), len(k_s) - 1)]
         hit = k_s[at] == k_q
         if not hit.any():
             return out
@@ -3358,14 +3358,14 @@ class ObstacleFusion:
         # rho_g + asin(offset / min r), and a nearer point beyond the noise (below) only when
         # min r < r_j - 3 sqrt(var0_j) (<= r_j - 3 sqrt(var0_j + s_i^2) for every point i)
         if len(g) > 1 and (g[1:] < g[:-1]).any():  # (each part is sorted by track already)
-            order = np.argsort(g, kind="stable")
+            order = g.argsort(kind="stable")
             g, r, b, sr = g[order], r[order], b[order], sr[order]
-        gstart = np.flatnonzero(np.diff(g, prepend=-1))  # (np.unique of the sorted g, cheaper)
+        gstart = np.diff(g, prepend=-1).nonzero()[0]  # (np.unique of the sorted g, cheaper)
         gcnt = np.diff(np.append(gstart, len(g)))
         ug = g[gstart]
         cg = np.add.reduceat(b, gstart, axis=0)
         cg /= np.maximum(np.sqrt(_dot_rows(cg, cg)), 1e-12)[:, None]
-        cos_b = np.clip(_dot_rows(b, np.repeat(cg, gcnt, axis=0)), -1.0, 1.0)
+        cos_b = _dot_rows(b, cg.repeat(gcnt, axis=0)).clip(-1.0, 1.0)
         cos_min = np.minimum.reduceat(cos_b, gstart)
         rmin = np.minimum.reduceat(r, gstart)
         reach = np.arccos(cos_min) + np.arcsin(np.minimum(off / np.maximum(rmin, 1e-9), 1.0))
@@ -3378,8 +3378,8 @@ class ObstacleFusion:
         # candidate (report, point) pairs: the pre-selected tracks' points, nearer than the report
         # beyond the noise, in the hemisphere ahead of the bearing
         n_p = gcnt[pg]
-        jj = np.repeat(pj, n_p)
-        mm = np.repeat(gstart[pg] - (np.cumsum(n_p) - n_p), n_p) + np.arange(int(n_p.sum()))
+        jj = pj.repeat(n_p)
+        mm = (gstart[pg] - (n_p.cumsum() - n_p)).repeat(n_p) + np.arange(int(n_p.sum()))
         cos_jm = _dot_rows(u[jj], b[mm])
         keep = (r[mm] < rng[jj] - 3.0 * np.sqrt(var0[jj] + sr[mm] ** 2)) & (cos_jm > 0.5)
         if not keep.any():
@@ -3389,8 +3389,8 @@ class ObstacleFusion:
         first_q = np.empty(len(key), dtype=bool)  # np.unique(key, return_inverse, return_counts)
         first_q[0] = True
         np.not_equal(key[1:], key[:-1], out=first_q[1:])
-        inv = np.cumsum(first_q) - 1
-        q0 = np.flatnonzero(first_q)
+        inv = first_q.cumsum() - 1
+        q0 = first_q.nonzero()[0]
         ukey, cnt = key[q0], np.diff(np.append(q0, len(key)))
         n_q = len(ukey)
         q_rep = ukey // (int(g.max()) + 1)  # each (report, track) pair's report
@@ -3405,7 +3405,7 @@ class ObstacleFusion:
         ang = np.arctan2(_dot_rows(B, e2[jj]), _dot_rows(B, e1[jj]))  # (gnomonic: same angle)
         order = np.lexsort((ang, inv))
         a_s, q_s = ang[order], inv[order]
-        start = np.cumsum(cnt) - cnt
+        start = cnt.cumsum() - cnt
         gaps = np.diff(a_s)
         gaps[np.diff(q_s) != 0] = 0.0  # (no gap across pairs)
         gmax = np.zeros(n_q)
@@ -3697,8 +3697,8 @@ def _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta):
     b_in = b_in / np.where(plane, na, 1.0)[:, None]
     to_a = np.arctan2(_dot_rows(n, _cross(b_b, b_in)), _dot_rows(b_b, b_in))  # signed, about n
     ca, sa = np.cos(delta), np.sin(delta)
-    p = np.flatnonzero(plane)
-    q = np.flatnonzero(~plane)
+    p = plane.nonzero()[0]
+    q = (~plane).nonzero()[0]
     par = p[np.abs(to_a[p]) <= delta[p]]  # (exactly parallel: a rotation would leave a rounding-size angle)
     np_, bp = n[p], b_b[p]
     owner = np.concatenate([q, p, p, p, par])

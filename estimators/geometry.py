@@ -128,7 +128,7 @@ def _vec3(name: str, x) -> np.ndarray:
         raise InputError(f"{name}: expected a (3,) array of finite numbers, got {x!r}") from e
     if a.shape != (3,):
         raise InputError(f"{name}: expected an array of shape (3), got {a.shape}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise InputError(f"{name}: expected finite values, got {a.tolist()}")
     return a
 
@@ -185,7 +185,7 @@ def _isin(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     if not len(b) or not len(a):
         return np.zeros(len(a), bool)
     s = np.sort(b)
-    i = np.minimum(np.searchsorted(s, a), len(s) - 1)
+    i = np.minimum(s.searchsorted(a), len(s) - 1)
     return s[i] == a
 
 
@@ -389,7 +389,7 @@ def _rows3(name: str, x, n: int | None) -> np.ndarray:
     if a.ndim != 2 or a.shape[1] != 3 or (n is not None and a.shape[0] != n):
         want = "(N, 3) or (3,)" if n is None else f"({n}, 3) or (3,)"
         raise InputError(f"{name}: expected an array of shape {want}, got {np.shape(x)}")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise InputError(f"{name}: expected finite values (no NaN/inf)")
     return a
 
@@ -424,7 +424,7 @@ def triangulate_batch(
     sigma = _scalar("bearing_sigma_rad", bearing_sigma_rad, min_value=0.0)
     min_par = _scalar("min_parallax_rad", min_parallax_rad, min_value=0.0)
     na, nb = _norm_rows(b_a), _norm_rows(b_b)
-    if np.any(na <= 1e-12) or np.any(nb <= 1e-12):
+    if (na <= 1e-12).any() or (nb <= 1e-12).any():
         raise InputError("b_a, b_b: expected non-zero directions (unit bearings) in every row")
     b_a, b_b = b_a / na[:, None], b_b / nb[:, None]
 
@@ -456,7 +456,7 @@ def triangulate_batch(
     p = 0.5 * (q_a + q_b)  # midpoint of the common perpendicular
     rng = _norm_rows(p - o)
     sig = np.zeros(n)
-    if sigma > 0.0 and np.any(ok):
+    if sigma > 0.0 and ok.any():
         sig[ok] = _range_sigma_batch(c_a[ok], b_a[ok], c_b[ok], b_b[ok], o[ok], sigma)
     z = ~ok
     p[z] = 0.0
@@ -754,7 +754,7 @@ def _cov(name: str, sigma) -> np.ndarray | None:
     if a.shape == ():
         s = _scalar(name, float(a), min_value=0.0)
         return np.eye(3) * s * s
-    if a.shape != (3, 3) or not np.all(np.isfinite(a)):
+    if a.shape != (3, 3) or not np.isfinite(a).all():
         raise InputError(
             f"{name}: expected a per-axis std (m) or a finite (3, 3) covariance (m^2), got shape {a.shape}"
         )

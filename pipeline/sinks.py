@@ -280,7 +280,7 @@ class Annotator:
                     for _ in range(6):
                         if not todo.any():
                             break
-                        j = np.flatnonzero(todo)
+                        j = todo.nonzero()[0]
                         tip_C = cam.T_C_B.apply(p_B[idx[j]] + dt[j, None] * v_B[j])
                         uv2, ok2 = self._project(cam, tip_C)
                         length = np.hypot(uv2[:, 0] - uv[idx[j], 0], uv2[:, 1] - uv[idx[j], 1])

@@ -122,7 +122,7 @@ def _well_conditioned(A: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         with np.errstate(over="ignore", invalid="ignore"):
             m = A.shape[-1] ** 2
             ok = np.sqrt((A * A).reshape(-1, m).sum(1) * (Ai * Ai).reshape(-1, m).sum(1)) < 1e9
-    if not np.all(ok):
+    if not ok.all():
         ev = np.abs(np.linalg.eigvalsh(A[~ok]))
         ok[~ok] = ev[:, -1] < 1e10 * ev[:, 0]
     return ok, Ai
@@ -430,11 +430,11 @@ class ObstacleGrouper:
         self._frame += 1
         bg = self._background(ids)
         # 1. members stay within max_radius of the representative bearing and move with the track
-        r = np.flatnonzero(owner >= 0)
+        r = (owner >= 0).nonzero()[0]
         if len(r):
             far = np.einsum("ij,ij->i", b[r], rep[owner[r]]) < cos_r
             owner[r[far]] = -1
-        sel = np.flatnonzero((owner >= 0) & fvalid)  # members with a flow
+        sel = ((owner >= 0) & fvalid).nonzero()[0]  # members with a flow
         o, f_sel, fn_sel = owner[sel], flow[sel], fnorm[sel]
         tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
@@ -446,12 +446,12 @@ class ObstacleGrouper:
                     tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         # 2. unassigned features with a flow join the track of their nearest member (features
         # marked as extended texture too: they start no new group, but may move with a track)
-        free = np.flatnonzero((owner < 0) & fvalid)
-        memb = np.flatnonzero(owner >= 0)
+        free = ((owner < 0) & fvalid).nonzero()[0]
+        memb = (owner >= 0).nonzero()[0]
         if len(free) and len(memb):
             cosd = b[free] @ b[memb].T
             j = np.argmax(cosd, axis=1)
-            k = np.flatnonzero(cosd[np.arange(len(free)), j] > cos_link)
+            k = (cosd[np.arange(len(free)), j] > cos_link).nonzero()[0]
             fk, t_of = free[k], owner[memb[j[k]]]
             ok = np.einsum("ij,ij->i", b[fk], rep[t_of]) > cos_r
             # (the last known flow if < 3 members)
@@ -460,8 +460,8 @@ class ObstacleGrouper:
         # 2b. a track short of members (coasting, or its features replaced) takes the free features
         # within link_rad of where it was predicted to be that move like it
         cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
-        short = np.flatnonzero((cnt_now < need_t) & (hits > 0))
-        free = np.flatnonzero((owner < 0) & fvalid)
+        short = ((cnt_now < need_t) & (hits > 0)).nonzero()[0]
+        free = ((owner < 0) & fvalid).nonzero()[0]
         pred = rep[short] @ R1.T if R1 is not None else rep[short]
         pred = _normalise(pred + tflow[short] * dt_s) if self.coast_predict else pred
         if len(short) and len(free):
@@ -478,7 +478,7 @@ class ObstacleGrouper:
         else:
             fresh_short = np.zeros(0, np.intp)
         # 3. new groups from the rest: revive a memberless track where it was predicted, else new
-        free = np.flatnonzero((owner < 0) & fvalid & ~bg)
+        free = ((owner < 0) & fvalid & ~bg).nonzero()[0]
         pieces, small = self._pieces(free, b, flow, fvalid, ft.age, cos_link, f2)
         K = len(pieces)
         fresh = np.zeros(T + K, bool)  # its members are all new this frame (no motion to follow)
@@ -486,14 +486,14 @@ class ObstacleGrouper:
         fresh[fresh_short] = True
         if K:
             rows_all = np.concatenate(pieces)
-            piece_of = np.repeat(np.arange(K), [len(p) for p in pieces])
+            piece_of = np.arange(K).repeat([len(p) for p in pieces])
             cnt_p = np.bincount(piece_of, minlength=K)
             b_p, f_p = b[rows_all], flow[rows_all]
             pc = _normalise(_bincount3(piece_of, b_p, K))
             pf = _bincount3(piece_of, f_p, K) / cnt_p[:, None]
             tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
             cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
-            cand = np.flatnonzero((cnt_now < need_t) & (hits > 0))
+            cand = ((cnt_now < need_t) & (hits > 0)).nonzero()[0]
             if len(cand):
                 # where each candidate is now: b <- normalise(R_C_Cprev b + flow dt)
                 pred = rep[cand] @ R1.T if R1 is not None else rep[cand]
@@ -503,7 +503,7 @@ class ObstacleGrouper:
                 agree = self._agree(pf[pi], _norm_rows(pf)[pi], tflow[cand[ci]])
                 pi, ci = pi[agree], ci[agree]
                 used_p, used_c = set(), set()
-                order = np.argsort(-cs[pi, ci], kind="stable")  # closest pairs first
+                order = (-cs[pi, ci]).argsort(kind="stable")  # closest pairs first
                 for p, c in zip(pi[order].tolist(), ci[order].tolist(), strict=True):
                     if p not in used_p and c not in used_c:
                         used_p.add(p)
@@ -524,8 +524,8 @@ class ObstacleGrouper:
         conf_k = np.concatenate([conf, np.zeros(TK - T, bool)])
         hits_k = np.concatenate([hits, np.zeros(TK - T, np.int64)])
         taken = self._inherit(owner, b, tflow, has_flow, conf_k, hits_k, cos_link, tracks, R1, dt_s)
-        if np.any(taken >= 0):
-            hj = np.flatnonzero(taken >= 0)
+        if (taken >= 0).any():
+            hj = (taken >= 0).nonzero()[0]
             rep[taken[hj]] = rep[hj]  # the heir's representative bearing carries on
             tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
         # 3c. two surfaces in one track (an occluding edge, an obstacle crossing the background):
@@ -556,7 +556,7 @@ class ObstacleGrouper:
             if sp_rows:
                 tflow, _ = self._track_flow(owner, flow, fvalid, tflow, TK)
         # 4. representative bearing, sigma, reach
-        own = np.flatnonzero(owner >= 0)
+        own = (owner >= 0).nonzero()[0]
         o = owner[own]
         cnt = np.bincount(o, minlength=TK)
         b_own = b[own]
@@ -572,11 +572,11 @@ class ObstacleGrouper:
         moved = _normalise(moved + self.centre_gain * (mean_c - moved))
         use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
         new_rep = np.where(use_moved[:, None], moved, mean_c)
-        ang = np.arccos(np.clip(np.einsum("ij,ij->i", b_own, new_rep[o]), -1.0, 1.0))
-        order_o = np.argsort(o, kind="stable")
+        ang = np.arccos(np.einsum("ij,ij->i", b_own, new_rep[o]).clip(-1.0, 1.0))
+        order_o = o.argsort(kind="stable")
         srt = own[order_o]  # member rows grouped by track
-        starts = np.concatenate([[0], np.cumsum(cnt)])
-        ne = np.flatnonzero(cnt > 0)
+        starts = np.concatenate([[0], cnt.cumsum()])
+        ne = (cnt > 0).nonzero()[0]
         spread2 = np.bincount(o, ang * ang, TK) / np.maximum(cnt, 1)
         # sigma^2 = spread^2 / n + floor^2
         sigma = np.sqrt(spread2 / np.maximum(cnt, 1) + (self.sigma_floor_px * rad_px) ** 2)
@@ -593,8 +593,8 @@ class ObstacleGrouper:
         tent = np.ones(TK, bool)
         tent[:T] = [t.status == "tentative" and not t.split for t in tracks]
         tent &= ~split_born  # (split off by its motion against what surrounds it)
-        if self.extended_sectors and np.any(alive & tent):
-            a_idx = np.flatnonzero(alive & tent)
+        if self.extended_sectors and (alive & tent).any():
+            a_idx = (alive & tent).nonzero()[0]
             ext[a_idx] = self._embedded(
                 new_rep[a_idx], reach[a_idx], tflow[a_idx], a_idx, b, flow, fvalid, owner, ft.model
             )
@@ -602,7 +602,7 @@ class ObstacleGrouper:
         # (python lists: the loop below reads them one element at a time)
         alive_l, ext_l, taken_l = alive.tolist(), ext.tolist(), taken.tolist()
         new_ids = [next(self._ids) if alive_l[ti] and not ext_l[ti] else -1 for ti in range(T, TK)]
-        show = np.flatnonzero(alive)
+        show = alive.nonzero()[0]
         uv_all = np.zeros((TK, 2))
         if len(show):
             uv, ok = ft.model.bearing_to_pixel(new_rep[show])
@@ -689,18 +689,18 @@ class ObstacleGrouper:
         """(N,) bool: live feature ids (N,) marked as extended texture (marks expire after
         ``BG_FRAMES`` frames, so an obstacle taken for texture gets another chance)."""
         keep = self._bg_until > self._frame
-        if not np.all(keep):
+        if not keep.all():
             self._bg_ids, self._bg_until = self._bg_ids[keep], self._bg_until[keep]
         if not len(self._bg_ids) or not len(ids):
             return np.zeros(len(ids), bool)
-        k = np.minimum(np.searchsorted(self._bg_ids, ids), len(self._bg_ids) - 1)
+        k = np.minimum(self._bg_ids.searchsorted(ids), len(self._bg_ids) - 1)
         return self._bg_ids[k] == ids
 
     def _mark_background(self, fids: np.ndarray) -> None:
         """Mark feature ids (K,) as extended texture for the next ``BG_FRAMES`` frames."""
         allid = np.concatenate([self._bg_ids, fids])
         until = np.concatenate([self._bg_until, np.full(len(fids), self._frame + self.BG_FRAMES)])
-        order = np.argsort(allid, kind="stable")
+        order = allid.argsort(kind="stable")
         self._bg_ids, self._bg_until = allid[order], until[order]
 
     def _keep_min(self) -> int:
@@ -753,7 +753,7 @@ class ObstacleGrouper:
         if T == 0:
             return out
         cnt = np.bincount(owner[owner >= 0], minlength=TK)
-        dying = [i for i in np.flatnonzero((cnt[:T] < self._need_t) & conf[:T]) if len(tracks[i].member_b_C)]
+        dying = [i for i in ((cnt[:T] < self._need_t) & conf[:T]).nonzero()[0] if len(tracks[i].member_b_C)]
         if not dying:
             return out
         alive = cnt >= np.concatenate([self._need_t, np.full(TK - T, self._keep_min())])
@@ -763,11 +763,11 @@ class ObstacleGrouper:
             mb = tracks[i].member_b_C
             mb = mb @ R1.T if R1 is not None else mb
             mb = _normalise(mb + tflow[i] * dt_s) if self.coast_predict else mb
-            cand = np.flatnonzero(alive & ~used & (hits < hits[i]) & has_flow)
+            cand = (alive & ~used & (hits < hits[i]) & has_flow).nonzero()[0]
             cand = cand[self._agree(tflow[cand], fn[cand], tflow[i][None, :])]
             best, best_c = -1, cos_link
             for j in cand:
-                rj = np.flatnonzero(owner == j)
+                rj = (owner == j).nonzero()[0]
                 c = float(np.max(b[rj] @ mb.T))
                 if c > best_c:
                     best, best_c = j, c
@@ -828,13 +828,13 @@ class ObstacleGrouper:
         out_rows: list[np.ndarray] = []
         out_tgt: list[tuple[int, int]] = []
         back = np.minimum(ft.age - 1, L)  # samples back in the window (a feature has one per frame)
-        rows = np.flatnonzero((owner >= 0) & (owner < T) & (2 * back >= L))
+        rows = ((owner >= 0) & (owner < T) & (2 * back >= L)).nonzero()[0]
         o = owner[rows]
         cnt = np.bincount(o, minlength=T)
         judged = (cnt >= 4) & (taken[:T] < 0)
         sel = judged[o]
         rows, o = rows[sel], o[sel]
-        srt = np.argsort(o, kind="stable")  # rows grouped by track (blocks), in row order within
+        srt = o.argsort(kind="stable")  # rows grouped by track (blocks), in row order within
         rows, o = rows[srt], o[srt]
         found = np.zeros(T, bool)
         plane: dict[int, np.ndarray] = {}  # step 3f: track index -> rows of its part off the plane
@@ -842,7 +842,7 @@ class ObstacleGrouper:
             b_then, t_then, _ = ft.bearing_ago(L)
             b_then, bk = b_then[rows], back[rows]
             if R:
-                Rs = np.repeat(_EYE3, L + 1, 0)
+                Rs = _EYE3.repeat(L + 1, 0)
                 for kk, Rk in R.items():
                     if 0 < kk <= L:
                         Rs[kk] = Rk
@@ -877,9 +877,9 @@ class ObstacleGrouper:
             # member pairs (i < j) of one track (rows sorted by track: blocks), within link_rad;
             # every test below is symmetric in i and j, so one direction of each pair is enough
             cnt_o = np.bincount(o, minlength=T)
-            reps_n = np.cumsum(cnt_o)[o] - np.arange(1, m + 1)  # rows after i in its block
-            ei = np.repeat(np.arange(m), reps_n)
-            ej = ei + 1 + (np.arange(len(ei)) - np.repeat(np.cumsum(reps_n) - reps_n, reps_n))
+            reps_n = cnt_o.cumsum()[o] - np.arange(1, m + 1)  # rows after i in its block
+            ei = np.arange(m).repeat(reps_n)
+            ej = ei + 1 + (np.arange(len(ei)) - (reps_n.cumsum() - reps_n).repeat(reps_n))
             keep = np.einsum("ij,ij->i", bj[ei], bj[ej]) > np.cos(self.link_rad)
             ei, ej = ei[keep], ej[keep]
             dd = np.hypot(*(xy[ei] - xy[ej]).T)  # |window flow difference| (rad/s)
@@ -888,7 +888,7 @@ class ObstacleGrouper:
             linked = dd < thr
             # only tracks with a near pair that does not link can fall apart
             loose = np.bincount(o[ei[~linked]], minlength=T) > 0
-            if not np.any(loose) and not plane:
+            if not loose.any() and not plane:
                 for t in range(T):  # no candidate this frame: the count restarts
                     tracks[t].split_n = tracks[t].plane_n = 0
                 return out_rows, out_tgt
@@ -908,14 +908,14 @@ class ObstacleGrouper:
             size = np.bincount(labels, minlength=m)
             ids = ft.ids
             # tracks with two parts of 2 or more members (a part lies in one track: links do)
-            root = np.flatnonzero((labels == np.arange(m)) & (size >= 2))
+            root = ((labels == np.arange(m)) & (size >= 2)).nonzero()[0]
             is_multi = judged & loose & (np.bincount(o[root], minlength=T) >= 2)
             # per such track its second largest part (ties: the lower label): part A
             root = root[is_multi[o[root]]]
             rk = np.lexsort((root, -size[root], o[root]))  # by track, then size descending
             root, ro = root[rk], o[root[rk]]
             a_lab = np.full(T, -1)
-            rank = np.arange(len(ro)) - np.searchsorted(ro, ro)  # position within its track
+            rank = np.arange(len(ro)) - ro.searchsorted(ro)  # position within its track
             a_lab[ro[rank == 1]] = root[rank == 1]
             in_a = labels == a_lab[o]
             # a step, not a gradient: the flow jumps across part A's boundary by split_step times
@@ -930,8 +930,8 @@ class ObstacleGrouper:
             mdt = np.bincount(o, dt, T) / np.maximum(np.bincount(o, minlength=T), 1)
             floor_t = self.split_min_px * rad_px / np.maximum(mdt, 1e-9)
             step = is_multi & (med_c >= np.maximum(self.split_step * np.nan_to_num(med_i), floor_t))
-            for t in np.flatnonzero(step):
-                ia = np.flatnonzero(in_a & (o == t))
+            for t in step.nonzero()[0]:
+                ia = (in_a & (o == t)).nonzero()[0]
                 move = rows[ia]
                 found[t] = True
                 tr = tracks[t]
@@ -940,7 +940,7 @@ class ObstacleGrouper:
                     tr.split_n, tr.split_ids = 0, np.zeros(0, np.int64)
                     out_rows.append(move)
                     out_tgt.append((int(t), -1))
-        for t in np.flatnonzero(~found).tolist():  # no candidate this frame: the count restarts
+        for t in (~found).nonzero()[0].tolist():  # no candidate this frame: the count restarts
             tracks[t].split_n = 0
         # step 3f: the same persistence rule, for tracks step 3c did not split this frame
         found_l = found.tolist()
@@ -1012,7 +1012,7 @@ class ObstacleGrouper:
         cnt = np.bincount(o, minlength=T)
         # all eligible tracks at once (rows come sorted by track: blocks); a candidate disk and
         # its rest lie in one track
-        idx = np.flatnonzero((cnt[o] >= max(self.plane_min, 12)) & due[o])
+        idx = ((cnt[o] >= max(self.plane_min, 12)) & due[o]).nonzero()[0]
         if not len(idx):
             return out
         os_, bt, F, dts = o[idx], b[idx], xy[idx], dt[idx]
@@ -1027,17 +1027,17 @@ class ObstacleGrouper:
         DD = np.einsum("nai,naj->nij", D, D).reshape(S, 64)
         DF = np.einsum("nai,na->ni", D, F)  # (S,8)
         FF = np.einsum("ij,ij->i", F, F)
-        starts = np.flatnonzero(np.concatenate(([True], os_[1:] != os_[:-1])))
-        blk = np.repeat(np.arange(len(starts)), np.diff(np.append(starts, S)))  # block of each row
+        starts = np.concatenate(([True], os_[1:] != os_[:-1])).nonzero()[0]
+        blk = np.arange(len(starts)).repeat(np.diff(np.append(starts, S)))  # block of each row
         nR = cnt[os_] - nC
-        k = np.flatnonzero((nC >= self.min_features) & (nR >= 8) & (nR > nC))
+        k = ((nC >= self.min_features) & (nR >= 8) & (nR > nC)).nonzero()[0]
         if not len(k):
             return out
         kb = blk[k]
         NR = (np.add.reduceat(DD, starts, 0)[kb] - Mf[k] @ DD).reshape(-1, 8, 8)
         BR = np.add.reduceat(DF, starts, 0)[kb] - Mf[k] @ DF  # (K,8)
         wc, NRi = _well_conditioned(NR)
-        if not np.any(wc):
+        if not wc.any():
             return out
         k, kb, NR, BR = k[wc], kb[wc], NR[wc], BR[wc]
         Mk = Mf[k]  # (K,S)
@@ -1075,7 +1075,7 @@ class ObstacleGrouper:
         # and it stands out of the rest's own scatter about its plane (rbar >= plane_ratio s): a
         # part of one curved surface is off the plane by about as much as the rest is
         good = (z >= self.plane_z) & way & (n_in >= self.min_features) & (mean_in >= floor)
-        good = np.flatnonzero(good & (rn >= self.plane_ratio * np.sqrt(s2)))
+        good = (good & (rn >= self.plane_ratio * np.sqrt(s2))).nonzero()[0]
         if not len(good):
             return out
         # per track its most significant candidate (ties: the first)
@@ -1110,7 +1110,7 @@ class ObstacleGrouper:
         cnt_all = np.bincount(owner[owner >= 0], minlength=T)[:T]
         need = self._need_t
         hits = np.array([tr.hits for tr in tracks])
-        cand = np.flatnonzero((cnt_all < need) & (taken[:T] < 0) & (hits > 0))
+        cand = ((cnt_all < need) & (taken[:T] < 0) & (hits > 0)).nonzero()[0]
         if not len(cand):
             return
         cos_r = np.cos(self.max_radius_rad)
@@ -1125,7 +1125,7 @@ class ObstacleGrouper:
             f_mv = flow[fv].mean(0)
             agree = self._agree(f_mv[None], np.linalg.norm(f_mv)[None], tflow[cand])
             cc = np.where(agree, pred @ c_mv, -2.0)
-            for j in np.argsort(-cc):  # the closest unused one within max_radius
+            for j in (-cc).argsort():  # the closest unused one within max_radius
                 if cc[j] <= cos_r:
                     break
                 if int(cand[j]) not in used:
@@ -1165,8 +1165,8 @@ class ObstacleGrouper:
             return out
         order = np.lexsort((vals, keys))
         cnt = np.bincount(keys, minlength=T)
-        start = np.concatenate([[0], np.cumsum(cnt)[:-1]])
-        has = np.flatnonzero(cnt > 0)
+        start = np.concatenate([[0], cnt.cumsum()[:-1]])
+        has = (cnt > 0).nonzero()[0]
         out[has] = vals[order][start[has] + (cnt[has] - 1) // 2]
         return out
 
@@ -1188,11 +1188,11 @@ class ObstacleGrouper:
         lens = [len(t.members) for t in tracks]
         if not sum(lens):
             return owner
-        order = np.argsort(ids, kind="stable")
+        order = ids.argsort(kind="stable")
         sids = ids[order]
         mem = np.concatenate([t.members for t in tracks])
-        mem_t = np.repeat(np.arange(T), lens)
-        k = np.minimum(np.searchsorted(sids, mem), n - 1)
+        mem_t = np.arange(T).repeat(lens)
+        k = np.minimum(sids.searchsorted(mem), n - 1)
         ok = sids[k] == mem
         owner[order[k[ok]]] = mem_t[ok]
         return owner
@@ -1211,7 +1211,7 @@ class ObstacleGrouper:
         owner: np.ndarray, flow: np.ndarray, fvalid: np.ndarray, old: np.ndarray, T: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """Mean member flow per track (T,3) where >= 3 members have a flow (else ``old``), and that mask."""
-        sel = np.flatnonzero((owner >= 0) & fvalid)
+        sel = ((owner >= 0) & fvalid).nonzero()[0]
         return ObstacleGrouper._mean_flow(owner[sel], flow[sel], old, T)
 
     def _flows(
@@ -1226,7 +1226,7 @@ class ObstacleGrouper:
         if R:
             # b_then <- R_C_Cprev[k] b_then, k = frames back of each feature's sample (identity if absent)
             n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)
-            Rs = np.repeat(_EYE3, self.flow_frames + 1, 0)
+            Rs = _EYE3.repeat(self.flow_frames + 1, 0)
             for k, Rk in R.items():
                 if 0 < k <= self.flow_frames:
                     Rs[k] = Rk
@@ -1280,7 +1280,7 @@ class ObstacleGrouper:
         out: list[np.ndarray] = []
         small: list[bool] = []
         # small components: judged as a whole (isolated, old enough)
-        cand = np.flatnonzero((sz < self.min_features) & (sz >= self.min_features_isolated))
+        cand = ((sz < self.min_features) & (sz >= self.min_features_isolated)).nonzero()[0]
         if len(cand):
             ok_f = age[free] >= self.isolated_min_age
             # isolated: a member's live neighbours (itself included) are all members, or move
@@ -1299,19 +1299,19 @@ class ObstacleGrouper:
             bad = np.bincount(labels[cand[~ok_f[cand]]], minlength=m) > 0
             lab_c = labels[cand]
             keep = ~bad[lab_c]
-            if np.any(keep):
+            if keep.any():
                 # the kept components' features, grouped by label (ascending), in row order
                 rows_k, lab_k = cand[keep], lab_c[keep]
-                o_k = np.argsort(lab_k, kind="stable")
+                o_k = lab_k.argsort(kind="stable")
                 rows_k, lab_k = rows_k[o_k], lab_k[o_k]
-                cut = np.flatnonzero(lab_k[1:] != lab_k[:-1]) + 1
+                cut = (lab_k[1:] != lab_k[:-1]).nonzero()[0] + 1
                 out.extend(np.split(free[rows_k], cut))
                 small.extend([True] * (len(cut) + 1))
         # components of min_features or more: cut to max_radius pieces
         cos_r = np.cos(self.max_radius_rad)
-        by_label = np.argsort(labels, kind="stable")  # rows grouped by label, in row order within
-        first = np.cumsum(size) - size
-        for r in np.flatnonzero(size >= self.min_features).tolist():
+        by_label = labels.argsort(kind="stable")  # rows grouped by label, in row order within
+        first = size.cumsum() - size
+        for r in (size >= self.min_features).nonzero()[0].tolist():
             comp = by_label[first[r] : first[r] + size[r]]  # (= np.flatnonzero(labels == r))
             while len(comp):
                 bc = bf[comp]
@@ -1326,11 +1326,11 @@ class ObstacleGrouper:
                 piece = comp[bc @ bf[far] > cos_r]
                 c2 = _normalise(np.add.reduce(bf[piece], 0) / len(piece))
                 inside = bc @ c2 > cos_r
-                piece = comp[inside] if np.any(inside) else np.array([far])
+                piece = comp[inside] if inside.any() else np.array([far])
                 if len(piece) >= self.min_features:
                     out.append(free[piece])
                     small.append(False)
-                comp = comp[~inside] if np.any(inside) else comp[comp != far]
+                comp = comp[~inside] if inside.any() else comp[comp != far]
         return out, np.array(small, bool)
     def _embedded(
         self,
@@ -1353,7 +1353,7 @@ class ObstacleGrouper:
         track, agrees with the track's flow (no motion boundary around it)."""
         A = len(rep)
         out = np.zeros(A, bool)
-        cand = np.flatnonzero(fvalid)
+        cand = fvalid.nonzero()[0]
         if not len(cand):
             return out
         outer = np.minimum(reach + self.link_rad, np.pi)
@@ -1375,7 +1375,7 @@ class ObstacleGrouper:
         )
         vis = z > np.cos(model.max_angle_rad)
         surrounded = ((occ & vis).sum(1) >= 4) & ((vis & ~occ).sum(1) <= 8 - self.extended_sectors)
-        if not np.any(surrounded):
+        if not surrounded.any():
             return out
         keep = surrounded[ti]  # (the fit is needed for the surrounded tracks only)
         ti, i, x, y = ti[keep], i[keep], x[keep], y[keep]
@@ -1490,6 +1490,7 @@ class BoxTracker:
         self._hist: dict[tuple[int, int], deque] = {}
         self._decorated: dict[int, tuple[ObstacleTrack, tuple[str, ...]]] = {}  # keys added to others
         self._n = 0
+        self._rad_px_of, self._rad_px = None, 0.0  # camera model, its lens's mean radians per pixel
 
     def update(self, camera, det, others=()) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
         """Match this frame's boxes (``det``: Detections) of ``camera`` (an ``estimators.rig.Camera``).
@@ -1567,7 +1568,10 @@ class BoxTracker:
     def _link(self, model, seen: list[ObstacleTrack], others) -> set[int]:
         """Update the box <-> feature track links (class docstring); decorate the linked feature
         tracks; return the ids of the box tracks not to report."""
-        rad_px = model.max_angle_rad / max(model.image_circle()[2], 1.0)
+        if self._rad_px_of is not model:  # the lens's mean rad/px, once per camera model object
+            self._rad_px = model.max_angle_rad / max(model.image_circle()[2], 1.0)
+            self._rad_px_of = model
+        rad_px = self._rad_px
         feats = [t for t in others if len(t.member_b_C) == len(t.members) and len(t.members)]
         by_id = {t.id: t for t in feats}
         links: dict[int, int] = {}
@@ -1575,8 +1579,8 @@ class BoxTracker:
         if seen and feats:
             # all members at once: cosines against each box, compared with cos(radius) (no arccos)
             n_mem = np.array([len(f.members) for f in feats])
-            start = np.concatenate([[0], np.cumsum(n_mem)])
-            owner = np.repeat(np.arange(len(feats)), n_mem)
+            start = np.concatenate([[0], n_mem.cumsum()])
+            owner = np.arange(len(feats)).repeat(n_mem)
             mem_b = np.concatenate([f.member_b_C for f in feats])  # (M, 3)
             rep_b = np.array([f.b_C for f in feats])  # (T, 3)
             n_min = np.maximum(np.minimum(self.link_min_members, n_mem), (n_mem + 1) // 2)
@@ -1584,7 +1588,7 @@ class BoxTracker:
             radius = self._half.get(b.id, 0.0) + self.link_margin_px * rad_px
             cos_r = np.cos(radius)
             cos_c = rep_b @ b.b_C
-            cand = np.flatnonzero(cos_c >= cos_r)  # its bearing in the box ...
+            cand = (cos_c >= cos_r).nonzero()[0]  # its bearing in the box ...
             if self.link_older_only:  # ... made before the box (ids come from one counter; a held
                 # link was made under this rule, so its feature track is older too)
                 cand = cand[[feats[ti].id < b.id for ti in cand]]
@@ -1596,7 +1600,7 @@ class BoxTracker:
             for ti in cand[n_in[cand] >= n_min[cand]]:  # ... and most of its members too
                 f = feats[ti]
                 seg = cos_m[start[ti]:start[ti + 1]]
-                k = np.argsort(-seg, kind="stable")[:8]  # the members nearest the box: does it move with them
+                k = (-seg).argsort(kind="stable")[:8]  # the members nearest the box: does it move with them
                 key = (b.id, f.id)
                 h = self._hist.setdefault(key, deque(maxlen=self.link_frames + 1))
                 near = dict(zip(f.members[k].tolist(), f.member_b_C[k], strict=True))

@@ -57,3 +57,18 @@ def test_a_feature_track_found_first_still_takes_the_box_in():
 def test_link_older_only_must_be_a_bool():
     with pytest.raises(ConfigError, match="link_older_only"):
         BoxTracker(iter(range(5)), link_older_only=1)
+
+
+def test_the_lens_scale_of_the_links_is_computed_once_per_camera_model(monkeypatch):
+    """The links' tolerance is in the lens's mean radians per pixel (max angle / image circle radius),
+    a property of the camera model: computed once per model object (``image_circle`` projects four
+    rays, ~60 us a call, which every frame of every camera paid), again for another model object."""
+    calls = []
+    cls = type(equidistant())
+    image_circle = cls.image_circle
+    monkeypatch.setattr(cls, "image_circle", lambda self: calls.append(self) or image_circle(self))
+    a, b = equidistant(), equidistant()
+    bt = BoxTracker(iter(range(5, 100)))
+    for model in (a, a, a, b, b):
+        bt.update(mono_forward_rig(model).cameras[0], Detections(), [])
+    assert calls == [a, b]
