@@ -196,6 +196,14 @@ class CameraModel(ABC):
             domain and (if ``within_image``) inside the image.
         """
         bu, valid, _ = self._unit_rows(b_C)
+        if valid.all():  # the common case (every direction in the field): no gathering and scattering
+            uv, vi = self._project(bu)
+            if within_image:
+                vi &= self.in_image(uv)
+            if not vi.all():
+                uv[~vi] = 0.0
+                valid &= vi
+            return uv, valid
         uv = np.zeros((bu.shape[0], 2))
         idx = np.flatnonzero(valid)
         if idx.size:
@@ -314,9 +322,14 @@ class CameraModel(ABC):
         with np.errstate(invalid="ignore", over="ignore"):
             norm = np.linalg.norm(b, axis=1)
             valid = np.isfinite(norm) & (norm > 0)
-        bu = np.zeros_like(b)
-        bu[valid] = b[valid] / norm[valid, None]
+        if valid.all():  # (the common case: no masked gather and scatter)
+            bu = b / norm[:, None]
+        else:
+            bu = np.zeros_like(b)
+            bu[valid] = b[valid] / norm[valid, None]
         valid &= self._within_angle(bu)
+        if valid.all():
+            return bu, valid, norm
         bu[~valid] = 0.0
         return bu, valid, np.where(valid, norm, 1.0)
 
@@ -380,14 +393,27 @@ class _ThetaModel(CameraModel):
         td_max, _ = self._theta_d(np.array([self.max_angle_rad]))
         object.__setattr__(self, "_theta_d_max", float(td_max[0]))
 
+    def _theta_d_value(self, theta: np.ndarray) -> np.ndarray:
+        """theta (rad) -> theta_d alone (``_theta_d``'s first value, the same numbers)."""
+        return self._theta_d(theta)[0]
+
     def _project(self, b):
         x, y, z = b[:, 0], b[:, 1], b[:, 2]
         rho = np.hypot(x, y)
         theta = np.arctan2(rho, z)  # theta = atan2(sqrt(x^2+y^2), z), in [0, pi]
-        td, _ = self._theta_d(theta)
+        td = self._theta_d_value(theta)
         # m = theta_d * (x, y) / rho; on the axis (rho = 0) m = 0.
-        s = np.where(rho > 0, td / np.where(rho > 0, rho, 1.0), 0.0)
-        uv = np.stack([self.fx * s * x + self.cx, self.fy * s * y + self.cy], axis=1)
+        off = rho > 0
+        s = td / rho if off.all() else np.where(off, td / np.where(off, rho, 1.0), 0.0)
+        # (u, v) = (fx s x + cx, fy s y + cy), each column written in place in that order
+        uv = np.empty((len(s), 2))
+        u, v = uv[:, 0], uv[:, 1]
+        np.multiply(s, self.fx, out=u)
+        u *= x
+        u += self.cx
+        np.multiply(s, self.fy, out=v)
+        v *= y
+        v += self.cy
         return uv, np.ones(b.shape[0], dtype=bool)
 
     def _project_jacobian(self, b):
@@ -604,6 +630,9 @@ class KannalaBrandt(_ThetaModel):
         if miss.size:
             theta[miss] = self._theta_safeguarded(target[miss])
         return theta
+
+    def _theta_d_value(self, theta):
+        return self._theta_d_in_place(theta, theta * theta)
 
     def _theta_d_in_place(self, theta, t2):
         """theta_d(theta) = theta (1 + t2 (k1 + t2 (k2 + t2 (k3 + t2 k4)))) for theta (N,) rad with

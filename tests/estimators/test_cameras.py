@@ -217,6 +217,28 @@ def test_invalid_rows_are_zero_and_flagged_never_nan(model):
     assert small.bearing_to_pixel(np.array([[0.0, 0.0, 1.0]]), within_image=False)[1].all()
 
 
+def test_a_rows_pixel_does_not_depend_on_the_other_rows(model):
+    """bearing_to_pixel works row by row: each direction's pixel and flag are the same bit for bit
+    whether every row of the call is valid (projected at once) or invalid rows are mixed in (the
+    valid ones gathered, projected and scattered back), also for rows outside the image."""
+    rng = np.random.default_rng(7)
+    b = rng.normal(size=(60, 3))
+    b[:, 2] = np.abs(b[:, 2]) + 0.2  # ahead: inside every example's lens
+    b[:4, :2] = 0.0  # on the optical axis (rho = 0)
+    b *= rng.uniform(0.1, 10.0, size=(60, 1))  # any length
+    mixed = np.insert(b, [0, 17, 60], [[np.nan, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, -1.0]], axis=0)
+    keep = np.ones(len(mixed), bool)
+    keep[[0, 18, 62]] = False
+    small = dataclasses.replace(model, width=model.width // 2, height=model.height // 2)
+    for m in (model, small):  # (small: part of the rows outside its image)
+        for within in (True, False):
+            uv, ok = m.bearing_to_pixel(b, within_image=within)
+            uv_m, ok_m = m.bearing_to_pixel(mixed, within_image=within)
+            assert ok_m[keep].tolist() == ok.tolist() and not ok_m[~keep].any()
+            assert uv_m[keep].tobytes() == uv.tobytes() and not uv_m[~keep].any()
+    assert not small.bearing_to_pixel(b)[1].all() and small.bearing_to_pixel(b)[1].any()
+
+
 def test_pixels_beyond_the_lens_circle_are_invalid(model):
     cx, cy, r = model.image_circle()
     big = max(model.width, model.height) * 10.0
