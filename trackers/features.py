@@ -851,7 +851,9 @@ class FeatureTracker:
         as many again as there are re-acquisition candidates, whose cells new ones avoid) of one per
         min_distance_px cell. Only these get ORB descriptors (at 720p ~600 -> ~100 per detection).
         With no room (``free`` <= 0) no new feature is kept, so only the re-acquisition candidates."""
-        near = self._near_lost(uv, self._lost_predictions(t_s)) if len(self.lost_ids) else np.zeros(0, np.intp)
+        near = np.zeros(0, np.intp)
+        if len(self.lost_ids):
+            near = self._near_lost(uv, self._lost_predictions(t_s))
         if free <= 0:
             return near
         cell = max(1.0, self.min_distance_px)
