@@ -1428,7 +1428,9 @@ class BoxTracker:
     rotation moves both alike, so it cancels in the difference), differ by at most ``link_tol_px``
     (in the lens's mean rad/px). A link holds while the pair stays so placed. A linked box track is
     not reported (it is tracked on, and comes back under its own id if the feature track goes); the
-    feature track is reported with the box's attributes added and ``box_label`` (e.g. ``drone``).
+    feature track is reported with the box's attributes added and ``box_label`` (e.g. ``drone``),
+    under the box's id when the box is the older track and no other camera sees it
+    (``FrontEnd._box_keeps_id``: the drone keeps the id it was first reported under).
     The feature track is the one kept: its member features give it ranges and stereo association,
     and they lie on the box, so its bearing does too.
 
@@ -1443,10 +1445,10 @@ class BoxTracker:
     ``link_older_only`` (opt-in, default False): a box track is linked only to a feature track made before
     it (a smaller id: box and feature tracks draw ids from the front end's one counter). A drone found
     first by its lights then keeps its own report and id beside the feature track ORB finds on it later;
-    by default the link hides the box, so the drone's reported id changes from the box's to the feature
-    track's (an id switch), and back when that feature track ends. The drone id switches of the tuned
-    scenes are such handovers, not links to the wrong track (session 9: moving_crossing,
-    wide_angle_beyond90, noisy_1080p).
+    by default the link hides the box and the feature track carries on under the box's id (above), but
+    where another camera sees the box too the drone's reported id changes from the box's to the feature
+    track's (an id switch). The drone id switches of the tuned scenes were such handovers, not links to
+    the wrong track (session 9: moving_crossing, wide_angle_beyond90, noisy_1080p).
     """
 
     def __init__(
