@@ -767,8 +767,7 @@ class FrontEnd:
                 if ga in held[b] or gb in held[a]:
                     continue  # already linked to another track in that camera
                 held.clear()  # the merge below re-maps global ids
-                # the surviving id: the one the reference camera (the rig's first) tracks, else the
-                # one confirmed for longer, so the id downstream filters know carries on
+                # the surviving id: the one seen for longer, so the id downstream filters know carries on
                 keep, drop = self._survivor(ga, gb)
                 self._merge_gids(keep, drop, (ta, tb), absorbed)
         return absorbed
@@ -948,12 +947,8 @@ class FrontEnd:
             absorbed.append(drop)
 
     def _survivor(self, ga: int, gb: int) -> tuple[int, int]:
-        """(kept, dropped) of two global ids being merged (see _associate)."""
-        ref = self.rig.cameras[0].name
-        if self._members_of(ga, ref) and not self._members_of(gb, ref):
-            return ga, gb
-        if self._members_of(gb, ref) and not self._members_of(ga, ref):
-            return gb, ga
+        """(kept, dropped) of two global ids being merged (see _associate): the one seen for more
+        frames (in any camera), so the id downstream filters know carries on."""
 
         def hits(g: int) -> int:
             n = 0
