@@ -476,7 +476,7 @@ class FrontEnd:
         if len(self.cams) > 1:
             self._prefetch_stereo(seen, greys, assoc_now)
         if assoc_now:
-            absorbed = self._associate(seen, greys)
+            absorbed += self._associate(seen, greys)
         if len(self.cams) > 1 and self.boxers:  # box tracks: every frame (no features to match)
             absorbed += self._associate_boxes(seen)
         if len(self.cams) > 1:
@@ -1320,10 +1320,6 @@ class FrontEnd:
         if camera in self.boxers:
             tracks += list(self.boxers[camera].tracks)
         return set(map(self._global, tracks))
-
-    def _members_of(self, gid: int, camera: str) -> bool:
-        """Whether global track gid already has a live local track in ``camera``."""
-        return gid in self._gids_in(camera)
 
     def _observations(
         self,

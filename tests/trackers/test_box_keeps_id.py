@@ -122,3 +122,18 @@ def test_a_box_that_another_camera_sees_too_lends_no_id():
     fe._gid[6] = 5  # cam1's box track 6 is the same obstacle: global track 5
     fe._box_keeps_id(absorbed)
     assert fe._global(9) == 9
+
+
+def test_an_id_lent_on_a_stereo_association_frame_is_reported_lost(monkeypatch):
+    """The feature track's own id, absorbed when a box lends it its id (before the association), is
+    reported lost once also on a frame where the stereo association runs (every ``assoc_every``
+    frames, the first one included): the association's absorbed ids are added to it, not put in
+    its place (before, that frame's report had no lost id 9: fusion kept its track open)."""
+    model = equidistant()
+    fe = FrontEnd(stereo_forward_rig(model, baseline_m=0.3), detector="orb+navlights")
+    fe._reported.add(9)  # feature track 9 was reported; this frame box track 5 lends it its id
+    monkeypatch.setattr(fe, "_box_keeps_id", lambda absorbed: fe._merge_gids(5, 9, (9,), absorbed))
+    img = np.zeros((model.height, model.width, 3), np.uint8)
+    assert fe._n % fe.assoc_every == 0  # an association frame
+    obs = fe.process({"cam0": img, "cam1": img}, 0, 0.0)
+    assert [(o.track_id, o.status) for o in obs] == [(9, "lost")]
