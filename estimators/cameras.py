@@ -20,6 +20,7 @@ Models (registry :data:`CAMERA_MODELS`, factory :func:`make_camera_model`):
 from __future__ import annotations
 
 import dataclasses
+import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar
@@ -281,6 +282,12 @@ class CameraModel(ABC):
         cx, cy = self._principal_point()
         r = np.hypot(uv[:, 0] - cx, uv[:, 1] - cy)
         return float(cx), float(cy), float(np.min(np.where(valid, r, np.inf)))
+
+    @functools.cached_property
+    def rad_per_px(self) -> float:
+        """Radians per pixel at the lens's mean scale: ``max_angle_rad`` over the image circle's
+        radius (at least 1 px); computed once per model object (``image_circle`` projects four rays)."""
+        return float(self.max_angle_rad / max(self.image_circle()[2], 1.0))
 
     def params(self) -> dict:
         """The model's parameters as a dict of plain Python numbers (keyword fields of the class)."""

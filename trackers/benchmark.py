@@ -527,7 +527,7 @@ def run_benchmark(
         frames = frames[:max_frames]
     R_B_C = {c.name: c.T_C_B.R.T for c in rig.cameras}
     c_B = {c.name: c.centre_B for c in rig.cameras}
-    rad_px = {c.name: c.model.max_angle_rad / max(c.model.image_circle()[2], 1.0) for c in rig.cameras}
+    rad_px = {c.name: c.model.rad_per_px for c in rig.cameras}
     t_decode = t_front = c_decode = c_front = 0.0
     stage = dict.fromkeys(STAGES, 0.0)
     first_seen: dict[int, float] = {}

@@ -307,9 +307,7 @@ class FrontEnd:
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         # per camera and camera pair, computed once: radians per pixel at the lens's mean scale,
         # R_C_B, and T_Cb_Ca = T_Cb_B T_B_Ca (p_Cb = R p_Ca + t)
-        self._rad_px = {
-            n: c.model.max_angle_rad / max(c.model.image_circle()[2], 1.0) for n, c in self.cams.items()
-        }
+        self._rad_px = {n: c.model.rad_per_px for n, c in self.cams.items()}
         self._R_C_B = {n: np.asarray(c.T_C_B.R, float) for n, c in self.cams.items()}
         self._T_b_a = {
             (a, b): self.cams[b].T_C_B @ self.cams[a].T_C_B.inverse()

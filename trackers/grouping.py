@@ -384,7 +384,6 @@ class ObstacleGrouper:
         self._bg_ids = np.zeros(0, np.int64)
         self._bg_until = np.zeros(0, np.int64)
         self._frame = 0
-        self._scale_of, self._scale = None, 0.0  # camera model, its radians per pixel
         self.splits = 0  # tracks split by step 3c so far (a diagnostic count)
         self._need_t = np.zeros(0, np.int64)  # this frame's members each track needs to stay seen
 
@@ -406,7 +405,7 @@ class ObstacleGrouper:
         ids, b = ft.ids, ft.b_C
         dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
         self._last_t_s = t_s
-        rad_px = self._rad_per_px(ft)
+        rad_px = ft.model.rad_per_px
         self.link_rad = self.link_px * rad_px
         self.max_radius_rad = self.max_radius_px * rad_px
         cos_link, cos_r = np.cos(self.link_rad), np.cos(self.max_radius_rad)
@@ -1401,15 +1400,6 @@ class ObstacleGrouper:
         out[surrounded] = gap < thr
         return out
 
-    def _rad_per_px(self, ft: FeatureTracker) -> float:
-        """Radians per pixel at the lens's mean scale (max angle / image circle radius), cached per
-        camera model object."""
-        if self._scale_of is not ft.model:
-            cx, cy, r = ft.model.image_circle()
-            self._scale = float(ft.model.max_angle_rad / max(r, 1.0))
-            self._scale_of = ft.model
-        return self._scale
-
 
 class BoxTracker:
     """Tracks box detections (navlights, torch models, plug-ins) of one camera as obstacles.
@@ -1492,7 +1482,6 @@ class BoxTracker:
         self._hist: dict[tuple[int, int], deque] = {}
         self._decorated: dict[int, tuple[ObstacleTrack, tuple[str, ...]]] = {}  # keys added to others
         self._n = 0
-        self._rad_px_of, self._rad_px = None, 0.0  # camera model, its lens's mean radians per pixel
 
     def update(self, camera, det, others=()) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
         """Match this frame's boxes (``det``: Detections) of ``camera`` (an ``estimators.rig.Camera``).
@@ -1570,10 +1559,7 @@ class BoxTracker:
     def _link(self, model, seen: list[ObstacleTrack], others) -> set[int]:
         """Update the box <-> feature track links (class docstring); decorate the linked feature
         tracks; return the ids of the box tracks not to report."""
-        if self._rad_px_of is not model:  # the lens's mean rad/px, once per camera model object
-            self._rad_px = model.max_angle_rad / max(model.image_circle()[2], 1.0)
-            self._rad_px_of = model
-        rad_px = self._rad_px
+        rad_px = model.rad_per_px
         feats = [t for t in others if len(t.member_b_C) == len(t.members) and len(t.members)]
         by_id = {t.id: t for t in feats}
         links: dict[int, int] = {}
