@@ -1245,6 +1245,8 @@ class ObstacleFusion:
         self._cam_index = {n: i for i, n in enumerate(rig.names)}
         self._features = _FeatureRays()
         self._slid_fids: set[int] | None = None  # feature ids _slid_features flagged this frame
+        # track id -> the gate its member features failed this frame (_features_batch, _why_unranged)
+        self._feature_why: dict[int, str] = {}
         self._gidx: dict[int, int] = {}
         self._members_ls = self._members_st = None
         self._stereo_pairs = None
@@ -1678,7 +1680,8 @@ class ObstacleFusion:
             # pipeline scenes ranging it from that ray's parallax instead: mono p90 3.59 -> 3.90 %,
             # range NEES mean 3.5 -> 4.9 for a mono coverage of 93.4 instead of 92.2 %)
             tr.kf = None
-            init_pair = "member features do not range it (parallax, spread or fit)"
+            init_pair = self._feature_why.get(tr.id,
+                                              "member features do not range it (parallax, spread or fit)")
         elif tr.kf is None and stereo is None and tr.feature_range is None:
             init_pair = self._mono_init_pair(tr, sg)
         t1 = time.perf_counter()
@@ -1918,6 +1921,7 @@ class ObstacleFusion:
         s = self.settings
         fs = self._features
         self._slid_fids = None
+        self._feature_why = {}
         fs.prune(t_s, s.lost_after_s)
         if feats is None:
             return
@@ -1955,6 +1959,7 @@ class ObstacleFusion:
             return
         g, rows, b_now, c_now = g[first], rows[first], b_now[first], c_now[first]
         n_min = s.feature_min_count
+        cnt = np.bincount(g, minlength=G)
         b0 = fs.b0[rows]
         cosp = np.sum(b0 * b_now, axis=1).clip(-1.0, 1.0)
         # (tracks with fewer than feature_min_count features get no feature range, but their
@@ -1971,6 +1976,8 @@ class ObstacleFusion:
         # coverage 70.3 -> 66.5 % with the floor there too).
         par_min = 10.0 * s.feature_sigma_rad if ncam == 1 else s.min_parallax_rad
         good = cosp <= math.cos(max(par_min, 1e-6))
+        cnt = self._why_unranged(work, cnt, g[good],
+                                 f"fewer than {n_min} have {math.degrees(par_min):.2f} deg of parallax")
         if not good.any():
             return
         g, rows, b_now, c_now = g[good], rows[good], b_now[good], c_now[good]
@@ -2001,6 +2008,8 @@ class ObstacleFusion:
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
         # one place only (hovering) all meet at the camera centre, a point of no range
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
+        cnt = self._why_unranged(work, cnt, g[keep], f"fewer than {n_min} meet in front of the camera with "
+                                 f"a relative range sigma <= {100 * s.mono_init_max_rel_sigma:g} %")
         # ... but on a mono rig a feature whose bearing turned by the parallax floor while its rays
         # meet behind the camera (or at it) is no static point in front of it: noise of sigma_f
         # cannot carry a static point's ray intersection behind the camera across 10 sigma_f of
@@ -2083,6 +2092,7 @@ class ObstacleFusion:
             if self._slid_fids is not None:  # (nor one whose newest rays left it: _slid_features)
                 fit &= ~slid[keep]
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
+            self._why_unranged(work, cnt, g[fit], f"fewer than {n_min} fit a static point each")
             g, rows, b_now, p, r, sig_r = (g[fit], rows[fit], b_now[fit], p[fit], r[fit], sig_post[fit])
         b_rep = feats[5]  # (G, 3) first views' bearings
         ang = np.arccos(np.sum(b_now * b_rep[g], axis=1).clip(-1.0, 1.0))
@@ -2138,13 +2148,26 @@ class ObstacleFusion:
         for k in present.nonzero()[0].tolist():
             tr = work[k][0]
             if chi_med[k] > s.feature_static_chi:
-                tr.reason = "member features do not fit static points (moving obstacle?)"
+                self._feature_why[tr.id] = (f"member features do not range it: they fit no static point "
+                                            f"(median chi > {s.feature_static_chi:g}: a moving obstacle?)")
                 continue
             zk = float(z[k])
             tr.feature_range = (zk, max(float(sig[k]), 1e-3 * zk), int(n_in[k]))
             if point is not None:
                 tr.feature_point = point[k]
                 tr.feature_point_fid = int(point_fid[k])
+
+    def _why_unranged(self, work, before: np.ndarray, g: np.ndarray, text: str) -> np.ndarray:
+        """The member count (G,) of each track of ``work`` among the (track index) rows g that pass
+        one gate of ``_features_batch``; a track that had ``feature_min_count`` members before it
+        (counts ``before``) and fewer after gets "member features do not range it: " + text as the
+        reason its range is not reported (``_feature_why``, read by ``_process``), unless an
+        earlier gate named one."""
+        n_min = self.settings.feature_min_count
+        now = np.bincount(g, minlength=len(before))
+        for k in ((before >= n_min) & (now < n_min)).nonzero()[0].tolist():
+            self._feature_why.setdefault(work[k][0].id, f"member features do not range it: {text}")
+        return now
 
     def _slid_features(self, rows: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mask (K,) of the features (store rows (K,)) whose newest rays no longer meet their

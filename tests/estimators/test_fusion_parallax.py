@@ -11,10 +11,11 @@ from estimators.fusion import FusionSettings
 from tests.estimators.fusion_helpers import noisy_bearing
 
 
-def _run(feats_W, rep_W, n_frames, speed=5.0, sigma=5e-4, seed=3):
+def _run(feats_W, rep_W, n_frames, speed=5.0, sigma=5e-4, seed=3, settings=None):
     """A mono rig flying along x at speed m/s sees the fixed points feats_W (N, 3) (m, W) as one
     track's member features (bearing noise sigma rad) for n_frames + 1 frames at 30 Hz; rep_W (3,)
-    is the representative point. Returns the last report."""
+    is the representative point; settings: FusionSettings (default: the defaults). Returns the last
+    report."""
     from estimators.cameras import Equidistant
     from estimators.egomotion import ConstantVelocity
     from estimators.fusion import ObstacleFusion
@@ -25,7 +26,7 @@ def _run(feats_W, rep_W, n_frames, speed=5.0, sigma=5e-4, seed=3):
     rig = mono_forward_rig(model)
     ego = ConstantVelocity(speed)
     rng = np.random.default_rng(seed)
-    fus = ObstacleFusion(rig, ego, FusionSettings())
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
 
     bearing = noisy_bearing(rng, sigma)
 
@@ -84,4 +85,17 @@ def test_a_track_whose_features_have_too_little_parallax_stays_unranged():
     assert all(p < math.degrees(10.0 * FusionSettings().feature_sigma_rad) for p in par), par
     r = _run(FEATS_W, REP_W, n_frames)
     assert r.range_m is None
-    assert "member features do not range it" in r.unobservable_reason
+    assert r.unobservable_reason == "member features do not range it: fewer than 3 have 0.57 deg of parallax"
+
+
+def test_a_track_whose_features_have_parallax_but_too_wide_a_sigma_is_unranged_by_the_sigma_gate():
+    # the young track above: 0.85-0.96 deg of parallax by hand (past the 0.57 deg floor) and a
+    # relative range sigma of ~6 % by hand; with the gate (mono_init_max_rel_sigma) at 1 % none of
+    # the three corners passes it, and the reason names that gate, not the parallax
+    n_frames = 12
+    par = [_parallax_deg(f, n_frames / 30.0 * 5.0) for f in FEATS_W]
+    assert all(p > math.degrees(10.0 * FusionSettings().feature_sigma_rad) for p in par), par
+    r = _run(FEATS_W, REP_W, n_frames, settings=FusionSettings(mono_init_max_rel_sigma=0.01))
+    assert r.range_m is None
+    assert r.unobservable_reason == ("member features do not range it: fewer than 3 meet in front of the "
+                                     "camera with a relative range sigma <= 1 %")
