@@ -1411,12 +1411,17 @@ class BoxTracker:
     One obstacle, two tracks (a composite detector such as ``orb+navlights``: a drone textured enough
     for ORB, a textured obstacle with a light-like spot): ``update`` is given the camera's feature
     tracks seen this frame (``others``). A box track and a feature track are LINKED when the feature
-    track lies on the box (its representative bearing and at least half of its members, and at
-    least ``min(link_min_members, its members)``, within the box's angular half-diagonal plus
+    track lies on the box (its representative bearing and at least ``link_share`` (3/4) of its members,
+    and at least ``min(link_min_members, its members)``, within the box's angular half-diagonal plus
     ``link_margin_px`` of the box centre) AND its members nearest the box moved with the box centre
     over the last ``link_frames`` frames: their mean displacement and the box centre's, raw (the camera's own
     rotation moves both alike, so it cancels in the difference), differ by at most ``link_tol_px``
-    (in the lens's mean rad/px). A link holds while the pair stays so placed. A linked box track is
+    (in the lens's mean rad/px). A link holds while the pair stays so placed (half of the members on
+    the box then suffice: features join and leave). A new link needs most members on the box, not
+    half: a feature track with half its members on a pole beside a drone moved with the drone for a
+    few frames and was linked, and the drone's id then went with it when the two parted (tuned
+    stereo_flying: links formed at 7 of 10 and 4 of 8 members; the drones' own links at 3 of 4 to
+    all). A linked box track is
     not reported (it is tracked on, and comes back under its own id if the feature track goes); the
     feature track is reported with the box's attributes added and ``box_label`` (e.g. ``drone``),
     under the box's id when the box is the older track and no other camera sees it
@@ -1452,6 +1457,7 @@ class BoxTracker:
         link_min_members: int = 2,
         link_frames: int = 3,
         link_tol_px: float = 2.0,
+        link_share: float = 0.75,
         link_older_only: bool = False,
     ) -> None:
         for nm, v in (("confirm_frames", confirm_frames), ("max_missed", max_missed),
@@ -1463,6 +1469,10 @@ class BoxTracker:
                       ("link_margin_px", link_margin_px), ("link_tol_px", link_tol_px)):
             if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) or not v >= 0:
                 raise ConfigError(f"BoxTracker: {nm} expected a number >= 0, got {v!r}")
+        if isinstance(link_share, bool) or not isinstance(link_share, (int, float, np.number)) or not (
+            0.5 <= link_share <= 1
+        ):
+            raise ConfigError(f"BoxTracker: link_share expected a number in [0.5, 1], got {link_share!r}")
         self._ids = ids
         self.gate_rad = float(gate_rad)
         self.confirm_frames = int(confirm_frames)
@@ -1472,6 +1482,7 @@ class BoxTracker:
         self.link_min_members = int(link_min_members)
         self.link_frames = int(link_frames)
         self.link_tol_px = float(link_tol_px)
+        self.link_share = float(link_share)
         if not isinstance(link_older_only, bool):
             raise ConfigError(f"BoxTracker: link_older_only expected true or false, got {link_older_only!r}")
         self.link_older_only = link_older_only
@@ -1571,7 +1582,9 @@ class BoxTracker:
             owner = np.arange(len(feats)).repeat(n_mem)
             mem_b = np.concatenate([f.member_b_C for f in feats])  # (M, 3)
             rep_b = np.array([f.b_C for f in feats])  # (T, 3)
-            n_min = np.maximum(np.minimum(self.link_min_members, n_mem), (n_mem + 1) // 2)
+            n_low = np.minimum(self.link_min_members, n_mem)
+            n_hold = np.maximum(n_low, (n_mem + 1) // 2)  # a held link: half its members on the box
+            n_new = np.maximum(n_low, np.ceil(self.link_share * n_mem - 1e-9))  # a new one: link_share
         for b in seen if feats else ():
             radius = self._half.get(b.id, 0.0) + self.link_margin_px * rad_px
             cos_r = np.cos(radius)
@@ -1585,7 +1598,9 @@ class BoxTracker:
             cos_m = mem_b @ b.b_C
             n_in = np.bincount(owner[cos_m >= cos_r], minlength=len(feats))
             best: tuple[float, int] | None = None  # (-cos to the feature track's bearing, its id)
-            for ti in cand[n_in[cand] >= n_min[cand]]:  # ... and most of its members too
+            held_id = self.links.get(b.id)
+            n_min = np.array([n_hold[ti] if feats[ti].id == held_id else n_new[ti] for ti in cand])
+            for ti in cand[n_in[cand] >= n_min]:  # ... and most of its members too
                 f = feats[ti]
                 seg = cos_m[start[ti]:start[ti + 1]]
                 k = (-seg).argsort(kind="stable")[:8]  # the members nearest the box: does it move with them
