@@ -1609,7 +1609,7 @@ class BoxTracker:
                 near = dict(zip(f.members[k].tolist(), f.member_b_C[k], strict=True))
                 h.append((self._n, near, b.b_C.copy()))
                 now.add(key)
-                held = self.links.get(b.id) == f.id  # a link holds while the pair stays so placed
+                held = f.id == held_id  # a link holds while the pair stays so placed
                 if (held or self._moves_with(h, rad_px)) and (best is None or -cos_c[ti] < best[0]):
                     best = (-float(cos_c[ti]), f.id)
             if best is not None:
