@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from estimators.errors import InputError, SourceError
+from estimators.errors import ConfigError, InputError, SourceError
 from pipeline import bench
 
 
@@ -269,6 +269,7 @@ def test_bench_quick_throughput_end_to_end(tmp_path):
     assert "pipeline throughput" in r.output and "decode-only" in r.output and "stage (ms/frame)" in r.output
     doc = json.loads((tmp_path / "o" / "bench.json").read_text())
     assert doc["schema"] == bench.SCHEMA and doc["meta"]["quick"] is True
+    assert doc["meta"]["plan"]["repeat"] == 1 and "repeats: 1 (each measurement taken once" in r.output
     tp = doc["sections"]["throughput"]
     assert {(t["rig"], t["threads"]) for t in tp} == {("mono", 1), ("stereo", 1)}
     for t in tp:
@@ -457,3 +458,142 @@ def test_live_latency_without_the_looped_clips_restarts(tmp_path):
     assert out["cuts"] == 2 and out["frames_left_out"] == 4
     assert out["latency"]["n"] == 6 and out["latency"]["max_s"] == pytest.approx(0.010)
     assert bench.live_without_cuts(csv_path, 10, after=0)["latency"]["max_s"] == pytest.approx(0.6)
+
+
+# ------------------------------------------------------------------ --repeat: medians, spread, rounds
+def test_repeat_summary_hand_worked():
+    """Values 113, 93, 101 against >= 100: sorted 93 101 113, median 101, range 93-113, 2 of 3 met;
+    an even count takes the mean of the two middle values; a failed repeat (None) is left out."""
+    s = bench.repeat_summary([113.0, 93.0, 101.0], lambda v, i: v >= 100.0)
+    assert s["median"] == 101.0 and (s["min"], s["max"]) == (93.0, 113.0) and s["n"] == 3
+    assert s["values"] == [113.0, 93.0, 101.0] and s["met_each"] == [True, False, True] and s["n_met"] == 2
+    s = bench.repeat_summary([4.0, None, 1.0, 3.0, 2.0])
+    assert s["median"] == 2.5 and s["n"] == 4 and s["values"][1] is None and "n_met" not in s
+    assert bench.repeat_summary([None])["median"] is None
+
+
+def test_repeated_row_shows_median_range_and_a_marginal_verdict():
+    s = bench.repeat_summary([113.0, 93.0, 101.0], lambda v, i: v >= 100.0)
+    straddle = bench.Row("t", "640x480 mono, 1 core", s["median"], "fps", target=">= 100 fps", met=True,
+                         extra=bench.repeat_extra(s))
+    s2 = bench.repeat_summary([120.0, 125.0, 130.0], lambda v, i: v >= 100.0)
+    clear = bench.Row("t", "1280x720 mono, 1 core", s2["median"], "fps", target=">= 100 fps", met=True,
+                      extra=bench.repeat_extra(s2))
+    text = bench.format_table([straddle, clear])
+    line = next(ln for ln in text.split("\n") if "640x480" in ln)
+    assert "101.0 fps" in line and "93.0-113" in line and line.rstrip().endswith("met (2/3 met: marginal)")
+    line = next(ln for ln in text.split("\n") if "1280x720" in ln)
+    assert "125.0 fps" in line and "120.0-130.0" in line and line.rstrip().endswith("met")
+    assert "marginal" not in line
+
+
+def _fake_bench(tmp_path, plan, pipe_fps, dec_fps, live_p99=None, live_dec=None):
+    """A BenchRun whose measurements are scripted per (clip, round); returns it and the call log."""
+    b = bench.BenchRun(plan, tmp_path / "o", tmp_path / "c")
+    clips = {}
+
+    def clip(res, rig, n=None):
+        return clips.setdefault((res, rig), bench.Clip(tmp_path / f"{res[0]}{rig}",
+                                                       {"cam0": tmp_path / "v.mkv"}, {"observer": {}}, res,
+                                                       100.0, 10))
+    b.clip = clip
+    calls = []
+    seen: dict = {}
+
+    def run(task, threads, timeout_s=0):
+        key = (task["kind"], task["_res"], threads)
+        k = seen.get(key, 0)
+        seen[key] = k + 1
+        calls.append((task["kind"], task["_res"], threads, k))
+        if task["kind"] == "decode":
+            return {"fps": dec_fps[task["_res"]][k], "cpu_fps": dec_fps[task["_res"]][k]}
+        if task["kind"] == "pipeline":
+            return {"fps": pipe_fps[task["_res"]][k], "cpu_fps": pipe_fps[task["_res"]][k]}
+        lat = {"median_s": 0.005, "p99_s": live_p99[task["_res"]][k]}
+        return {"latency": lat, "decode_median_s": live_dec[task["_res"]][k],
+                "without_cuts": {"latency": lat}}
+    b.run = run
+    orig_task = bench.Clip.task
+
+    def task(self, kind, frames, **extra):
+        t = orig_task(self, kind, frames, **extra)
+        t["_res"] = tuple(self.resolution)
+        return t
+    return b, calls, task
+
+
+def test_throughput_rounds_are_interleaved_and_rows_give_the_median(tmp_path, monkeypatch):
+    plan = bench.BenchPlan(quick=False, resolutions=((640, 480), (1280, 720)), rigs=("mono",), threads=(1,),
+                           repeat=3)
+    # per round: 640 mono 113, 93, 101 fps (target 100: median 101 met, 2/3 rounds);
+    # 720 mono 70, 60, 50 fps (target 60: median 60 met, 2/3) with decode 300, 240, 200 ->
+    # per-round ratios 300/70 = 4.286, 240/60 = 4.0, 200/50 = 4.0: median 4.0 (target <= 2: MISSED, 0/3)
+    pipe = {(640, 480): [113.0, 93.0, 101.0], (1280, 720): [70.0, 60.0, 50.0]}
+    dec = {(640, 480): [500.0, 400.0, 450.0], (1280, 720): [300.0, 240.0, 200.0]}
+    b, calls, task = _fake_bench(tmp_path, plan, pipe, dec)
+    monkeypatch.setattr(bench.Clip, "task", task)
+    b.throughput()
+    # round 1 all clips, then round 2 all clips, ...; decode-only then pipeline on the same clip
+    assert calls == [(kind, r, 1, k) for k in range(3) for r in ((640, 480), (1280, 720))
+                     for kind in ("decode", "pipeline")]
+    rows = {(r.section.split(" (")[0], r.name): r for r in b.rows}
+    r = rows[("pipeline throughput", "640x480 mono, 1 core")]
+    assert r.value == 101.0 and r.met is True and r.extra["repeats"] == [113.0, 93.0, 101.0]
+    assert (r.extra["min"], r.extra["max"], r.extra["repeats_met"]) == (93.0, 113.0, 2)
+    assert r.baseline_value == 450.0  # the decode-only median
+    r = rows[("pipeline throughput", "1280x720 mono, 1 core")]
+    assert r.value == 60.0 and r.met is True and r.extra["repeats_met"] == 2
+    r = rows[("pipeline / decode-only", "1280x720 mono, 1 core: time per frame ratio")]
+    assert r.value == pytest.approx(4.0) and r.met is False and r.extra["repeats_met"] == 0
+    assert r.extra["repeats"] == pytest.approx([300 / 70, 4.0, 4.0])
+    sec = b.sections["throughput"]
+    # the section's representative run is the median round (101 fps: round 3); every round is kept
+    assert sec[0]["median_round"] == 2 and sec[0]["pipeline"]["fps"] == 101.0 and len(sec[0]["rounds"]) == 3
+
+
+def test_all_cores_throughput_is_taken_once(tmp_path, monkeypatch):
+    plan = bench.BenchPlan(quick=False, resolutions=((640, 480),), rigs=("mono",), threads=(1, None),
+                           repeat=2)
+    v = {(640, 480): [100.0, 110.0]}
+    b, calls, task = _fake_bench(tmp_path, plan, v, v)
+    monkeypatch.setattr(bench.Clip, "task", task)
+    b.throughput()
+    assert [(c[0], c[2]) for c in calls] == [("decode", 1), ("pipeline", 1), ("decode", None),
+                                              ("pipeline", None), ("decode", 1), ("pipeline", 1)]
+
+
+def test_live_rounds_are_interleaved_and_each_p99_meets_its_own_budget(tmp_path, monkeypatch):
+    plan = bench.BenchPlan(quick=False, resolutions=((640, 480), (1280, 720)), rigs=("mono",), threads=(1,),
+                           repeat=3)
+    # 720p at 60 Hz: interval 16.67 ms; decode 2, 2, 3 ms -> budgets 18.67, 18.67, 19.67 ms (median 18.67);
+    # p99 17.7, 19.1, 19.0 ms: median 19.0 -> MISSED; round 1 (17.7 < 18.67) and round 3 (19.0 < 19.67)
+    # met on their own budget, round 2 did not: 2/3
+    p99 = {(640, 480): [0.022, 0.024, 0.023], (1280, 720): [0.0177, 0.0191, 0.0190]}
+    dec = {(640, 480): [0.001] * 3, (1280, 720): [0.002, 0.002, 0.003]}
+    b, calls, task = _fake_bench(tmp_path, plan, {}, {}, p99, dec)
+    monkeypatch.setattr(bench.Clip, "task", task)
+    b.live()
+    assert calls == [("live", r, 1, k) for k in range(3) for r in ((640, 480), (1280, 720))]
+    r = next(r for r in b.rows if r.name == "1280x720 mono at 60 Hz, 1 core: p99")
+    assert r.value == pytest.approx(19.0) and r.met is False
+    assert r.baseline_value == pytest.approx(1000 / 60 + 2.0) and r.target == "< 18.7 ms"
+    assert r.extra["repeats"] == pytest.approx([17.7, 19.1, 19.0]) and r.extra["repeats_met"] == 2
+    assert (r.extra["min"], r.extra["max"]) == pytest.approx((17.7, 19.1))
+    assert "MISSED (2/3 met: marginal)" in bench.format_table(b.rows)
+    r = next(r for r in b.rows if r.name == "640x480 mono at 100 Hz, 1 core: p99")
+    assert r.value == pytest.approx(23.0) and r.met is False and r.extra["repeats_met"] == 0
+    assert b.sections["live"][1]["median_round"] == 2 and len(b.sections["live"][1]["rounds"]) == 3
+
+
+def test_repeat_defaults_and_bad_values():
+    assert bench.make_plan(False).repeat == 3 and bench.make_plan(True).repeat == 1
+    assert bench.make_plan(True, 4).repeat == 4
+    for bad in (0, -1):
+        with pytest.raises(ConfigError, match="repeat"):
+            bench.make_plan(False, bad)
+    from typer.testing import CliRunner
+
+    from pipeline.cli import app
+
+    r = CliRunner().invoke(app, ["bench", "--quick", "--repeat", "0", "--out", "/nonexistent/x"])
+    assert r.exit_code != 0 and "repeat" in r.output
