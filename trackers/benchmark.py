@@ -29,7 +29,9 @@ some reported track is on it; it counts from half a second after it first became
 (``visible`` in any camera). The id of an obstacle's track is sticky (kept while it stays on the
 obstacle); a change to another id while the obstacle is covered is an id switch; the id stays
 while its track lives and is not on another obstacle, even if its representative point strays off
-for a frame (CLEAR-MOT style).
+for a frame (CLEAR-MOT style). A track that lives unreported (coasting: unseen, not yet lost) is
+paused, not ended: the switch is decided when the pause ends, none if it is reported on the
+obstacle again, else one at the frame the pause began (``StickyIds``).
 """
 
 from __future__ import annotations
@@ -388,6 +390,66 @@ class _Explainer:
         }
 
 
+class StickyIds:
+    """Each obstacle's track id and its id switches (``run_benchmark``'s scoring, CLEAR-MOT style).
+
+    An obstacle's id is sticky: it stays while its track is reported and on no other obstacle (a
+    reported track on no obstacle keeps it: its representative point strayed off for a frame). When
+    it does not stay and other tracks are on the obstacle, the lowest of their ids takes over: an id
+    switch. One exception, a pause: the id's track is unreported but alive (coasting: unseen, not
+    yet lost). Then the switch is decided when the pause ends: none if the track is reported again
+    and stays (the id never changed for a reader of the reports), else (lost, or back on another
+    obstacle, or still coasting at the end of the run) the switch counts, at the frame the pause
+    began, to the id that took over then.
+    """
+
+    def __init__(self) -> None:
+        self.sticky: dict[int, int] = {}
+        self.pending: dict[int, tuple[int, int, int]] = {}  # obstacle -> (frame, paused id, next id)
+
+    @staticmethod
+    def _stays(st: int, oid: int, alive_on: dict[int, set[int]]) -> bool:
+        return st in alive_on and (not alive_on[st] or oid in alive_on[st])
+
+    def update(
+        self, f: int, oid: int, ids: set[int], alive_on: dict[int, set[int]], coasting: set[int]
+    ) -> list[dict]:
+        """Obstacle ``oid`` in due frame ``f``: ``ids`` the reported tracks on it, ``alive_on`` every
+        reported track -> the obstacles it is on, ``coasting`` the live tracks not reported. Returns
+        the switches decided now (frame, obstacle, from, to, why)."""
+        out = []
+        st = self.sticky.get(oid)
+        p = self.pending.get(oid)
+        if p is not None and (st in alive_on or st not in coasting):  # the pause ended
+            del self.pending[oid]
+            if not self._stays(st, oid, alive_on):  # lost, or back on another obstacle
+                why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
+                out.append({"frame": p[0], "obstacle": oid, "from": st, "to": p[2], "why": why})
+                self.sticky[oid] = st = p[2]
+        if oid in self.pending:
+            return out
+        if not (st is not None and self._stays(st, oid, alive_on)) and ids:
+            new = min(ids)
+            if st is not None and new != st:
+                if st not in alive_on and st in coasting:
+                    self.pending[oid] = (f, st, new)
+                    return out
+                why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
+                out.append({"frame": f, "obstacle": oid, "from": st, "to": new, "why": why})
+            self.sticky[oid] = new
+        return out
+
+    def finish(self) -> list[dict]:
+        """The pauses not ended while their obstacle was due (it left the view first, or the run
+        ended): each a switch (the obstacle was last reported under the other id)."""
+        out = [
+            {"frame": fr, "obstacle": oid, "from": st, "to": new, "why": "not reported on it again"}
+            for oid, (fr, st, new) in sorted(self.pending.items())
+        ]
+        self.pending.clear()
+        return out
+
+
 def mjpeg_copy(video: Path, quality: int) -> Path:
     """``video`` re-encoded as a camera's MJPEG: ``<stem>.q<quality>.mjpeg`` beside it, each frame one
     baseline JPEG (``quality`` 1-100, 4:2:2 chroma), the JPEGs back to back (FFmpeg's raw ``mjpeg``
@@ -533,7 +595,7 @@ def run_benchmark(
     first_seen: dict[int, float] = {}
     due: dict[int, int] = {}
     covered: dict[int, int] = {}
-    sticky: dict[int, int] = {}
+    sticky = StickyIds()
     switches: dict[int, int] = {}
     switch_log: list[dict] = []
     ids_on: dict[int, set[int]] = {}  # obstacle -> every track id seen on it (due frames)
@@ -611,6 +673,13 @@ def run_benchmark(
         n_gt += 1
         if ex is not None:
             ex.reported(f, alive_on)
+        # live tracks not reported this frame (unseen, not yet lost): a pause, not an end (StickyIds)
+        coasting = {
+            fe._global(tr.id)
+            for trs in (*(g.tracks for g in fe.groupers.values()), *(b.tracks for b in fe.boxers.values()))
+            for tr in trs.values()
+            if not tr.seen
+        } - alive_on.keys()
         due_now = set()
         for o in line["obstacles"]:
             oid = int(o["id"])
@@ -625,20 +694,20 @@ def run_benchmark(
             ids_on.setdefault(oid, set()).update(ids)
             if ids:
                 covered[oid] = covered.get(oid, 0) + 1
-            # the obstacle's track id is sticky while that track lives and is not on another
-            # obstacle (CLEAR-MOT style); changing it to another track is an id switch
-            st = sticky.get(oid)
-            keep = st is not None and st in alive_on and (not alive_on[st] or oid in alive_on[st])
-            if not keep and ids:
-                if st is not None and min(ids) != st:
-                    switches[oid] = switches.get(oid, 0) + 1
-                    why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
-                    switch_log.append({"frame": f, "obstacle": oid, "from": st, "to": min(ids), "why": why})
-                    if ex is not None:
-                        ex.switch(f, oid, st, min(ids), alive_on)
-                sticky[oid] = min(ids)
+            # the obstacle's track id is sticky (StickyIds); changing it to another track is an id switch
+            for sw in sticky.update(f, oid, ids, alive_on, coasting):
+                switches[oid] = switches.get(oid, 0) + 1
+                switch_log.append(sw)
+                if ex is not None:
+                    ex.switch(sw["frame"], oid, sw["from"], sw["to"], alive_on)
         if ex is not None:
             ex.frame(f, T_W_B, shapes, line, on, alive_on, due_now, c_B, R_B_C, rad_px)
+    for sw in sticky.finish():
+        switches[sw["obstacle"]] = switches.get(sw["obstacle"], 0) + 1
+        switch_log.append(sw)
+        if ex is not None:
+            ex.switch(sw["frame"], sw["obstacle"], sw["from"], sw["to"], {})
+    switch_log.sort(key=lambda e: (e["frame"], e["obstacle"]))  # (a pause's switch is decided later)
     nf = len(frames)
     fps_dt = (
         frames and (stamps[names[0]][frames[-1]] - stamps[names[0]][frames[0]]) / max(nf - 1, 1)

@@ -1,0 +1,76 @@
+"""trackers.benchmark's id scoring (StickyIds): a pause of the obstacle's track (unseen for a few
+frames, then reported again under its id) is not an id switch; a handover is, at the frame it began.
+Hand-built frames; the expected switches are what the definition in StickyIds' docstring gives."""
+
+from __future__ import annotations
+
+from trackers.benchmark import StickyIds
+
+
+def _run(frames):
+    """frames: (ids on obstacle 4, alive_on, coasting) per due frame; returns every switch decided."""
+    s = StickyIds()
+    out = []
+    for f, (ids, alive_on, coasting) in enumerate(frames):
+        out += s.update(f, 4, set(ids), alive_on, set(coasting))
+    return out + s.finish()
+
+
+def test_a_pause_that_ends_back_on_the_obstacle_is_no_switch():
+    # track 3 holds obstacle 4; it goes unseen for two frames (coasting) while track 1, beside it on
+    # the obstacle, is reported; then 3 is reported on obstacle 4 again. No switch (the rule before
+    # StickyIds counted 3 -> 1 at frame 1)
+    frames = [
+        ([3], {3: {4}}, []),
+        ([1], {1: {4}}, [3]),
+        ([1], {1: {4}}, [3]),
+        ([1, 3], {1: {4}, 3: {4}}, []),
+        ([1, 3], {1: {4}, 3: {4}}, []),
+    ]
+    assert _run(frames) == []
+
+
+def test_pause_then_lost_is_a_switch_at_the_pause():
+    frames = [
+        ([3], {3: {4}}, []),
+        ([1], {1: {4}}, [3]),  # 3 coasts, 1 is on the obstacle
+        ([1], {1: {4}}, [3]),
+        ([1], {1: {4}}, []),  # 3 lost
+        ([1], {1: {4}}, []),
+    ]
+    sw = _run(frames)
+    assert [(e["frame"], e["from"], e["to"], e["why"]) for e in sw] == [(1, 3, 1, "gone")]
+
+
+def test_pause_then_back_on_another_obstacle_is_a_switch():
+    frames = [
+        ([3], {3: {4}}, []),
+        ([1], {1: {4}}, [3]),
+        ([1], {1: {4}, 3: {5}}, []),  # 3 is reported again, on obstacle 5
+    ]
+    sw = _run(frames)
+    assert [(e["frame"], e["from"], e["to"], e["why"]) for e in sw] == [(1, 3, 1, "on obstacles [5]")]
+
+
+def test_pause_still_open_at_the_end_counts():
+    frames = [([3], {3: {4}}, []), ([1], {1: {4}}, [3]), ([1], {1: {4}}, [3])]
+    sw = _run(frames)
+    assert [(e["frame"], e["from"], e["to"]) for e in sw] == [(1, 3, 1)]
+
+
+def test_a_track_that_ends_or_moves_is_a_switch_at_once():
+    # 3 lost (neither reported nor coasting) while 1 is on the obstacle; then 1 moves to obstacle 5
+    # while 2 is on it; a reported track on no obstacle keeps its id
+    frames = [
+        ([3], {3: {4}}, []),
+        ([1], {1: {4}}, []),
+        ([], {1: set()}, []),
+        ([2], {1: {5}, 2: {4}}, []),
+    ]
+    sw = _run(frames)
+    assert [(e["frame"], e["from"], e["to"]) for e in sw] == [(1, 3, 1), (3, 1, 2)]
+
+
+def test_no_ids_on_the_obstacle_decides_nothing_and_keeps_the_pause_open():
+    frames = [([3], {3: {4}}, []), ([1], {1: {4}}, [3]), ([], {}, [3]), ([3], {3: {4}}, [])]
+    assert _run(frames) == []
