@@ -32,6 +32,9 @@ while its track lives and is not on another obstacle, even if its representative
 for a frame (CLEAR-MOT style). A track that lives unreported (coasting: unseen, not yet lost) is
 paused, not ended: the switch is decided when the pause ends, none if it is reported on the
 obstacle again, else one at the frame the pause began (``StickyIds``).
+An id is one obstacle's in a frame (CLEAR-MOT's one-to-one matching): a track kept as one
+obstacle's id that also lies on a second covers the second but does not become its id; such frames
+are counted per obstacle as ``shared_id_frames``.
 """
 
 from __future__ import annotations
@@ -401,11 +404,27 @@ class StickyIds:
     and stays (the id never changed for a reader of the reports), else (lost, or back on another
     obstacle, or still coasting at the end of the run) the switch counts, at the frame the pause
     began, to the id that took over then.
+
+    An id is one obstacle's in a frame (CLEAR-MOT's one-to-one matching; ``begin_frame``): an id
+    kept by one obstacle is not free to become another's, so a track lying on two obstacles at once
+    (one camera's view on each) stays the first one's id, and the second is covered but not under an
+    id of its own (counted in ``shared``: frames covered only under other obstacles' ids) instead of
+    switching to that id and later away from it.
     """
 
     def __init__(self) -> None:
         self.sticky: dict[int, int] = {}
         self.pending: dict[int, tuple[int, int, int]] = {}  # obstacle -> (frame, paused id, next id)
+        self.owner: dict[int, int] = {}  # id -> the obstacle it is this frame's id of
+        self.shared: dict[int, int] = {}  # obstacle -> frames covered only under others' ids
+
+    def begin_frame(self, alive_on: dict[int, set[int]]) -> None:
+        """A new frame: every obstacle whose id stays (reported, on it or on no obstacle) owns it,
+        the first obstacle to have taken it when two could."""
+        self.owner = {}
+        for oid, st in self.sticky.items():
+            if oid not in self.pending and self._stays(st, oid, alive_on):
+                self.owner.setdefault(st, oid)
 
     @staticmethod
     def _stays(st: int, oid: int, alive_on: dict[int, set[int]]) -> bool:
@@ -428,8 +447,12 @@ class StickyIds:
                 self.sticky[oid] = st = p[2]
         if oid in self.pending:
             return out
-        if not (st is not None and self._stays(st, oid, alive_on)) and ids:
-            new = min(ids)
+        if not (st is not None and self._stays(st, oid, alive_on) and self.owner.get(st, oid) == oid) and ids:
+            free = [i for i in ids if self.owner.get(i, oid) == oid]
+            if not free:  # covered only by ids other obstacles hold this frame
+                self.shared[oid] = self.shared.get(oid, 0) + 1
+                return out
+            new = min(free)
             if st is not None and new != st:
                 if st not in alive_on and st in coasting:
                     self.pending[oid] = (f, st, new)
@@ -437,6 +460,7 @@ class StickyIds:
                 why = "gone" if st not in alive_on else f"on obstacles {sorted(alive_on[st])}"
                 out.append({"frame": f, "obstacle": oid, "from": st, "to": new, "why": why})
             self.sticky[oid] = new
+            self.owner[new] = oid
         return out
 
     def finish(self) -> list[dict]:
@@ -681,6 +705,7 @@ def run_benchmark(
             if not tr.seen
         } - alive_on.keys()
         due_now = set()
+        sticky.begin_frame(alive_on)
         for o in line["obstacles"]:
             oid = int(o["id"])
             if not any(o.get("visible", {}).values()):
@@ -721,6 +746,8 @@ def run_benchmark(
             "id_switches": switches.get(oid, 0),
             "switches_per_min": switches.get(oid, 0) / minutes if minutes > 0 else 0.0,
             "track_ids": len(ids_on.get(oid, ())),  # distinct ids on it (pieces, parallel tracks)
+            # covered frames in which its only tracks were other obstacles' ids (StickyIds.begin_frame)
+            "shared_id_frames": sticky.shared.get(oid, 0),
         }
     tot_due = sum(due.values())
     h, w = rig.cameras[0].model.height, rig.cameras[0].model.width
@@ -755,6 +782,7 @@ def run_benchmark(
         "covered_obstacle_minutes": sum(covered.values()) * fps_dt / 60.0,
         "obstacles": per,
         "switch_log": switch_log,
+        "shared_id_frames": sum(sticky.shared.values()),
         "observations_per_frame": n_obs / nf,
         "off_obstacle_tracks_per_frame": n_off / max(n_gt, 1),
         "off_obstacle_confirmed_per_frame": n_off_conf / max(n_gt, 1),

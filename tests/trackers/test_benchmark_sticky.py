@@ -74,3 +74,41 @@ def test_a_track_that_ends_or_moves_is_a_switch_at_once():
 def test_no_ids_on_the_obstacle_decides_nothing_and_keeps_the_pause_open():
     frames = [([3], {3: {4}}, []), ([1], {1: {4}}, [3]), ([], {}, [3]), ([3], {3: {4}}, [])]
     assert _run(frames) == []
+
+
+def _score(frames):
+    """One-to-one scoring over hand-built frames, each (ids on each due obstacle, alive_on); nothing
+    coasts. Returns (switches as (obstacle, from, to), frames covered only under others' ids)."""
+    s = StickyIds()
+    out = []
+    for f, (ids_on, alive_on) in enumerate(frames):
+        s.begin_frame(alive_on)
+        for oid, ids in ids_on.items():
+            out += [(e["obstacle"], e["from"], e["to"]) for e in s.update(f, oid, set(ids), alive_on, set())]
+    return out + [(e["obstacle"], e["from"], e["to"]) for e in s.finish()], s.shared
+
+
+def test_a_track_on_two_obstacles_is_the_first_ones_id():
+    # track 12 holds pole 3; its other camera's view strays onto sphere 5 passing the pole (demo,
+    # frames 31-41 at 734926f: one id, two obstacles); then sphere 5 gets its own track 53. Sphere 5
+    # never had an id of its own before 53: no switch (the scorer before made 12 the sphere's id
+    # too, then 12 -> 53), and its 3 frames covered only under the pole's id are counted
+    frames = [({3: {12}}, {12: {3}})] * 3
+    frames += [({3: {12}, 5: {12}}, {12: {3, 5}})] * 3
+    frames += [({3: {12}, 5: {53}}, {12: {3}, 53: {5}})] * 3
+    assert _score(frames) == ([], {5: 3})
+
+
+def test_real_switches_still_count_under_one_to_one():
+    # the obstacle's track ends and another takes over: one switch
+    frames = [({1: {7}}, {7: {1}})] * 2 + [({1: {9}}, {9: {1}})] * 2
+    assert _score(frames)[0] == [(1, 7, 9)]
+    # track 7 leaves obstacle 1 for obstacle 2 (whose own track 8 ends): 1 switches to 9, 2 to 7
+    frames = [({1: {7}, 2: {8}}, {7: {1}, 8: {2}}), ({1: {9}, 2: {7}}, {7: {2}, 9: {1}})]
+    assert _score(frames)[0] == [(1, 7, 9), (2, 8, 7)]
+    # an id straying onto no obstacle for a frame is kept
+    frames = [({1: {7}}, {7: {1}}), ({1: {9}}, {7: set(), 9: {1}}), ({1: {7, 9}}, {7: {1}, 9: {1}})]
+    assert _score(frames)[0] == []
+    # two tracks on one obstacle, the held one lost: a switch to the other
+    frames = [({1: {3, 5}}, {3: {1}, 5: {1}}), ({1: {5}}, {5: {1}})]
+    assert _score(frames)[0] == [(1, 3, 5)]
