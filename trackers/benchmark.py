@@ -420,10 +420,12 @@ class StickyIds:
 
     def begin_frame(self, alive_on: dict[int, set[int]]) -> None:
         """A new frame: every obstacle whose id stays (reported, on it or on no obstacle) owns it,
-        the first obstacle to have taken it when two could."""
+        when two could the one that first got an id (``sticky``'s insertion order). A paused
+        obstacle whose id is reported again and stays owns it too (its pause ends in ``update``
+        with no switch): else another obstacle under that track could take the id in this frame."""
         self.owner = {}
         for oid, st in self.sticky.items():
-            if oid not in self.pending and self._stays(st, oid, alive_on):
+            if self._stays(st, oid, alive_on):
                 self.owner.setdefault(st, oid)
 
     @staticmethod

@@ -112,3 +112,45 @@ def test_real_switches_still_count_under_one_to_one():
     # two tracks on one obstacle, the held one lost: a switch to the other
     frames = [({1: {3, 5}}, {3: {1}, 5: {1}}), ({1: {5}}, {5: {1}})]
     assert _score(frames)[0] == [(1, 3, 5)]
+
+
+def _score_coasting(frames, order):
+    """As _score with coasting tracks: frames (ids on each due obstacle, alive_on, coasting), the due
+    obstacles updated in ``order``."""
+    s = StickyIds()
+    out = []
+    for f, (ids_on, alive_on, coasting) in enumerate(frames):
+        s.begin_frame(alive_on)
+        for oid in order:
+            if oid in ids_on:
+                sw = s.update(f, oid, ids_on[oid], alive_on, coasting)
+                out += [(e["obstacle"], e["from"], e["to"]) for e in sw]
+    return out + [(e["obstacle"], e["from"], e["to"]) for e in s.finish()], s.shared
+
+
+def test_a_pause_that_ends_on_two_obstacles_keeps_the_id_one_to_one():
+    # track 3 holds obstacle 4, coasts a frame (track 1 on 4), then is reported on obstacles 4 and 5:
+    # the pause ends with no switch (3 stays on 4), so 3 is 4's id in those frames and 5 is covered
+    # only under it (2 shared frames); 5 then gets its own track 7: no switch (5 never had an id of
+    # its own). Whichever obstacle is scored first in a frame. (Before: the pause's obstacle did not
+    # own 3 in the frame its pause ended, 5 took 3 and was later scored a switch 3 -> 7.)
+    frames = [
+        ({4: {3}}, {3: {4}}, set()),
+        ({4: {1}}, {1: {4}}, {3}),
+        ({4: {3}, 5: {3}}, {3: {4, 5}}, set()),
+        ({4: {3}, 5: {3}}, {3: {4, 5}}, set()),
+        ({4: {3}, 5: {7}}, {3: {4}, 7: {5}}, set()),
+    ]
+    for order in ([4, 5], [5, 4]):
+        assert _score_coasting(frames, order) == ([], {5: 2}), order
+
+
+def test_an_id_two_obstacles_hold_is_the_first_ones():
+    # track 12 is obstacle 1's id; while 1 is uncovered 12 lies on obstacle 2 only and becomes its id
+    # (2 had none); then 12 lies on both: it stays 1's (1 got its id first), 2 is covered only under
+    # it (2 shared frames), and neither is scored a switch
+    frames = [({1: {12}}, {12: {1}})] * 2
+    frames += [({1: set(), 2: {12}}, {12: {2}})] * 2
+    frames += [({1: {12}, 2: {12}}, {12: {1, 2}})] * 2
+    for order in ([1, 2], [2, 1]):
+        assert _score_coasting([(i, a, set()) for i, a in frames], order) == ([], {2: 2}), order
