@@ -871,12 +871,13 @@ def _fmt(v: float | None, unit: str = "") -> str:
 def repeat_summary(values: Sequence[float | None], passes: Callable[[float, int], bool] | None = None
                    ) -> dict[str, Any]:
     """The repeats of one measurement: ``median`` (of the values measured; None when none was),
-    ``min``, ``max``, ``n`` (values measured), ``values`` (all, in round order, None for a failed one)
+    ``min``, ``max``, ``n`` (values measured), ``values`` (all, in round order, None for a failed one:
+    None, nan or inf)
     and, with ``passes(value, i)`` (i: the repeat's index), ``met_each`` and ``n_met``: how many repeats
     met the target on their own. The verdict is taken on the median; ``n_met`` shows a median that
     sits at the noise edge (repeats on both sides of the target)."""
-    vals = [None if v is None else float(v) for v in values]
-    got = sorted(v for v in vals if v is not None and math.isfinite(v))
+    vals = [None if v is None or not math.isfinite(float(v)) else float(v) for v in values]  # nan/inf: failed
+    got = sorted(v for v in vals if v is not None)
     out: dict[str, Any] = {"values": vals, "n": len(got), "median": None, "min": None, "max": None}
     if got:
         m = len(got) // 2

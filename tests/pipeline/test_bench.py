@@ -487,6 +487,23 @@ def test_repeated_row_shows_median_range_and_a_marginal_verdict():
     assert "marginal" not in line
 
 
+def test_a_clear_verdict_is_not_marginal_and_a_nan_round_is_a_failed_one():
+    """0 of 3 rounds met: a plain MISSED (not 'marginal'); a nan round counts as failed, not as a
+    round that missed: 120, nan, 125 against >= 100 is 2/2 met, median 122.5."""
+    s = bench.repeat_summary([80.0, 90.0, 95.0], lambda v, i: v >= 100.0)
+    miss = bench.Row("t", "640x480 mono, 1 core", s["median"], "fps", target=">= 100 fps", met=False,
+                     extra=bench.repeat_extra(s))
+    s2 = bench.repeat_summary([120.0, float("nan"), 125.0], lambda v, i: v >= 100.0)
+    assert s2["median"] == 122.5 and s2["n_met"] == 2 and s2["values"][1] is None
+    nan = bench.Row("t", "1280x720 mono, 1 core", s2["median"], "fps", target=">= 100 fps", met=True,
+                    extra=bench.repeat_extra(s2))
+    text = bench.format_table([miss, nan])
+    line = next(ln for ln in text.split("\n") if "640x480" in ln)
+    assert line.rstrip().endswith("MISSED") and "marginal" not in line
+    line = next(ln for ln in text.split("\n") if "1280x720" in ln)
+    assert line.rstrip().endswith("met") and "marginal" not in line
+
+
 def _fake_bench(tmp_path, plan, pipe_fps, dec_fps, live_p99=None, live_dec=None):
     """A BenchRun whose measurements are scripted per (clip, round); returns it and the call log."""
     b = bench.BenchRun(plan, tmp_path / "o", tmp_path / "c")
@@ -549,6 +566,19 @@ def test_throughput_rounds_are_interleaved_and_rows_give_the_median(tmp_path, mo
     sec = b.sections["throughput"]
     # the section's representative run is the median round (101 fps: round 3); every round is kept
     assert sec[0]["median_round"] == 2 and sec[0]["pipeline"]["fps"] == 101.0 and len(sec[0]["rounds"]) == 3
+
+
+def test_even_repeats_give_the_mean_value_and_the_lower_middle_round(tmp_path, monkeypatch):
+    # 2 rounds 110, 90 fps: the row's value is the mean of the two, 100 (>= 100: met, 1/2 met:
+    # marginal); the representative round (stage table) is the lower middle one, 90 fps: round 2
+    plan = bench.BenchPlan(quick=False, resolutions=((640, 480),), rigs=("mono",), threads=(1,), repeat=2)
+    b, calls, task = _fake_bench(tmp_path, plan, {(640, 480): [110.0, 90.0]}, {(640, 480): [400.0, 400.0]})
+    monkeypatch.setattr(bench.Clip, "task", task)
+    b.throughput()
+    r = next(r for r in b.rows if r.section.startswith("pipeline throughput"))
+    assert r.value == 100.0 and r.met is True and r.extra["repeats_met"] == 1
+    sec = b.sections["throughput"][0]
+    assert sec["median_round"] == 1 and sec["pipeline"]["fps"] == 90.0
 
 
 def test_all_cores_throughput_is_taken_once(tmp_path, monkeypatch):
