@@ -912,7 +912,11 @@ def format_pooled(m: dict, halves: dict | None = None) -> str:
             lines.append(
                 f"{rig} obstacle-frames not covered: {u['no_report'] + u['near_only'] + u['unranged']} "
                 f"(no report on the obstacle {u['no_report']}, only near-miss reports {u['near_only']}, "
-                f"reports on it unranged {u['unranged']}); worst obstacles: "
+                f"reports on it unranged {u['unranged']})"
+                + ("; by the front end: no track on the obstacle {untracked}, its features only in "
+                   "tracks lying elsewhere {merged}, a track on it {tracked}".format(**u["front_end"])
+                   if "front_end" in u else "")
+                + "; worst obstacles: "
                 + ", ".join(f"{sc} #{o} {kind} {c}/{e}" for sc, o, kind, c, e in u["worst"]))
     for name, h in (halves or {}).items():
         lines.append(
@@ -1129,7 +1133,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
             lines = (rdir / "tracks.jsonl").read_text().splitlines()
             frames = [json.loads(line) for line in lines if line.strip()]
         rows = score_reports(truth, frames)
-        rays = _front_end_rays(pickle.loads(obs_path.read_bytes())["frames"], rig, ego)
+        obs_frames = pickle.loads(obs_path.read_bytes())["frames"]
+        rays = _front_end_rays(obs_frames, rig, ego)
         ss = _samples_from_rows(truth, frames, rows, opts, rays)
         per_scene[name] = summarize(ss)
         elig = _mono_eligible(truth)
@@ -1141,8 +1146,9 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         per_scene[name]["stereo_eligible_n"] = len(elig_s)
         per_scene[name]["stereo_obstacle_coverage"] = len(cov_s) / len(elig_s) if elig_s else None
         kinds = {int(o.id): str(o.kind) for o in truth.scn.obstacles}
-        per_scene[name]["mono_uncovered"] = _uncovered(rows, elig, cov, kinds)
-        per_scene[name]["stereo_uncovered"] = _uncovered(rows, elig_s, cov_s, kinds)
+        fe = _front_end_state(truth, obs_frames, rig, ego, (elig - cov) | (elig_s - cov_s))
+        per_scene[name]["mono_uncovered"] = _uncovered(rows, elig, cov, kinds, fe)
+        per_scene[name]["stereo_uncovered"] = _uncovered(rows, elig_s, cov_s, kinds, fe)
         rows_by_scene[name] = (str(truth.scn.rig.kind), rows)
         per_scene[name]["scored_ranges"] = scored_ranges({name: rows_by_scene[name]})
         samples.extend(ss)
@@ -1565,19 +1571,26 @@ def _mono_covered(samples: list[Sample], eligible: set[tuple[float, int]]) -> se
 
 
 def _uncovered(rows, eligible: set[tuple[float, int]], covered: set[tuple[float, int]],
-               kinds: dict[int, str]) -> dict:
+               kinds: dict[int, str], front_end: dict[tuple[float, int], str] | None = None) -> dict:
     """Why eligible obstacle-frames are not covered, from the evaluator's rows (``score_reports``):
     "no_report" (no report associated with the obstacle that frame), "near_only" (only near-miss
     reports: the bearing passes within 2 deg of it, not on it), "unranged" (a report on it, none
-    ranged); "by_obstacle": {obstacle id: {"kind", "covered", "eligible"}} (obstacle-frames)."""
+    ranged); "by_obstacle": {obstacle id: {"kind", "covered", "eligible"}} (obstacle-frames).
+    With ``front_end`` (``_front_end_state`` of the uncovered obstacle-frames) also "front_end":
+    the same obstacle-frames by what the front end had on the obstacle: {"untracked", "merged",
+    "tracked": count} (the first two are the front end's gaps, "tracked" ones the fusion's)."""
     on: dict[tuple[float, int], list] = defaultdict(list)
     for r in rows:
         if r.obstacle_id is not None:
             on[(round(r.t_s, 6), int(r.obstacle_id))].append(r)
     out = {"no_report": 0, "near_only": 0, "unranged": 0}
+    if front_end is not None:
+        out["front_end"] = dict.fromkeys(FRONT_END_STATES, 0)
     for k in eligible - covered:
         v = on.get(k, [])
         out["no_report" if not v else "near_only" if all(r.hit != "obstacle" for r in v) else "unranged"] += 1
+        if front_end is not None:
+            out["front_end"][front_end.get(k, "untracked")] += 1
     by: dict[str, dict] = {}
     for t_oid in eligible:
         d = by.setdefault(str(t_oid[1]), {"kind": kinds.get(t_oid[1], "?"), "covered": 0, "eligible": 0})
@@ -1588,9 +1601,11 @@ def _uncovered(rows, eligible: set[tuple[float, int]], covered: set[tuple[float,
 
 
 def pool_uncovered(per_scene: dict, rig: str, worst: int = 8) -> dict | None:
-    """``<rig>_uncovered`` of every scene summed (no_report, near_only, unranged) and the ``worst``
-    obstacles by covered share: [scene, obstacle id, kind, covered, eligible]; None without any."""
+    """``<rig>_uncovered`` of every scene summed (no_report, near_only, unranged, and front_end's
+    counts when every scene has them) and the ``worst`` obstacles by covered share: [scene,
+    obstacle id, kind, covered, eligible]; None without any."""
     tot = {"no_report": 0, "near_only": 0, "unranged": 0}
+    fe = dict.fromkeys(FRONT_END_STATES, 0)
     obs = []
     for name, m in per_scene.items():
         u = m.get(f"{rig}_uncovered")
@@ -1598,12 +1613,62 @@ def pool_uncovered(per_scene: dict, rig: str, worst: int = 8) -> dict | None:
             continue
         for k in tot:
             tot[k] += u[k]
+        if fe is not None and "front_end" in u:
+            for k in fe:
+                fe[k] += u["front_end"][k]
+        else:
+            fe = None
         obs += [[name, int(oid), d["kind"], d["covered"], d["eligible"]]
                 for oid, d in u["by_obstacle"].items() if d["covered"] < d["eligible"]]
     if not obs and not any(tot.values()):
         return None
     obs.sort(key=lambda x: (x[3] / x[4], x[0], x[1]))
-    return tot | {"worst": obs[:worst]}
+    return tot | ({"front_end": fe} if fe is not None else {}) | {"worst": obs[:worst]}
+
+
+# what the front end had on an uncovered obstacle-frame (``_front_end_state``)
+FRONT_END_STATES = ("untracked", "merged", "tracked")
+
+
+def _front_end_state(truth, obs_frames, rig, ego,
+                     keys: set[tuple[float, int]]) -> dict[tuple[float, int], str]:
+    """What the front end had on each obstacle-frame of ``keys`` ((t_s rounded to 1 us, obstacle id)),
+    by casting the recorded observations' rays (``obs_frames``: (frame, t_s, observations) as
+    recorded for ``--reuse-frontend``) from their camera centres against the scene
+    (``pipeline.sim.world.raycast``, the renderer's ray caster, as the evaluator's truth):
+    "tracked" when some track's representative ray (any camera's view) hits the obstacle,
+    "merged" when none does but some track's member-feature rays hit it (its features were
+    grouped into a track lying on something else), else "untracked" (no track's ray or member
+    feature is on it: not detected, not grouped, or dropped). Poses from ``ego`` (the run's
+    trajectory); frames it does not cover are left out (and count as untracked)."""
+    from pipeline.sim.world import raycast
+
+    want: dict[float, set[int]] = defaultdict(set)
+    for t, oid in keys:
+        want[t].add(oid)
+    T_B_C = {c.name: c.T_C_B.inverse() for c in rig}
+    out: dict[tuple[float, int], str] = {}
+    for _frame, t_s, obs in obs_frames:
+        t = round(float(t_s), 6)
+        if t not in want or not ego.covers(t_s):
+            continue
+        T_W_B = ego.pose_at(t_s)
+        org, dirs, rep = [], [], []
+        for o in obs:
+            for v in o.views:
+                T_W_C = T_W_B @ T_B_C[v.camera]
+                b = np.vstack([v.b_C[None], v.feature_b_C]) @ T_W_C.R.T
+                org.append(np.broadcast_to(T_W_C.t, b.shape))
+                dirs.append(b)
+                rep.append(np.arange(len(b)) == 0)
+        if not dirs:
+            continue
+        _, ids = raycast(truth.world, float(t_s), np.vstack(org), np.vstack(dirs))
+        rep_m = np.concatenate(rep)
+        on_rep, on_feat = set(ids[rep_m].tolist()), set(ids[~rep_m].tolist())
+        for oid in want[t]:
+            out[(t, oid)] = "tracked" if oid in on_rep else "merged" if oid in on_feat else "untracked"
+    return out
 
 
 def _front_end_rays(obs_frames, rig, ego) -> dict[tuple[float, int], list[tuple[np.ndarray, np.ndarray]]]:

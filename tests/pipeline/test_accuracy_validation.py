@@ -353,6 +353,60 @@ def test_uncovered_obstacle_frames_by_reason_and_obstacle():
     assert acc.pool_uncovered({"a": {}}, "stereo") is None
 
 
+def test_uncovered_obstacle_frames_by_what_the_front_end_had_on_them():
+    """_front_end_state casts the recorded observations' rays against the scene, worked by hand: a
+    mono camera at the body origin looking along body +x, at t = 1 s at (5, 0, 5) (5 m/s along +x
+    from (0, 0, 5)); spheres of 0.5 m ahead at (12, 0, 5) (#1: b_C = (0, 0, 1), optical frame x
+    right, y down, z forward), to the left at (5, 6, 5) (#2: b_C = (-1, 0, 0)) and to the right at
+    (5, -6, 5) (#3: b_C = (1, 0, 0)); nothing behind (b_C = (0, 0, -1): sky). Track 7's
+    representative ray is on #1 and one member feature on #2; track 8 lies on the sky with a
+    member on nothing. #1 is tracked, #2 merged (its feature only in a track lying on #1), #3
+    untracked, and so is #1 at 1.2 s, a frame without observations."""
+    from types import SimpleNamespace as R
+
+    import numpy as np
+
+    import pipeline.accuracy as acc
+    from estimators.records import CameraView, ObstacleObservation
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.scene import scenario_from_dict
+    from pipeline.sim.trajectory import observer_trajectory
+    from pipeline.sim.world import World
+
+    scn = scenario_from_dict({
+        "name": "three", "duration_s": 2.0, "fps": 10,
+        "rig": {"kind": "mono", "resolution": [640, 480]},
+        "observer": {"kind": "straight", "speed_mps": 5.0, "start": {"position_m": [0, 0, 5]}},
+        "ground": {"enabled": False},
+        "obstacles": [{"id": 1, "kind": "sphere", "radius_m": 0.5, "position_m": [12.0, 0.0, 5.0]},
+                      {"id": 2, "kind": "sphere", "radius_m": 0.5, "position_m": [5.0, 6.0, 5.0]},
+                      {"id": 3, "kind": "sphere", "radius_m": 0.5, "position_m": [5.0, -6.0, 5.0]}],
+    })
+    truth = R(world=World(scn))
+    rig = build_rig(scn.rig)
+    ego = observer_trajectory(scn.observer, 2.0)
+    ahead, left, behind = [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]
+    views7 = (CameraView("cam0", np.array(ahead), np.zeros(2), 1e-3, [11, 12],
+                         np.array([ahead, left])),)
+    views8 = (CameraView("cam0", np.array(behind), np.zeros(2), 1e-3, [13], np.array([behind])),)
+    obs = [ObstacleObservation(7, 10, 1.0, "confirmed", views7),
+           ObstacleObservation(8, 10, 1.0, "confirmed", views8)]
+    keys = {(1.0, 1), (1.0, 2), (1.0, 3), (1.2, 1)}
+    fe = acc._front_end_state(truth, [(10, 1.0, obs), (12, 1.2, [])], rig, ego, keys)
+    assert fe == {(1.0, 1): "tracked", (1.0, 2): "merged", (1.0, 3): "untracked"}
+    u = acc._uncovered([], keys, set(), {1: "sphere", 2: "sphere", 3: "sphere"}, fe)
+    assert u["no_report"] == 4 and u["front_end"] == {"untracked": 2, "merged": 1, "tracked": 1}
+    assert "front_end" not in acc._uncovered([], keys, set(), {})  # (without the recording: as before)
+    other = {"no_report": 1, "near_only": 0, "unranged": 0, "front_end": {"untracked": 0, "merged": 0,
+                                                                           "tracked": 1}, "by_obstacle": {}}
+    pooled = acc.pool_uncovered({"a": {"mono_uncovered": u}, "b": {"mono_uncovered": other}}, "mono")
+    assert pooled["front_end"] == {"untracked": 2, "merged": 1, "tracked": 2}
+    # a scene without the front end's counts: no pooled counts (not a part of the frames)
+    no_fe = {k: v for k, v in other.items() if k != "front_end"}
+    assert "front_end" not in acc.pool_uncovered({"a": {"mono_uncovered": u}, "b": {"mono_uncovered": no_fe}},
+                                                 "mono")
+
+
 def test_recording_key_is_relative_to_the_scene_folder_and_old_keys_still_match(tmp_path):
     import pickle
 
