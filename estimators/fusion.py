@@ -956,13 +956,13 @@ class _FeatureRays:
                 rest = (order, rank)
                 first = order[brk]
                 rows_all, new_all = rows, new
-                rows, new = rows[first], new[first]
+                rows, new = rows[first], new.take(first, 0)
         if short_memory_s > 0:  # (before last_t moves) the same rays with the short memory
             f = np.exp(-(t_s - self.last_t[rows]) / short_memory_s)
-            self.S_new[rows] = self.S_new[rows] * f[:, None] + new
+            self.S_new[rows] = self.S_new.take(rows, 0) * f[:, None] + new
         if memory_s > 0:  # forget old rays, w = exp(-(t_s - t_last) / memory_s): w s + new
             f = np.exp(-(t_s - self.last_t[rows]) / memory_s)
-            S[rows] = S[rows] * f[:, None] + new
+            S[rows] = S.take(rows, 0) * f[:, None] + new
         else:
             S[rows] += new
         if rest is not None:
@@ -1929,8 +1929,8 @@ class ObstacleFusion:
         rows = fs.rows(ids, b_now)
         ncam = len(self._cam_index)
         _, first = np.unique(rows * ncam + cam, return_index=True)  # one ray per feature and camera
-        fs.add(rows[first], b_now[first], c_now[first], t_s, s.feature_memory_s, unique=ncam == 1,
-               short_memory_s=s.feature_slide_memory_s if ncam > 1 else 0.0)
+        fs.add(rows[first], b_now.take(first, 0), c_now.take(first, 0), t_s, s.feature_memory_s,
+               unique=ncam == 1, short_memory_s=s.feature_slide_memory_s if ncam > 1 else 0.0)
         # the features on their track's outline in a view (``_outline_flags``): not chosen to range
         # the track while two interior ones can be
         # on a stereo rig only: the stereo fix's feature, and the static-point (multi-frame) fix's
@@ -1960,7 +1960,7 @@ class ObstacleFusion:
         g, rows, b_now, c_now = g[first], rows[first], b_now[first], c_now[first]
         n_min = s.feature_min_count
         cnt = np.bincount(g, minlength=G)
-        b0 = fs.b0[rows]
+        b0 = fs.b0.take(rows, 0)
         cosp = np.sum(b0 * b_now, axis=1).clip(-1.0, 1.0)
         # (tracks with fewer than feature_min_count features get no feature range, but their
         # features' points still tell the spread of depths around the track: _member_spread)
@@ -3424,8 +3424,8 @@ class ObstacleFusion:
         e1 = _cross(u, e)
         e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
         e2 = _cross(u, e1)
-        B = b[mm]
-        ang = np.arctan2(_dot_rows(B, e2[jj]), _dot_rows(B, e1[jj]))  # (gnomonic: same angle)
+        B = b.take(mm, 0)
+        ang = np.arctan2(_dot_rows(B, e2.take(jj, 0)), _dot_rows(B, e1.take(jj, 0)))  # (gnomonic: same angle)
         order = np.lexsort((ang, inv))
         a_s, q_s = ang[order], inv[order]
         start = cnt.cumsum() - cnt
@@ -3723,11 +3723,12 @@ def _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta):
     p = plane.nonzero()[0]
     q = (~plane).nonzero()[0]
     par = p[np.abs(to_a[p]) <= delta[p]]  # (exactly parallel: a rotation would leave a rounding-size angle)
-    np_, bp = n[p], b_b[p]
+    np_, bp = n.take(p, 0), b_b.take(p, 0)
     owner = np.concatenate([q, p, p, p, par])
-    c_a_o = c_a[owner]
-    c_b_o = c_b[owner]
-    b_a_o = np.concatenate([b_a[q], b_in[p], b_in[p], b_in[p], b_in[par]])
-    b_b_o = np.concatenate([b_b[q], bp, _rotate_about_batch(bp, np_, ca[p], sa[p]),
-                            _rotate_about_batch(bp, np_, ca[p], -sa[p]), b_in[par]])
+    c_a_o = c_a.take(owner, 0)
+    c_b_o = c_b.take(owner, 0)
+    b_in_p = b_in.take(p, 0)
+    b_a_o = np.concatenate([b_a.take(q, 0), b_in_p, b_in_p, b_in_p, b_in.take(par, 0)])
+    b_b_o = np.concatenate([b_b.take(q, 0), bp, _rotate_about_batch(bp, np_, ca[p], sa[p]),
+                            _rotate_about_batch(bp, np_, ca[p], -sa[p]), b_in.take(par, 0)])
     return owner, c_a_o, b_a_o, c_b_o, b_b_o

@@ -431,12 +431,12 @@ class FeatureTracker:
         n = self._h_n[self.slot]
         back = np.minimum(n - 1, k)
         fi = self.slot * self.H + (n - 1 - back) % self.H  # flat (slot, ring position) index
-        return self._h_bC.reshape(-1, 3)[fi], self._h_t.reshape(-1)[fi], back > 0
+        return self._h_bC.reshape(-1, 3).take(fi, 0), self._h_t.reshape(-1)[fi], back > 0
 
     def previous_bearing(self) -> tuple[np.ndarray, np.ndarray]:
         """(b_C (N,3) one frame back, valid (N,)) for the live features (the sample before the latest)."""
         n = self._h_n[self.slot]
-        return self._h_bC.reshape(-1, 3)[self.slot * self.H + (n - 2) % self.H], n >= 2
+        return self._h_bC.reshape(-1, 3).take(self.slot * self.H + (n - 2) % self.H, 0), n >= 2
 
     def describe(self, grey: np.ndarray, idx: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """ORB descriptors of live features at their current positions.
@@ -975,7 +975,8 @@ class FeatureTracker:
         # Hamming distances of 32-byte descriptors (popcount of XOR), for the near pairs only
         ii, jj = np.nonzero(near)
         ham = np.full(near.shape, 10**6, np.int64)
-        ham[ii, jj] = POPCOUNT8[np.bitwise_xor(desc[cand[ii]], self.lost_desc[jj])].sum(axis=1)
+        xor = np.bitwise_xor(desc.take(cand[ii], 0), self.lost_desc.take(jj, 0))
+        ham[ii, jj] = POPCOUNT8[xor].sum(axis=1)
         taken: set[int] = set()
         srt = np.sort(ham, axis=1)
         second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
@@ -1020,14 +1021,14 @@ class FeatureTracker:
         self._free.extend(self.slot[free].tolist())
         ki = np.flatnonzero(keep)
         for name in ("ids", "uv", "vel", "desc", "has_desc", "age", "slot", "b_C"):
-            setattr(self, name, getattr(self, name)[ki])
+            setattr(self, name, getattr(self, name).take(ki, 0))
 
     def _remove_lost(self, gone: np.ndarray) -> None:
         keep = np.flatnonzero(~gone)  # (the kept rows found once for the eight arrays)
         names = ("lost_ids", "lost_uv", "lost_vel", "lost_t", "lost_desc", "lost_age", "lost_slot")
         names += ("lost_for",)
         for name in names:
-            setattr(self, name, getattr(self, name)[keep])
+            setattr(self, name, getattr(self, name).take(keep, 0))
 
     def _forget_lost(self, gone: np.ndarray) -> None:
         if not np.any(gone):

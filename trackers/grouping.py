@@ -431,14 +431,15 @@ class ObstacleGrouper:
         # 1. members stay within max_radius of the representative bearing and move with the track
         r = (owner >= 0).nonzero()[0]
         if len(r):
-            far = np.einsum("ij,ij->i", b[r], rep[owner[r]]) < cos_r
+            far = np.einsum("ij,ij->i", b.take(r, 0), rep.take(owner[r], 0)) < cos_r
             owner[r[far]] = -1
         sel = ((owner >= 0) & fvalid).nonzero()[0]  # members with a flow
-        o, f_sel, fn_sel = owner[sel], flow[sel], fnorm[sel]
+        o, f_sel, fn_sel = owner[sel], flow.take(sel, 0), fnorm[sel]
         tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         for loose in (2.0, 1.0):  # robust mean flow: a loose cut, then the strict one
             if len(sel):
-                good = self._agree(f_sel, fn_sel, tflow[o], loose, _norm_rows(tflow)[o]) | ~has_flow[o]
+                t_o = tflow.take(o, 0)
+                good = self._agree(f_sel, fn_sel, t_o, loose, _norm_rows(tflow)[o]) | ~has_flow[o]
                 if not good.all():  # (else the mean over the same members is the same)
                     owner[sel[~good]] = -1
                     sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
@@ -448,13 +449,13 @@ class ObstacleGrouper:
         free = ((owner < 0) & fvalid).nonzero()[0]
         memb = (owner >= 0).nonzero()[0]
         if len(free) and len(memb):
-            cosd = b[free] @ b[memb].T
+            cosd = b.take(free, 0) @ b.take(memb, 0).T
             j = np.argmax(cosd, axis=1)
             k = (cosd[np.arange(len(free)), j] > cos_link).nonzero()[0]
             fk, t_of = free[k], owner[memb[j[k]]]
-            ok = np.einsum("ij,ij->i", b[fk], rep[t_of]) > cos_r
+            ok = np.einsum("ij,ij->i", b.take(fk, 0), rep.take(t_of, 0)) > cos_r
             # (the last known flow if < 3 members)
-            ok &= self._agree(flow[fk], fnorm[fk], tflow[t_of], 1.0, _norm_rows(tflow)[t_of])
+            ok &= self._agree(flow.take(fk, 0), fnorm[fk], tflow.take(t_of, 0), 1.0, _norm_rows(tflow)[t_of])
             owner[fk[ok]] = t_of[ok]
         # 2b. a track short of members (coasting, or its features replaced) takes the free features
         # within link_rad of where it was predicted to be that move like it
@@ -466,7 +467,7 @@ class ObstacleGrouper:
         if len(short) and len(free):
             cs = b[free] @ pred.T  # (F, S)
             ok = (cs > cos_link) & self._agree(
-                flow[free][:, None, :], fnorm[free][:, None], tflow[short][None, :, :]
+                flow.take(free, 0)[:, None, :], fnorm[free][:, None], tflow.take(short, 0)[None, :, :]
             )
             cs = np.where(ok, cs, -2.0)
             j = np.argmax(cs, axis=1)
@@ -558,7 +559,7 @@ class ObstacleGrouper:
         own = (owner >= 0).nonzero()[0]
         o = owner[own]
         cnt = np.bincount(o, minlength=TK)
-        b_own = b[own]
+        b_own = b.take(own, 0)
         mean_c = _normalise(_bincount3(o, b_own, TK))
         m_per = pvalid[own] & ~fresh[o]
         po = o[m_per]
@@ -571,7 +572,7 @@ class ObstacleGrouper:
         moved = _normalise(moved + self.centre_gain * (mean_c - moved))
         use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
         new_rep = np.where(use_moved[:, None], moved, mean_c)
-        ang = np.arccos(np.einsum("ij,ij->i", b_own, new_rep[o]).clip(-1.0, 1.0))
+        ang = np.arccos(np.einsum("ij,ij->i", b_own, new_rep.take(o, 0)).clip(-1.0, 1.0))
         order_o = o.argsort(kind="stable")
         srt = own[order_o]  # member rows grouped by track
         starts = np.concatenate([[0], cnt.cumsum()])
@@ -839,17 +840,18 @@ class ObstacleGrouper:
         plane: dict[int, np.ndarray] = {}  # step 3f: track index -> rows of its part off the plane
         if len(rows):
             b_then, t_then, _ = ft.bearing_ago(L)
-            b_then, bk = b_then[rows], back[rows]
+            b_then, bk = b_then.take(rows, 0), back[rows]
             if R:
                 Rs = _EYE3.repeat(L + 1, 0)
                 for kk, Rk in R.items():
                     if 0 < kk <= L:
                         Rs[kk] = Rk
-                b_then = np.einsum("nij,nj->ni", Rs[bk], b_then)
+                b_then = np.einsum("nij,nj->ni", Rs.take(bk, 0), b_then)
             dt = np.maximum(t_s - t_then[rows], 1e-9)
-            f = (ft.b_C[rows] - b_then) / dt[:, None]  # window flow (rad/s)
+            f = (ft.b_C.take(rows, 0) - b_then) / dt[:, None]  # window flow (rad/s)
             e1, e2 = _tangent_basis(rep[:T])
-            xy = np.stack([np.einsum("ij,ij->i", f, e1[o]), np.einsum("ij,ij->i", f, e2[o])], 1)
+            e1o, e2o = e1.take(o, 0), e2.take(o, 0)
+            xy = np.stack([np.einsum("ij,ij->i", f, e1o), np.einsum("ij,ij->i", f, e2o)], 1)
             fn = np.hypot(xy[:, 0], xy[:, 1])
             if self.plane_min:  # step 3f: a part off the members' planar flow field
                 # (each track every plane_every-th frame, staggered by id; every frame while a
@@ -857,7 +859,7 @@ class ObstacleGrouper:
                 due = np.array(
                     [t.plane_n > 0 or (self._frame + t.id) % self.plane_every == 0 for t in tracks], bool
                 ).reshape(T)
-                plane = self._plane_parts(o, rows, ft.b_C[rows], e1, e2, xy, dt, T, rad_px, due)
+                plane = self._plane_parts(o, rows, ft.b_C.take(rows, 0), e1, e2, xy, dt, T, rad_px, due)
             # tracks whose members' window flows all lie within half the smallest link tolerance
             # of their mean cannot be cut (every pair links): only the others are looked at
             nn = np.maximum(np.bincount(o, minlength=T), 1)
@@ -871,7 +873,7 @@ class ObstacleGrouper:
             cut_ok = 2.0 * maxdev >= self.split_min_px * rad_px / np.maximum(maxdt, 1e-9)
             sel = cut_ok[o]
             rows, o, xy, fn, dt = rows[sel], o[sel], xy[sel], fn[sel], dt[sel]
-            bj = ft.b_C[rows]
+            bj = ft.b_C.take(rows, 0)
             m = len(rows)
             # member pairs (i < j) of one track (rows sorted by track: blocks), within link_rad;
             # every test below is symmetric in i and j, so one direction of each pair is enough
@@ -879,9 +881,9 @@ class ObstacleGrouper:
             reps_n = cnt_o.cumsum()[o] - np.arange(1, m + 1)  # rows after i in its block
             ei = np.arange(m).repeat(reps_n)
             ej = ei + 1 + (np.arange(len(ei)) - (reps_n.cumsum() - reps_n).repeat(reps_n))
-            keep = np.einsum("ij,ij->i", bj[ei], bj[ej]) > np.cos(self.link_rad)
+            keep = np.einsum("ij,ij->i", bj.take(ei, 0), bj.take(ej, 0)) > np.cos(self.link_rad)
             ei, ej = ei[keep], ej[keep]
-            dd = np.hypot(*(xy[ei] - xy[ej]).T)  # |window flow difference| (rad/s)
+            dd = np.hypot(*(xy.take(ei, 0) - xy.take(ej, 0)).T)  # |window flow difference| (rad/s)
             thr = self.split_min_px * rad_px / np.minimum(dt[ei], dt[ej])
             thr = thr + self.split_rel * np.maximum(fn[ei], fn[ej])
             linked = dd < thr
@@ -1014,12 +1016,13 @@ class ObstacleGrouper:
         idx = ((cnt[o] >= max(self.plane_min, 12)) & due[o]).nonzero()[0]
         if not len(idx):
             return out
-        os_, bt, F, dts = o[idx], b[idx], xy[idx], dt[idx]
+        os_, bt, F, dts = o[idx], b.take(idx, 0), xy.take(idx, 0), dt[idx]
         S = len(idx)
         # D_i (2,8): the tangent components (e1, e2 at rep) of P_b B_k b, P_b = I - b b^T
         u = np.einsum("kij,nj->nki", _TRACELESS, bt)  # (S,8,3) B_k b
         u = u - np.einsum("nki,ni->nk", u, bt)[:, :, None] * bt[:, None, :]
-        D = np.stack([np.einsum("nki,ni->nk", u, e1[os_]), np.einsum("nki,ni->nk", u, e2[os_])], 1)
+        e1o, e2o = e1.take(os_, 0), e2.take(os_, 0)
+        D = np.stack([np.einsum("nki,ni->nk", u, e1o), np.einsum("nki,ni->nk", u, e2o)], 1)
         M = ((bt @ bt.T) > np.cos(self.link_rad)) & (os_[:, None] == os_[None, :])  # disks (S,S)
         Mf = M.astype(float)
         nC = Mf.sum(1)
@@ -1211,7 +1214,7 @@ class ObstacleGrouper:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Mean member flow per track (T,3) where >= 3 members have a flow (else ``old``), and that mask."""
         sel = ((owner >= 0) & fvalid).nonzero()[0]
-        return ObstacleGrouper._mean_flow(owner[sel], flow[sel], old, T)
+        return ObstacleGrouper._mean_flow(owner[sel], flow.take(sel, 0), old, T)
 
     def _flows(
         self, ft: FeatureTracker, t_s: float, R: dict[int, np.ndarray] | None
@@ -1356,15 +1359,15 @@ class ObstacleGrouper:
         if not len(cand):
             return out
         outer = np.minimum(reach + self.link_rad, np.pi)
-        ti, j = np.nonzero(rep @ b[cand].T > np.cos(outer)[:, None])
+        ti, j = np.nonzero(rep @ b.take(cand, 0).T > np.cos(outer)[:, None])
         i = cand[j]
         ok = owner[i] != tidx[ti]
         ti, i = ti[ok], i[ok]
         # tangent basis (e1, e2) at each rep; position (x, y) and sector of each neighbour
         e1, e2 = _tangent_basis(rep)
-        d = b[i] - rep[ti]
-        x = np.einsum("ij,ij->i", d, e1[ti])
-        y = np.einsum("ij,ij->i", d, e2[ti])
+        d = b.take(i, 0) - rep.take(ti, 0)
+        x = np.einsum("ij,ij->i", d, e1.take(ti, 0))
+        y = np.einsum("ij,ij->i", d, e2.take(ti, 0))
         sec = np.floor((np.arctan2(y, x) + np.pi) * (4.0 / np.pi)).astype(np.intp) % 8
         occ = np.zeros((A, 8), bool)
         occ[ti, sec] = True
@@ -1382,7 +1385,8 @@ class ObstacleGrouper:
         # least squares (normal equations, a small ridge on the slopes); at the track: c0
         s = self.link_rad
         xs, ys = x / s, y / s  # slopes per link_rad
-        fx, fy = np.einsum("ij,ij->i", flow[i], e1[ti]), np.einsum("ij,ij->i", flow[i], e2[ti])
+        fi = flow.take(i, 0)
+        fx, fy = np.einsum("ij,ij->i", fi, e1.take(ti, 0)), np.einsum("ij,ij->i", fi, e2.take(ti, 0))
         # N = sum r r^T, rhs = sum r f^T with r = (1, x, y): per track sums of these 12 products
         # by one bincount over (track, product) (a ufunc.at is ten times slower)
         w = np.stack(
