@@ -1980,11 +1980,12 @@ class ObstacleFusion:
                                  f"fewer than {n_min} have {math.degrees(par_min):.2f} deg of parallax")
         if not good.any():
             return
-        g, rows, b_now, c_now = g[good], rows[good], b_now[good], c_now[good]
+        g, rows, b_now, c_now = g[good], rows[good], b_now.compress(good, 0), c_now.compress(good, 0)
         Sr = fs.S[rows]  # the features' running sums (_FeatureRays._set_sums: A, y, bc, cc, bcc, n)
         adj, det = _adjugate_det3(Sr[:, 0:9].reshape(len(Sr), 3, 3))
         ok = det > 1e-12
-        g, rows, b_now, c_now, Sr = g[ok], rows[ok], b_now[ok], c_now[ok], Sr[ok]
+        g, rows = g[ok], rows[ok]
+        b_now, c_now, Sr = b_now.compress(ok, 0), c_now.compress(ok, 0), Sr.compress(ok, 0)
         if not len(g):
             return
         Ainv = adj[ok] / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
@@ -2026,8 +2027,8 @@ class ObstacleFusion:
         if not keep.any():
             return
         g, rows, b_now, p, r, depth, sig_r, d2, miss2, Sr, pAp = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], depth[keep], sig_r[keep], d2[keep],
-            miss2[keep], Sr[keep], pAp[keep])
+            g[keep], rows[keep], b_now.compress(keep, 0), p.compress(keep, 0), r[keep], depth[keep],
+            sig_r[keep], d2[keep], miss2[keep], Sr.compress(keep, 0), pAp[keep])
         # static-point test: each ray misses its feature's point by ~ sigma_f d_i per axis, so
         #   chi = mean_i miss_i^2 / (2 sigma_f^2 mean_i d_i^2)  ~ 1 for a static point
         # (E = (2n - 3) / 2n, n rays); a moving obstacle's features (crossing motion) fit no static
@@ -2093,9 +2094,10 @@ class ObstacleFusion:
                 fit &= ~slid[keep]
             fit &= np.bincount(g[fit], minlength=G)[g] >= n_min
             self._why_unranged(work, cnt, g[fit], f"fewer than {n_min} fit a static point each")
-            g, rows, b_now, p, r, sig_r = (g[fit], rows[fit], b_now[fit], p[fit], r[fit], sig_post[fit])
+            g, rows, r, sig_r = g[fit], rows[fit], r[fit], sig_post[fit]
+            b_now, p = b_now.compress(fit, 0), p.compress(fit, 0)
         b_rep = feats[5]  # (G, 3) first views' bearings
-        ang = np.arccos(np.sum(b_now * b_rep[g], axis=1).clip(-1.0, 1.0))
+        ang = np.arccos(np.sum(b_now * b_rep.take(g, 0), axis=1).clip(-1.0, 1.0))
         inner = ang <= _group_median(g, ang, G)[g]
         cnt_in = np.bincount(g[inner], minlength=G)
         if s.feature_inner_half:
@@ -3280,7 +3282,7 @@ class ObstacleFusion:
             return out
         _g, r, b, sr = mem
         ja = np.array(js)
-        cos = u[ja] @ b.T  # (J, M): every report against every member point
+        cos = u.take(ja, 0) @ b.T  # (J, M): every report against every member point
         inside = (cos > math.cos(rho)) & (cos < math.cos(1e-3))
         d2 = (r[None, :] - rng[ja][:, None]) ** 2 - (sr * sr)[None, :] - var0[ja][:, None]
         ex2 = np.where(inside, d2, -np.inf).max(axis=1)
@@ -3403,7 +3405,7 @@ class ObstacleFusion:
         n_p = gcnt[pg]
         jj = pj.repeat(n_p)
         mm = (gstart[pg] - (n_p.cumsum() - n_p)).repeat(n_p) + np.arange(int(n_p.sum()))
-        cos_jm = _dot_rows(u[jj], b[mm])
+        cos_jm = _dot_rows(u.take(jj, 0), b.take(mm, 0))
         keep = (r[mm] < rng[jj] - 3.0 * np.sqrt(var0[jj] + sr[mm] ** 2)) & (cos_jm > 0.5)
         if not keep.any():
             return out

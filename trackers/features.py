@@ -931,7 +931,7 @@ class FeatureTracker:
         near = (d2 <= radius_px**2).astype(np.float32)
         cnt = near.sum(1)
         got = cnt >= 2
-        out[got] = (near[got] @ self.vel[old]) / cnt[got, None]
+        out[got] = (near.compress(got, 0) @ self.vel.take(old, 0)) / cnt[got, None]
         return out
 
     def _lost_predictions(self, t_s: float) -> np.ndarray:

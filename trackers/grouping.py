@@ -463,7 +463,7 @@ class ObstacleGrouper:
         short = ((cnt_now < need_t) & (hits > 0)).nonzero()[0]
         free = ((owner < 0) & fvalid).nonzero()[0]
         pred = rep[short] @ R1.T if R1 is not None else rep[short]
-        pred = _normalise(pred + tflow[short] * dt_s) if self.coast_predict else pred
+        pred = _normalise(pred + tflow.take(short, 0) * dt_s) if self.coast_predict else pred
         if len(short) and len(free):
             cs = b[free] @ pred.T  # (F, S)
             ok = (cs > cos_link) & self._agree(
@@ -564,7 +564,7 @@ class ObstacleGrouper:
         m_per = pvalid[own] & ~fresh[o]
         po = o[m_per]
         pcnt = np.bincount(po, minlength=TK)
-        d_per = b_own[m_per] - b_prev[own[m_per]]
+        d_per = b_own.compress(m_per, 0) - b_prev.take(own[m_per], 0)
         dsum = _bincount3(po, d_per, TK)
         # move with the members present in both frames: b_rep += mean(b_now - b_prev), then a
         # gentle pull towards the member mean (gain centre_gain)
@@ -610,7 +610,7 @@ class ObstacleGrouper:
         coast_b = rep[:T] @ R1.T if R1 is not None else rep[:T]
         if self.coast_predict and dt_s > 0:  # b <- normalise(R_C_Cprev b + flow dt): see _coast_one
             coast_b = _normalise(coast_b + tflow[:T] * dt_s)
-        ids_s, b_s = ids[srt], b[srt]  # members grouped by track (slices below are views)
+        ids_s, b_s = ids[srt], b.take(srt, 0)  # members grouped by track (slices below are views)
         st = starts.tolist()
         sig = sigma.tolist()
         empty_i, empty_b = np.zeros(0, np.int64), np.zeros((0, 3))
@@ -872,7 +872,7 @@ class ObstacleGrouper:
             np.maximum.at(maxdt, o, dt)
             cut_ok = 2.0 * maxdev >= self.split_min_px * rad_px / np.maximum(maxdt, 1e-9)
             sel = cut_ok[o]
-            rows, o, xy, fn, dt = rows[sel], o[sel], xy[sel], fn[sel], dt[sel]
+            rows, o, xy, fn, dt = rows[sel], o[sel], xy.compress(sel, 0), fn[sel], dt[sel]
             bj = ft.b_C.take(rows, 0)
             m = len(rows)
             # member pairs (i < j) of one track (rows sorted by track: blocks), within link_rad;
@@ -1232,7 +1232,7 @@ class ObstacleGrouper:
             for k, Rk in R.items():
                 if 0 < k <= self.flow_frames:
                     Rs[k] = Rk
-            b_then = np.einsum("nij,nj->ni", Rs[np.maximum(n_back, 0)], b_then)
+            b_then = np.einsum("nij,nj->ni", Rs.take(np.maximum(n_back, 0), 0), b_then)
         dt = t_s - t_then
         valid &= dt > 0
         flow = (ft.b_C - b_then) / np.where(valid, dt, 1.0)[:, None]
@@ -1316,7 +1316,7 @@ class ObstacleGrouper:
         for r in (size >= self.min_features).nonzero()[0].tolist():
             comp = by_label[first[r] : first[r] + size[r]]  # (= np.flatnonzero(labels == r))
             while len(comp):
-                bc = bf[comp]
+                bc = bf.take(comp, 0)
                 cen = _normalise(np.add.reduce(bc, 0) / len(comp))  # (bc.mean(0)'s own sums)
                 cc = bc @ cen
                 if (cc > cos_r).all():
