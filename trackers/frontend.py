@@ -824,14 +824,15 @@ class FrontEnd:
             if off:
                 self._gid_version += 1
 
-    def _box_fold(self, seen, a: tuple, b: tuple) -> tuple[int, int] | None:
-        """(kept, dropped) global ids when one side of a linked box pair is a box linked to a
-        feature track (``BoxTracker.links``) and the other a visible box whose camera already has a
-        track of that feature track's obstacle lying on the box (its bearing within the box's 3
-        sigma_rad + the BoxTracker's gate_rad): the box is folded into that obstacle (reported
-        once; the track listed first in that camera gives the view). Else None.
+    def _box_fold(self, seen, a: tuple, b: tuple) -> bool:
+        """Whether one side of a linked box pair is a box linked to a feature track
+        (``BoxTracker.links``) and the other a visible box whose camera already has a track of that
+        feature track's obstacle lying on the box (its bearing within the box's 3 sigma_rad + the
+        BoxTracker's gate_rad): the box is then folded into that obstacle (reported once; the track
+        listed first in that camera gives the view; the merged obstacle keeps the id seen longer,
+        ``_survivor``, as the other stereo merges do).
         a, b: (camera, box track id, standing-for track id, global id)."""
-        for (_, tf_, lf, gf), (cv, tv, lv, gv) in ((a, b), (b, a)):
+        for (_, tf_, lf, gf), (cv, tv, lv, _) in ((a, b), (b, a)):
             if lf == tf_ or lv != tv:
                 continue  # not (a box on a feature track, a visible box)
             box = self.boxers[cv].tracks.get(tv)
@@ -840,8 +841,8 @@ class FrontEnd:
             reach = 3.0 * box.sigma_rad + self.boxers[cv].gate_rad
             for tr in seen.get(cv, ()):
                 if tr.id != tv and self._global(tr.id) == gf and float(tr.b_C @ box.b_C) >= np.cos(reach):
-                    return gf, gv
-        return None
+                    return True
+        return False
 
     def _associate_boxes(self, seen: dict[str, list[ObstacleTrack]]) -> list[int]:
         """Link box tracks (BoxTracker) of another camera to the reference camera's (the rig's
@@ -891,10 +892,8 @@ class FrontEnd:
                     # one box stands for a feature track whose obstacle already has a track in the
                     # other box's camera: that box is a second report of it there when that track
                     # lies on the box (within 3 sigma + the BoxTracker's gate): folded into it
-                    fold = self._box_fold(seen, (ref, ta, la, ga), (b, tb, lb, gb))
-                    if fold is None:
+                    if not self._box_fold(seen, (ref, ta, la, ga), (b, tb, lb, gb)):
                         continue  # linked to another track in that camera
-                    keep, drop = fold
                 self._merge_gids(keep, drop, (la, lb), absorbed)
         return absorbed
 

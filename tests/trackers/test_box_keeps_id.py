@@ -137,3 +137,35 @@ def test_an_id_lent_on_a_stereo_association_frame_is_reported_lost(monkeypatch):
     assert fe._n % fe.assoc_every == 0  # an association frame
     obs = fe.process({"cam0": img, "cam1": img}, 0, 0.0)
     assert [(o.track_id, o.status) for o in obs] == [(9, "lost")]
+
+
+def test_a_box_folded_into_a_younger_feature_tracks_obstacle_keeps_its_older_id():
+    """heldout_stereo_flying frame 79 by hand: a drone's boxes in both cameras (cam0 box 10, cam1
+    box 11: one obstacle, global 10, seen 40 frames) and a younger ORB track on it in each camera
+    (cam1 track 20, linked to cam1's box, and cam0 track 21, global 20, seen 29 frames). The box
+    pair is folded into the feature tracks' obstacle (cam0's box lies on track 21: one report);
+    the merged obstacle keeps the id seen longer, 10, as the other stereo merges (``_survivor``), and 20 is
+    reported lost once. Before, the fold always kept the feature track's id: the drone's reported
+    id changed 10 -> 20 (an id switch)."""
+    rig = stereo_forward_rig(equidistant(), baseline_m=0.3)
+    fe = FrontEnd(rig, detector="orb+navlights")
+    p_B = np.array([4.0, 0.5, -0.3])  # the drone, 4 m ahead
+    b0, b1 = (c.T_C_B.apply(p_B) / np.linalg.norm(c.T_C_B.apply(p_B)) for c in rig.cameras)
+    none = np.zeros(0, np.int64)
+
+    def track(tid, cam, b, hits, label="orb"):
+        return ObstacleTrack(tid, cam, none, b, sigma_rad=0.005, status="confirmed", hits=hits, label=label)
+
+    box0, box1 = track(10, "cam0", b0, 40, "drone"), track(11, "cam1", b1, 38, "drone")
+    f1, f0 = track(20, "cam1", b1, 29), track(21, "cam0", b0, 25)
+    fe.boxers["cam0"].tracks[10], fe.boxers["cam1"].tracks[11] = box0, box1
+    fe.groupers["cam1"].tracks[20], fe.groupers["cam0"].tracks[21] = f1, f0
+    fe.boxers["cam1"].links = {11: 20}
+    fe._gid.update({11: 10, 21: 20})
+    fe._reported.update({10, 20})
+    seen = {"cam0": [f0, box0], "cam1": [f1, box1]}
+    absorbed = fe._associate_boxes(seen)  # (a pair needs 2 frames in a row)
+    assert absorbed == [] and fe._global(21) == 20
+    absorbed = fe._associate_boxes(seen)
+    assert absorbed == [20]
+    assert {fe._global(t) for t in (10, 11, 20, 21)} == {10}
