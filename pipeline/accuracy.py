@@ -1638,8 +1638,9 @@ def _front_end_state(truth, obs_frames, rig, ego,
     (``pipeline.sim.world.raycast``, the renderer's ray caster, as the evaluator's truth):
     "tracked" when some track's representative ray (any camera's view) hits the obstacle,
     "merged" when none does but some track's member-feature rays hit it (its features were
-    grouped into a track lying on something else), else "untracked" (no track's ray or member
-    feature is on it: not detected, not grouped, or dropped). Poses from ``ego`` (the run's
+    grouped into a track whose representative ray lies on something else, also when half or more
+    of that track's members are on it), else "untracked" (no track's ray or member feature is on
+    it: not detected, not grouped, or dropped). Poses from ``ego`` (the run's
     trajectory); frames it does not cover are left out (and count as untracked)."""
     from pipeline.sim.world import raycast
 
