@@ -407,6 +407,48 @@ def test_uncovered_obstacle_frames_by_what_the_front_end_had_on_them():
                                                  "mono")
 
 
+def test_front_end_state_casts_each_view_from_its_own_camera_on_a_turned_body():
+    """_front_end_state's frames, worked by hand where the camera centres and the body's attitude
+    matter: a stereo pair 1 m apart (cam0 at body y = +0.5 m, cam1 at -0.5 m, both looking along
+    body +x), the body flying at 5 m/s from (0, 0, 5) at yaw 90 deg (body x = world +y, body y =
+    world -x): at t = 1 s it is at (0, 5, 5), cam0 at (-0.5, 5, 5), cam1 at (0.5, 5, 5); at 1.2 s
+    1 m further along +y. Spheres of 0.2 m at (-0.5, 12, 5) (#1, straight ahead of cam0) and
+    (0.5, 12, 5) (#2, ahead of cam1). At 1 s only cam0 sees a track straight ahead (b_C = (0, 0,
+    1)): #1 is tracked, #2 not; at 1.2 s only cam1 does: #2 tracked, #1 not. Cast from the body
+    origin the rays pass 0.5 m beside both spheres; without the body's turn they go along world
+    +x; with the cameras' poses swapped the two frames swap."""
+    from types import SimpleNamespace as R
+
+    import numpy as np
+
+    import pipeline.accuracy as acc
+    from estimators.records import CameraView, ObstacleObservation
+    from pipeline.sim.rigs import build_rig
+    from pipeline.sim.scene import scenario_from_dict
+    from pipeline.sim.trajectory import observer_trajectory
+    from pipeline.sim.world import World
+
+    scn = scenario_from_dict({
+        "name": "pair", "duration_s": 2.0, "fps": 10,
+        "rig": {"kind": "stereo", "resolution": [640, 480], "baseline_m": 1.0},
+        "observer": {"kind": "straight", "speed_mps": 5.0, "start": {"position_m": [0, 0, 5], "yaw_deg": 90}},
+        "ground": {"enabled": False},
+        "obstacles": [{"id": 1, "kind": "sphere", "radius_m": 0.2, "position_m": [-0.5, 12.0, 5.0]},
+                      {"id": 2, "kind": "sphere", "radius_m": 0.2, "position_m": [0.5, 12.0, 5.0]}],
+    })
+    ahead = np.array([0.0, 0.0, 1.0])
+
+    def seen_ahead_by(cam, track, frame, t_s):
+        view = CameraView(cam, ahead, np.zeros(2), 1e-3)
+        return (frame, t_s, [ObstacleObservation(track, frame, t_s, "confirmed", (view,))])
+
+    obs = [seen_ahead_by("cam0", 7, 10, 1.0), seen_ahead_by("cam1", 8, 12, 1.2)]
+    keys = {(1.0, 1), (1.0, 2), (1.2, 1), (1.2, 2)}
+    ego = observer_trajectory(scn.observer, 2.0)
+    fe = acc._front_end_state(R(world=World(scn)), obs, build_rig(scn.rig), ego, keys)
+    assert fe == {(1.0, 1): "tracked", (1.0, 2): "untracked", (1.2, 1): "untracked", (1.2, 2): "tracked"}
+
+
 def test_recording_key_is_relative_to_the_scene_folder_and_old_keys_still_match(tmp_path):
     import pickle
 
