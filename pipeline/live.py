@@ -66,6 +66,7 @@ __all__ = [
     "MjpegServer",
     "LiveResult",
     "run_live",
+    "latency_log_stages",
     "make_reader_factory",
 ]
 
@@ -743,6 +744,25 @@ def make_reader_factory(
     return lambda: CaptureReader(index_or_url, timeout_s, grey=grey)
 
 
+def latency_log_stages() -> tuple[str, ...]:
+    """The stages whose times ``run_live``'s latency CSV gives per frame, as ``<stage>_s`` columns beside
+    the latency parts: the front end's (``trackers.frontend.STAGES``), then fusion's ``estimate`` and
+    ``fuse``. A slow frame's time is then found in its stages (a periodic ORB detection, the
+    re-detection after a cut), not only in ``process_s``."""
+    from trackers.frontend import STAGES
+
+    return (*STAGES, "estimate", "fuse")
+
+
+def _stage_cells(stages: tuple[str, ...], *timings: dict[str, float] | None) -> str:
+    """One frame's stage columns of the latency CSV: seconds from the ``timings`` mappings (front end,
+    fusion) for each of ``stages``, empty where no mapping has the stage."""
+    merged: dict[str, float] = {}
+    for tm in timings:
+        merged.update(tm or {})
+    return ",".join("" if merged.get(k) is None else f"{merged[k]:.6f}" for k in stages)
+
+
 def run_live(
     cfg: PipelineConfig,
     out_dir: str | Path,
@@ -767,7 +787,9 @@ def run_live(
         latency_log: a CSV file to write one line per processed frame to: ``seq, t_s`` and the latency
             with its parts in seconds (``latency_s = lag_s + queue_s + process_s + write_s``; ``decode_s``
             beside), as in summary.json's ``latency_parts``; then ``process_cpu_s`` (the loop thread's CPU
-            time within process_s) and ``gc_s`` (garbage collection within process_s + write_s).
+            time within process_s) and ``gc_s`` (garbage collection within process_s + write_s); then the
+            frame's stage times, ``<stage>_s`` for each of :func:`latency_log_stages` (the front end's
+            and fusion's ``timings``; empty where a stage reported none).
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
@@ -802,12 +824,14 @@ def run_live(
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
     # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
     log = None
+    log_stages = latency_log_stages() if latency_log is not None else ()
     if latency_log is not None:
         try:
             log = Path(latency_log).open("w", encoding="utf-8")
         except OSError as e:
             raise InputError(f"latency_log: cannot write {str(latency_log)!r} ({e.strerror or e})") from None
-        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s\n")
+        log.write("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s,"
+                  + ",".join(f"{k}_s" for k in log_stages) + "\n")
     grabbers: list[Grabber] = []
     opened: list[Any] = []
     try:
@@ -930,9 +954,11 @@ def run_live(
                     unpaired[n] = unpaired.get(n, 0) + 1
                 # The body pose lets the front end take the drone's own rotation out of feature motion.
                 obs = frontend.process(images, lead.seq, t_s, T_W_B=egomotion.pose_at(t_s))
-                timings.add_all(getattr(frontend, "timings", None))
+                front_tm = getattr(frontend, "timings", None)
+                timings.add_all(front_tm)
                 reports = fusion.step(obs, lead.seq, t_s)
-                timings.add_all(getattr(fusion, "timings", None))
+                fusion_tm = getattr(fusion, "timings", None)
+                timings.add_all(fusion_tm)
                 t_proc = time.monotonic()
                 cpu_s = time.thread_time() - cpu_taken
                 items = writer.write(lead.seq, t_s, reports)  # one write + flush per frame
@@ -957,7 +983,7 @@ def run_live(
                     log.write(
                         f"{lead.seq},{t_s!r},{lat:.6f},{lag_s:.6f},{queue_s:.6f},{t_proc - t_taken:.6f},"
                         f"{t_done - t_proc:.6f},{'' if lead.decode_s is None else f'{lead.decode_s:.6f}'},"
-                        f"{cpu_s:.6f},{gc_s:.6f}\n"
+                        f"{cpu_s:.6f},{gc_s:.6f},{_stage_cells(log_stages, front_tm, fusion_tm)}\n"
                     )
                 frames += 1
                 if annotator is not None and frames % cfg.outputs.every_n == 0:

@@ -14,7 +14,14 @@ from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_ri
 from estimators.egomotion import ConstantVelocity
 from estimators.errors import InputError, SourceError
 from pipeline.config import load_config
-from pipeline.live import Grabber, GrowingTrajectory, MjpegServer, make_reader_factory, run_live
+from pipeline.live import (
+    Grabber,
+    GrowingTrajectory,
+    MjpegServer,
+    latency_log_stages,
+    make_reader_factory,
+    run_live,
+)
 from pipeline.run import FramePoseCache
 
 
@@ -426,7 +433,8 @@ def test_latency_parts_add_up_per_frame_and_name_where_the_time_went(tmp_path):
     log = tmp_path / "latency.csv"
     r = _live(tmp_path, [lambda: LateReader(4)], front=SlowFrontEnd(rig, delay_s=0.1), latency_log=log)
     rows = log.read_text().splitlines()
-    assert rows[0] == "seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s"
+    assert rows[0] == ("seq,t_s,latency_s,lag_s,queue_s,process_s,write_s,decode_s,process_cpu_s,gc_s,"
+                       "resize_s,detect_s,track_s,group_s,associate_s,report_s,estimate_s,fuse_s")
     assert len(rows) == 1 + r.frames and r.frames >= 1
     for row in rows[1:]:
         lat, lag, queue, proc, write = (float(x) for x in row.split(",")[2:7])
@@ -437,6 +445,39 @@ def test_latency_parts_add_up_per_frame_and_name_where_the_time_went(tmp_path):
     s = r.summary
     assert s["latency_parts"]["process"]["n"] == r.frames and s["latency_parts"]["lag"]["median_s"] >= 0.299
     assert s["drop_rate"]["cam0"] == pytest.approx(r.stale / s["frames_grabbed"]["cam0"])
+
+
+class DetectEveryOtherFrame(FakeFrontEnd):
+    """A front end that reports a 20 ms detect stage on its odd calls and 1 ms on its even ones, a track
+    stage always and no resize or report stage (as a periodic ORB detection shows in the real one)."""
+
+    def process(self, images, frame, t_s, T_W_B=None):
+        self.timings = {"detect": 0.020 if len(self.calls) % 2 else 0.001, "track": 0.004,
+                        "group": 0.0005, "associate": 0.0}
+        return super().process(images, frame, t_s)
+
+
+def test_latency_log_gives_each_frames_stage_times(tmp_path):
+    """The per-frame CSV carries the frame's own stage times beside its latency parts: detect 0.001 s
+    on the 1st, 3rd ... processed frame and 0.020 s on the 2nd, 4th ... (as the front end reported
+    them for that frame), track 0.004, associate 0 written as 0, fusion's estimate and fuse 1e-4, and
+    the stages the front end did not report (resize, report) empty."""
+    rig = mono_rig()
+    log = tmp_path / "latency.csv"
+    r = _live(tmp_path, [lambda: LateReader(4)], front=DetectEveryOtherFrame(rig), latency_log=log)
+    assert latency_log_stages() == ("resize", "detect", "track", "group", "associate", "report",
+                                    "estimate", "fuse")
+    rows = log.read_text().splitlines()
+    head = rows[0].split(",")
+    assert r.frames >= 2 and len(rows) == 1 + r.frames
+    for k, row in enumerate(rows[1:]):
+        cell = dict(zip(head, row.split(","), strict=True))
+        assert float(cell["detect_s"]) == pytest.approx(0.020 if k % 2 else 0.001)
+        assert float(cell["track_s"]) == pytest.approx(0.004)
+        assert float(cell["group_s"]) == pytest.approx(5e-4)
+        assert cell["associate_s"] == "0.000000" and cell["resize_s"] == "" and cell["report_s"] == ""
+        assert float(cell["estimate_s"]) == pytest.approx(1e-4)
+        assert float(cell["fuse_s"]) == pytest.approx(1e-4)
 
 
 def test_replay_reports_each_frames_decode_time(tmp_path):
