@@ -34,7 +34,9 @@ class CameraView:
     Attributes:
         camera: camera name in the rig (e.g. ``"cam0"``).
         b_C: (3,) unit bearing of the obstacle's representative point, camera optical frame.
-        uv: (2,) pixel position of the representative point (OpenCV convention), for drawing.
+        uv: (2,) pixel position of the representative point (OpenCV convention), for drawing, or
+            None when it has none: ``b_C`` does not project into the image (a representative carried
+            beyond the lens's field as the obstacle leaves it). Never a made-up pixel, never NaN.
         sigma_rad: 1-sigma angular uncertainty of ``b_C`` (radians, isotropic about the ray).
         feature_ids: (M,) int64 ids of the member features (stable over their lives).
         feature_b_C: (M, 3) unit bearings of the member features in this camera's frame.
@@ -42,7 +44,7 @@ class CameraView:
 
     camera: str
     b_C: np.ndarray
-    uv: np.ndarray
+    uv: np.ndarray | None
     sigma_rad: float
     feature_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     feature_b_C: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -51,7 +53,7 @@ class CameraView:
         self,
         camera: str,
         b_C: np.ndarray,
-        uv: np.ndarray,
+        uv: np.ndarray | None,
         sigma_rad: float,
         feature_ids: np.ndarray | None = None,
         feature_b_C: np.ndarray | None = None,
@@ -95,8 +97,14 @@ class CameraView:
             raise InputError(
                 f"CameraView: feature_ids ({len(ids)}) and feature_b_C ({len(fb)}) differ in length"
             )
-        if type(uv) is not np.ndarray or uv.dtype is not _F64 or uv.shape != (2,):
-            uv = np.asarray(uv, dtype=float).reshape(2)
+        if uv is not None:
+            if type(uv) is not np.ndarray or uv.dtype is not _F64 or uv.shape != (2,):
+                uv = np.asarray(uv, dtype=float).reshape(-1)
+                if uv.shape != (2,):
+                    raise InputError(f"CameraView.uv: expected a finite pixel (2,) or None, got {uv!r}")
+            u, v = uv.tolist()
+            if not (math.isfinite(u) and math.isfinite(v)):
+                raise InputError(f"CameraView.uv: expected a finite pixel (2,) or None, got {uv!r}")
         d = self.__dict__  # frozen: no attribute assignment, but the instance dict is writable once here
         d["camera"] = camera
         d["b_C"] = b

@@ -247,8 +247,11 @@ def random_scenarios(quick: bool, seed: int, n: int | None = None):
 
 
 # --------------------------------------------------------------------------------- bearings mode
-def _noisy_bearing(model, p_C: np.ndarray, sigma_px: float, rng) -> tuple[np.ndarray, float] | None:
-    """True point p_C (3,) in C -> noisy unit bearing and its isotropic sigma (rad), or None."""
+def _noisy_bearing(
+    model, p_C: np.ndarray, sigma_px: float, rng
+) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """True point p_C (3,) in C -> noisy unit bearing, its isotropic sigma (rad) and the noisy
+    pixel (2,) it comes from, or None."""
     uv, ok = model.bearing_to_pixel(p_C[None])
     if not ok[0]:
         return None
@@ -259,7 +262,7 @@ def _noisy_bearing(model, p_C: np.ndarray, sigma_px: float, rng) -> tuple[np.nda
     J = model.pixel_to_bearing_jacobian(uv)[0]  # (3, 2) d b / d uv
     # isotropic sigma: RMS of the two singular values of J times the pixel sigma
     sig = max(sigma_px, 1e-3) * math.sqrt(0.5 * float(np.sum(J * J)))
-    return b[0], sig
+    return b[0], sig, uv_n[0]
 
 
 def run_bearings(scn, opts: AccuracyOptions, rng) -> list[Sample]:
@@ -296,8 +299,8 @@ def run_bearings(scn, opts: AccuracyOptions, rng) -> list[Sample]:
                 nb = _noisy_bearing(cam.model, T_C_W.apply(p_W), opts.pixel_sigma_px, rng)
                 if nb is None:
                     continue
-                b_C, sig = nb
-                views.append(CameraView(cam.name, b_C, np.zeros(2), sig))
+                b_C, sig, uv_C = nb
+                views.append(CameraView(cam.name, b_C, uv_C, sig))
                 T_W_C = T_C_W.inverse()
                 vw.append((T_W_C.t, T_W_C.R @ b_C))
             if not views:

@@ -436,6 +436,10 @@ class FrontEnd:
                         self._densified[t.id] = frame
                     if len(self._densified) > 4096:  # forget long-gone tracks
                         self._densified = {k: v for k, v in self._densified.items() if frame - v < 300}
+                    # one whose representative has no pixel (beyond the lens's field, uv None) is not
+                    # searched, but keeps its turn among the 8 and its densify_every wait (handing the
+                    # turn to another track was measured worse: docs/ARCHITECTURE.md, "no pixel")
+                    small = [t for t in small if t.uv is not None]
                     if small:
                         rad_px = self._rad_px[name]
                         radii = [
@@ -1363,7 +1367,7 @@ class FrontEnd:
                     CameraView(
                         camera=cam,
                         b_C=tr.b_C,
-                        uv=tr.uv if f == 1.0 else (np.asarray(tr.uv) + 0.5) / f - 0.5,
+                        uv=tr.uv if f == 1.0 or tr.uv is None else (tr.uv + 0.5) / f - 0.5,
                         sigma_rad=tr.sigma_rad,
                         feature_ids=fi,
                         feature_b_C=fb,

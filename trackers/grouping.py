@@ -180,7 +180,10 @@ class ObstacleTrack:
         camera: camera name.
         members: (M,) int64 ids of the member features.
         b_C: (3,) unit representative bearing in C.
-        uv: (2,) its pixel position.
+        uv: (2,) pixel of ``b_C`` in this camera's image, or None when there is none: ``b_C`` does
+            not project into the image (a representative carried beyond the lens's field or the
+            picture by its members' motion as the obstacle leaves them) or the track is unseen
+            this frame (coasting on a predicted bearing).
         sigma_rad: 1-sigma uncertainty of b_C (rad).
         flow_rad_s: (3,) median rotation-compensated member flow in C (rad/s, tangent vector).
         status: tentative | confirmed | lost.
@@ -192,7 +195,7 @@ class ObstacleTrack:
     camera: str
     members: np.ndarray
     b_C: np.ndarray
-    uv: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    uv: np.ndarray | None = None
     sigma_rad: float = 0.01
     flow_rad_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
     status: str = "tentative"
@@ -603,10 +606,13 @@ class ObstacleGrouper:
         alive_l, ext_l, taken_l = alive.tolist(), ext.tolist(), taken.tolist()
         new_ids = [next(self._ids) if alive_l[ti] and not ext_l[ti] else -1 for ti in range(T, TK)]
         show = alive.nonzero()[0]
-        uv_all = np.zeros((TK, 2))
+        # a representative that does not project (moved on with its members beyond the lens's
+        # field as the obstacle leaves it) has no pixel: uv None, never a made-up one
+        uv_all: list[np.ndarray | None] = [None] * TK
         if len(show):
             uv, ok = ft.model.bearing_to_pixel(new_rep[show])
-            uv_all[show[ok]] = uv[ok]
+            for ti, u in zip(show[ok].tolist(), uv[ok], strict=True):
+                uv_all[ti] = u
         coast_b = rep[:T] @ R1.T if R1 is not None else rep[:T]
         if self.coast_predict and dt_s > 0:  # b <- normalise(R_C_Cprev b + flow dt): see _coast_one
             coast_b = _normalise(coast_b + tflow[:T] * dt_s)
@@ -627,7 +633,7 @@ class ObstacleGrouper:
                 if not alive_l[ti]:  # unseen: coast on the predicted bearing
                     tr.seen = False
                     tr.members, tr.member_b_C = empty_i, empty_b
-                    tr.b_C = coast_b[ti]
+                    tr.b_C, tr.uv = coast_b[ti], None
                     tr.missed += 1
                     if tr.missed > self.max_missed:
                         tr.status = "lost"
@@ -711,6 +717,7 @@ class ObstacleGrouper:
         """One unseen frame of ``tr``; True when it is lost now (and dropped from ``tracks``)."""
         tr.members = np.zeros(0, np.int64)
         tr.member_b_C = np.zeros((0, 3))
+        tr.uv = None
         tr.missed += 1
         # coast on the predicted bearing: b <- normalise(R_C_Cprev b + flow dt) (flow: tangent,
         # rad/s, rotation-compensated when R_C_Cprev is given), so new features found where
@@ -1563,6 +1570,7 @@ class BoxTracker:
         for tid in list(self.tracks):
             tr = self.tracks[tid]
             if not tr.seen:
+                tr.uv = None
                 tr.missed += 1
                 if tr.missed > self.max_missed:
                     tr.status = "lost"

@@ -26,6 +26,9 @@ def test_azimuth_elevation_flu(b_B, az, el):
         (dict(b_C=[0, np.nan, 1]), "unit 3-vector"),
         (dict(sigma_rad=0.0), "positive angle"),
         (dict(feature_ids=[1, 2], feature_b_C=[[0, 0, 1]]), "differ in length"),
+        (dict(uv=[np.nan, 1.0]), "finite pixel"),
+        (dict(uv=np.array([1.0, np.inf])), "finite pixel"),
+        (dict(uv=[1.0, 2.0, 3.0]), "finite pixel"),
     ],
 )
 def test_camera_view_validation(kwargs, match):
@@ -33,6 +36,14 @@ def test_camera_view_validation(kwargs, match):
     base.update(kwargs)
     with pytest.raises(InputError, match=match):
         CameraView(**base)
+
+
+def test_a_camera_view_without_a_pixel_says_so():
+    """A view whose representative bearing does not project into the image (beyond the lens's
+    field) carries uv None, not a made-up pixel; a pixel given is kept as float64 (2,)."""
+    assert CameraView("cam0", [0, 0, -1], None, 0.01).uv is None
+    v = CameraView("cam0", [0, 0, 1], [3, 4], 0.01)
+    assert v.uv.dtype == np.float64 and v.uv.tolist() == [3.0, 4.0]
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -1,0 +1,118 @@
+"""A track whose representative bearing does not project (issue 4): the representative moves on with
+its members, so as an obstacle leaves the lens's field its centre goes beyond the field while some
+members are still seen. Such a track has no pixel: ``ObstacleTrack.uv`` and the reported
+``CameraView.uv`` are None (not (0, 0), the image's corner), and the front end does not densify
+around it. Truth: the equidistant model's closed form r = f theta about (cx, cy), worked here, and
+the angles the points and discs are placed at."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from estimators.rig import mono_forward_rig
+from tests.trackers.conftest import Patch, SphereScene, equidistant, rot_axis
+from tests.trackers.test_grouping import PointFeatures, unit
+from trackers.frontend import FrontEnd
+from trackers.grouping import ObstacleGrouper
+
+
+def closed_form_pixel(model, b: np.ndarray) -> np.ndarray:
+    """Equidistant projection by hand: u = cx + f theta x / rho, v = cy + f theta y / rho."""
+    theta = np.arccos(np.clip(b[2], -1.0, 1.0))
+    rho = np.hypot(b[0], b[1])
+    return np.array([model.cx + model.fx * theta * b[0] / rho, model.cy + model.fy * theta * b[1] / rho])
+
+
+def off_axis(b: np.ndarray) -> float:
+    return float(np.arccos(np.clip(b[2], -1.0, 1.0)))
+
+
+def test_a_representative_beyond_the_lens_field_has_no_pixel():
+    """A 120 deg lens (field 60 deg off-axis); a 4 x 4 grid of points 6 px apart centred 50 deg off
+    the axis drifts outwards at 0.4 deg per frame, each point dropped once it is beyond the field.
+    From ~frame 26 the grid's centre (the track's representative) is beyond 60 deg while points
+    are still seen: uv is None in exactly those frames, the closed-form pixel in the others, and
+    None again once the track coasts with no member left."""
+    model = equidistant(fov_deg=120.0)
+    half = model.max_angle_rad
+    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_frames=3)
+    ft = PointFeatures(model)
+    step = 6.0 * half / model.image_circle()[2]
+    a = np.radians(50.0)
+    c0, e2 = np.array([np.sin(a), 0, np.cos(a)]), np.array([0, 1.0, 0])
+    e1 = np.array([np.cos(a), 0, -np.sin(a)])  # outwards, tangent at c0
+    base = {
+        k: unit(c0 + (x - 1.5) * step * e1 + (y - 1.5) * step * e2)
+        for k, (x, y) in enumerate([(x, y) for x in range(4) for y in range(4)])
+    }
+    beyond = within = 0
+    tid = None
+    for k in range(40):
+        R = rot_axis([0, 1, 0], np.radians(0.4) * k)
+        pts = {i: R @ b for i, b in base.items()}
+        keep = [i for i, b in pts.items() if off_axis(b) < half]
+        ft.set(keep, np.array([pts[i] for i in keep]).reshape(-1, 3), k / 30.0)
+        seen, _ = gr.update(ft, k / 30.0)
+        assert len(seen) <= 1
+        for tr in seen:
+            tid = tr.id if tid is None else tid
+            assert tr.id == tid
+            if off_axis(tr.b_C) > half:
+                beyond += 1
+                deg = np.degrees(off_axis(tr.b_C))
+                assert tr.uv is None, f"frame {k}: representative {deg:.2f} deg off-axis, uv {tr.uv}"
+            else:
+                within += 1
+                np.testing.assert_allclose(tr.uv, closed_form_pixel(model, tr.b_C), atol=1e-6)
+    assert beyond >= 5 and within >= 20, (beyond, within)
+    # every point gone: the track coasts on a predicted bearing and has no pixel
+    ft.set([], np.zeros((0, 3)), 40 / 30.0)
+    seen, _ = gr.update(ft, 40 / 30.0)
+    assert not seen and tid in gr.tracks and gr.tracks[tid].uv is None
+
+
+@pytest.mark.parametrize("size, max_width", [((320, 240), None), ((640, 480), 320)])
+def test_no_densify_and_no_pixel_for_a_view_beyond_the_lens_field(size, max_width):
+    """Rendered: the tests' 200 deg lens (field 100 deg off-axis), a textured disc of 8 deg radius
+    drifting outwards from 88 deg off-axis at 0.5 deg per frame across the lens's rim. The track on
+    it is still seen (2-3 features) when its representative is beyond 100 deg: that view's uv is
+    None; every other view's uv is the closed-form pixel of its bearing (full-frame pixels, also
+    when a 640 x 480 lens is tracked downscaled to 320 px); densify is asked only for the pixels
+    of seen tracks' representatives, never for the image's corner."""
+    model = equidistant(*size)
+    half = model.max_angle_rad
+    scene = SphereScene(model, blank_env=True)
+    fe = FrontEnd(mono_forward_rig(model), max_width=max_width)
+    ft = fe.trackers["cam0"]
+    f = fe.scale["cam0"]
+    asked: list[np.ndarray] = []
+    densify = ft.densify
+
+    def spy(image, centres_uv, radii_px, frame, t_s, *a, **k):
+        asked.extend((np.asarray(centres_uv, float) + 0.5) / f - 0.5)  # full-frame pixels
+        return densify(image, centres_uv, radii_px, frame, t_s, *a, **k)
+
+    ft.densify = spy
+    r, th0 = np.radians(8.0), half - np.radians(12.0)
+    beyond = within = 0
+    shown: list[np.ndarray] = []
+    for k in range(36):
+        th = th0 + np.radians(0.5) * k
+        img = scene.render(None, [Patch(np.array([np.sin(th), 0.0, np.cos(th)]), r, seed=3)])
+        for o in fe.process({"cam0": img}, k, k / 30.0):
+            for v in o.views:
+                if off_axis(v.b_C) > half:
+                    beyond += 1
+                    deg = np.degrees(off_axis(v.b_C))
+                    assert v.uv is None, f"frame {k}: view {deg:.2f} deg off-axis, uv {v.uv}"
+                else:
+                    within += 1
+                    np.testing.assert_allclose(v.uv, closed_form_pixel(model, v.b_C), atol=1e-6)
+                    shown.append(v.uv)
+    assert beyond >= 3 and within >= 20, (beyond, within)
+    assert asked, "densify was never asked"
+    cx, cy, rad = model.image_circle()
+    for c in asked:
+        assert np.hypot(c[0] - cx, c[1] - cy) <= rad, f"densify asked outside the lens circle: {c}"
+        assert min(np.abs(c - s).max() for s in shown) < 1e-6, f"densify centre {c} is no seen track's pixel"
