@@ -13,8 +13,9 @@ import pytest
 from estimators.rig import mono_forward_rig
 from tests.trackers.conftest import Patch, SphereScene, equidistant, rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
+from trackers.detectors import Detections
 from trackers.frontend import FrontEnd
-from trackers.grouping import ObstacleGrouper
+from trackers.grouping import BoxTracker, ObstacleGrouper
 
 
 def closed_form_pixel(model, b: np.ndarray) -> np.ndarray:
@@ -116,3 +117,44 @@ def test_no_densify_and_no_pixel_for_a_view_beyond_the_lens_field(size, max_widt
     for c in asked:
         assert np.hypot(c[0] - cx, c[1] - cy) <= rad, f"densify asked outside the lens circle: {c}"
         assert min(np.abs(c - s).max() for s in shown) < 1e-6, f"densify centre {c} is no seen track's pixel"
+
+
+@pytest.mark.parametrize("how", ["no features", "coast", "box"])
+def test_an_unseen_track_has_no_pixel(how):
+    """A track seen near the axis (uv its closed-form pixel) and then unseen for a frame has no pixel
+    (uv None, not the stale one of the frame before), on each path an unseen track takes: the
+    grouper's update with none of its members left, the grouper's coast (a frame without usable
+    features) and a box tracker's frame without its box."""
+    model = equidistant(fov_deg=120.0)
+    if how == "box":
+        cam = mono_forward_rig(model).cameras[0]
+        bt = BoxTracker(iter(range(1, 100)))
+        u0, v0 = model.cx + 20.0, model.cy - 10.0
+        box = Detections(boxes=np.array([[u0 - 4, v0 - 4, u0 + 4, v0 + 4]]), labels=("drone",),
+                         attributes=({},))
+        for _ in range(3):
+            (tr,), _ = bt.update(cam, box)
+        np.testing.assert_allclose(tr.uv, [u0, v0], atol=1e-9)  # the box's centre, a pixel
+        seen, _ = bt.update(cam, Detections())
+        assert not seen and not tr.seen and tr.uv is None
+        return
+    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_frames=3)
+    ft = PointFeatures(model)
+    a = np.radians(10.0)
+    c0 = np.array([np.sin(a), 0, np.cos(a)])
+    e1, e2 = np.array([np.cos(a), 0, -np.sin(a)]), np.array([0, 1.0, 0])
+    step = np.radians(0.5)
+    grid = [(x - 1.5, y - 1.5) for x in range(4) for y in range(4)]
+    pts = np.array([unit(c0 + x * step * e1 + y * step * e2) for x, y in grid])
+    for k in range(6):
+        ft.set(range(16), pts, k / 30.0)
+        seen, _ = gr.update(ft, k / 30.0)
+    (tr,) = seen
+    np.testing.assert_allclose(tr.uv, closed_form_pixel(model, tr.b_C), atol=1e-6)
+    if how == "coast":
+        gr.coast(6 / 30.0)
+    else:
+        ft.set([], np.zeros((0, 3)), 6 / 30.0)
+        seen, _ = gr.update(ft, 6 / 30.0)
+        assert not seen
+    assert tr.id in gr.tracks and not tr.seen and tr.uv is None
