@@ -260,3 +260,28 @@ def test_the_replay_key_hashes_the_front_ends_sources_not_its_benchmark_tool():
 
     assert _trackers_hash() == sha([p for p in files if p.name != "benchmark.py" or p.parent != root])
     assert _trackers_hash() != sha(files)
+
+
+def test_bearings_mode_view_pixel_is_the_noisy_pixel_its_bearing_comes_from():
+    """The bearings mode's CameraView.uv: with no noise the point's pixel by the equidistant closed
+    form (r = f theta about (cx, cy)); with noise the pixel whose closed-form back-projection is
+    the noisy bearing (not the noise-free pixel, not a made-up (0, 0)). A point behind the lens's
+    field has neither."""
+    from estimators.cameras import Equidistant
+    from pipeline.accuracy import _noisy_bearing
+
+    m = Equidistant(fx=200.0, fy=200.0, cx=320.0, cy=240.0, width=640, height=480,
+                    max_angle_rad=math.radians(100.0))
+    p_C = np.array([1.0, -0.5, 3.0])
+    theta, phi = math.atan2(math.hypot(1.0, -0.5), 3.0), math.atan2(-0.5, 1.0)
+    truth = [320.0 + 200.0 * theta * math.cos(phi), 240.0 + 200.0 * theta * math.sin(phi)]
+    b, _, uv = _noisy_bearing(m, p_C, 0.0, np.random.default_rng(0))
+    np.testing.assert_allclose(uv, truth, atol=1e-9)
+    np.testing.assert_allclose(b, p_C / np.linalg.norm(p_C), atol=1e-12)
+    b, _, uv = _noisy_bearing(m, p_C, 2.0, np.random.default_rng(1))
+    assert 1e-3 < np.hypot(*(uv - truth)) < 10.0  # moved by the noise (2 px sigma)
+    r = np.hypot(uv[0] - 320.0, uv[1] - 240.0)
+    th = r / 200.0
+    back = [math.sin(th) * (uv[0] - 320.0) / r, math.sin(th) * (uv[1] - 240.0) / r, math.cos(th)]
+    np.testing.assert_allclose(b, back, atol=1e-9)
+    assert _noisy_bearing(m, np.array([0.1, 0.0, -1.0]), 1.0, np.random.default_rng(2)) is None
