@@ -122,7 +122,10 @@ from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
 from estimators.se3 import Pose
 
-__all__ = ["FusionSettings", "ObstacleFusion", "tangent_basis"]
+__all__ = ["STAGES", "FusionSettings", "ObstacleFusion", "tangent_basis"]
+
+# the stages ``ObstacleFusion.timings`` gives each step (seconds): see ``ObstacleFusion.__init__``
+STAGES: tuple[str, ...] = ("estimate", "fuse")
 
 
 @dataclass(frozen=True)
@@ -1235,7 +1238,7 @@ class ObstacleFusion:
         self.settings = s  # (feature_sigma_rad: the rig's own)
         # the tracked window's half-width as an angle (rad): ``_window_neighbours``
         self._window_rad = s.feature_window_px / f_rig if f_rig else 0.0
-        self.timings: dict[str, float] = {"estimate": 0.0, "fuse": 0.0}
+        self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self._tracks: dict[int, _Track] = {}
         self._last_t: float | None = None
         self._last_frame: int | None = None

@@ -746,12 +746,13 @@ def make_reader_factory(
 
 def latency_log_stages() -> tuple[str, ...]:
     """The stages whose times ``run_live``'s latency CSV gives per frame, as ``<stage>_s`` columns beside
-    the latency parts: the front end's (``trackers.frontend.STAGES``), then fusion's ``estimate`` and
-    ``fuse``. A slow frame's time is then found in its stages (a periodic ORB detection, the
-    re-detection after a cut), not only in ``process_s``."""
+    the latency parts: the front end's (``trackers.frontend.STAGES``), then fusion's
+    (``estimators.fusion.STAGES``: ``estimate`` and ``fuse``). A slow frame's time is then found in its
+    stages (a periodic ORB detection, the re-detection after a cut), not only in ``process_s``."""
+    from estimators.fusion import STAGES as FUSION_STAGES
     from trackers.frontend import STAGES
 
-    return (*STAGES, "estimate", "fuse")
+    return (*STAGES, *FUSION_STAGES)
 
 
 def _stage_cells(stages: tuple[str, ...], *timings: dict[str, float] | None) -> str:

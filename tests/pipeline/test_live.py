@@ -480,6 +480,19 @@ def test_latency_log_gives_each_frames_stage_times(tmp_path):
         assert float(cell["fuse_s"]) == pytest.approx(1e-4)
 
 
+def test_the_latency_logs_stages_are_those_the_real_stages_report():
+    """The CSV's stage columns are exactly the stages the real front end and fusion give each frame
+    (in that order), so no stage's time is left out of a row and no column is always empty."""
+    from estimators.fusion import ObstacleFusion
+    from trackers.frontend import FrontEnd
+
+    rig = mono_rig()
+    front = FrontEnd(rig)
+    fusion = ObstacleFusion(rig, ConstantVelocity(5.0))
+    fusion.step(front.process({"cam0": np.zeros((H, W, 3), np.uint8)}, 0, 0.0), 0, 0.0)
+    assert latency_log_stages() == (*front.timings, *fusion.timings)
+
+
 def test_replay_reports_each_frames_decode_time(tmp_path):
     v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
     r = _live(tmp_path, [make_reader_factory(str(v), "cam0")])
