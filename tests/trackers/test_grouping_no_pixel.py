@@ -29,6 +29,16 @@ def off_axis(b: np.ndarray) -> float:
     return float(np.arccos(np.clip(b[2], -1.0, 1.0)))
 
 
+def pixel_checked(model, b: np.ndarray, uv, half: float, where: str) -> bool:
+    """Check a representative's pixel: None beyond the lens's field (``half`` rad off-axis), else
+    the closed-form pixel of its bearing. True when ``b`` is beyond the field."""
+    if off_axis(b) > half:
+        assert uv is None, f"{where}: representative {np.degrees(off_axis(b)):.2f} deg off-axis, uv {uv}"
+        return True
+    np.testing.assert_allclose(uv, closed_form_pixel(model, b), atol=1e-6)
+    return False
+
+
 def test_a_representative_beyond_the_lens_field_has_no_pixel():
     """A 120 deg lens (field 60 deg off-axis); a 4 x 4 grid of points 6 px apart centred 50 deg off
     the axis drifts outwards at 0.4 deg per frame, each point dropped once it is beyond the field.
@@ -59,13 +69,10 @@ def test_a_representative_beyond_the_lens_field_has_no_pixel():
         for tr in seen:
             tid = tr.id if tid is None else tid
             assert tr.id == tid
-            if off_axis(tr.b_C) > half:
+            if pixel_checked(model, tr.b_C, tr.uv, half, f"frame {k}"):
                 beyond += 1
-                deg = np.degrees(off_axis(tr.b_C))
-                assert tr.uv is None, f"frame {k}: representative {deg:.2f} deg off-axis, uv {tr.uv}"
             else:
                 within += 1
-                np.testing.assert_allclose(tr.uv, closed_form_pixel(model, tr.b_C), atol=1e-6)
     assert beyond >= 5 and within >= 20, (beyond, within)
     # every point gone: the track coasts on a predicted bearing and has no pixel
     ft.set([], np.zeros((0, 3)), 40 / 30.0)
@@ -103,13 +110,10 @@ def test_no_densify_and_no_pixel_for_a_view_beyond_the_lens_field(size, max_widt
         img = scene.render(None, [Patch(np.array([np.sin(th), 0.0, np.cos(th)]), r, seed=3)])
         for o in fe.process({"cam0": img}, k, k / 30.0):
             for v in o.views:
-                if off_axis(v.b_C) > half:
+                if pixel_checked(model, v.b_C, v.uv, half, f"frame {k}"):
                     beyond += 1
-                    deg = np.degrees(off_axis(v.b_C))
-                    assert v.uv is None, f"frame {k}: view {deg:.2f} deg off-axis, uv {v.uv}"
                 else:
                     within += 1
-                    np.testing.assert_allclose(v.uv, closed_form_pixel(model, v.b_C), atol=1e-6)
                     shown.append(v.uv)
     assert beyond >= 3 and within >= 20, (beyond, within)
     assert asked, "densify was never asked"
