@@ -77,6 +77,12 @@ from estimators.errors import ConfigError
 from estimators.geometry import _cross, _norm_rows
 from trackers.features import FeatureTracker
 
+# an unseen track's members: shared, read-only
+_NO_IDS = np.zeros(0, np.int64)
+_NO_IDS.flags.writeable = False
+_NO_BEARINGS = np.zeros((0, 3))
+_NO_BEARINGS.flags.writeable = False
+
 
 def _normalise(v: np.ndarray) -> np.ndarray:
     if v.ndim == 1 and len(v) == 3:  # one vector: the same IEEE operations in Python floats (~3x faster)
@@ -183,7 +189,7 @@ class ObstacleTrack:
         uv: (2,) pixel of ``b_C`` in this camera's image, or None when there is none: ``b_C`` does
             not project into the image (a representative carried beyond the lens's field or the
             picture by its members' motion as the obstacle leaves them) or the track is unseen
-            this frame (coasting on a predicted bearing).
+            this frame (coasting on a predicted bearing, or lost: :meth:`unseen`).
         sigma_rad: 1-sigma uncertainty of b_C (rad).
         flow_rad_s: (3,) median rotation-compensated member flow in C (rad/s, tangent vector).
         status: tentative | confirmed | lost.
@@ -213,6 +219,12 @@ class ObstacleTrack:
     plane_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # step 3f candidate
     plane_n: int = 0  # frames in a row the step 3f candidate split was found
     plane_seen: int = -(10**9)  # the grouper's frame count when step 3f last found a part in it
+
+    def unseen(self) -> None:
+        """No view of it this frame (coasting or lost): not seen, no members, no pixel."""
+        self.seen = False
+        self.members, self.member_b_C = _NO_IDS, _NO_BEARINGS
+        self.uv = None
 
 
 class ObstacleGrouper:
@@ -619,21 +631,19 @@ class ObstacleGrouper:
         ids_s, b_s = ids[srt], b.take(srt, 0)  # members grouped by track (slices below are views)
         st = starts.tolist()
         sig = sigma.tolist()
-        empty_i, empty_b = np.zeros(0, np.int64), np.zeros((0, 3))
         seen, lost, to_bg = [], [], []
         for ti in range(TK):
             if ti < T:
                 tr = tracks[ti]
                 if taken_l[ti] >= 0:  # taken over by an older track of the same obstacle
-                    tr.status, tr.seen = "lost", False
-                    tr.members, tr.member_b_C = empty_i, empty_b
+                    tr.unseen()
+                    tr.status = "lost"
                     del self.tracks[tr.id]
                     lost.append(tr)
                     continue
                 if not alive_l[ti]:  # unseen: coast on the predicted bearing
-                    tr.seen = False
-                    tr.members, tr.member_b_C = empty_i, empty_b
-                    tr.b_C, tr.uv = coast_b[ti], None
+                    tr.unseen()
+                    tr.b_C = coast_b[ti]
                     tr.missed += 1
                     if tr.missed > self.max_missed:
                         tr.status = "lost"
@@ -642,8 +652,8 @@ class ObstacleGrouper:
                     continue
                 tr.extended = tr.extended + 1 if ext_l[ti] else 0
                 if tr.extended >= self.extended_frames and tr.status == "tentative":
-                    tr.status, tr.seen = "lost", False
-                    tr.members, tr.member_b_C = empty_i, empty_b
+                    tr.unseen()
+                    tr.status = "lost"
                     to_bg.append(srt[st[ti] : st[ti + 1]])
                     del self.tracks[tr.id]
                     lost.append(tr)
@@ -655,7 +665,7 @@ class ObstacleGrouper:
                     to_bg.append(srt[st[ti] : st[ti + 1]])
                     continue
                 tid = new_ids[ti - T]
-                tr = ObstacleTrack(tid, ft.name, empty_i, new_rep[ti], hits=0, label=self.label)
+                tr = ObstacleTrack(tid, ft.name, _NO_IDS, new_rep[ti], hits=0, label=self.label)
                 tr.keep_min = 1 if keep1[ti] else 0
                 tr.split = bool(split_born[ti])
                 self.tracks[tid] = tr
@@ -685,7 +695,6 @@ class ObstacleGrouper:
         self._remember_rotation(R1)
         lost = []
         for tr in list(self.tracks.values()):
-            tr.seen = False
             if self._coast_one(tr, dt_s, R1):
                 lost.append(tr)
         return lost
@@ -715,9 +724,7 @@ class ObstacleGrouper:
 
     def _coast_one(self, tr: ObstacleTrack, dt_s: float, R1: np.ndarray | None) -> bool:
         """One unseen frame of ``tr``; True when it is lost now (and dropped from ``tracks``)."""
-        tr.members = np.zeros(0, np.int64)
-        tr.member_b_C = np.zeros((0, 3))
-        tr.uv = None
+        tr.unseen()
         tr.missed += 1
         # coast on the predicted bearing: b <- normalise(R_C_Cprev b + flow dt) (flow: tangent,
         # rad/s, rotation-compensated when R_C_Cprev is given), so new features found where
@@ -1570,7 +1577,7 @@ class BoxTracker:
         for tid in list(self.tracks):
             tr = self.tracks[tid]
             if not tr.seen:
-                tr.uv = None
+                tr.unseen()
                 tr.missed += 1
                 if tr.missed > self.max_missed:
                     tr.status = "lost"

@@ -15,7 +15,7 @@ from tests.trackers.conftest import Patch, SphereScene, equidistant, rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
 from trackers.detectors import Detections
 from trackers.frontend import FrontEnd
-from trackers.grouping import BoxTracker, ObstacleGrouper
+from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
 
 def closed_form_pixel(model, b: np.ndarray) -> np.ndarray:
@@ -162,3 +162,16 @@ def test_an_unseen_track_has_no_pixel(how):
         seen, _ = gr.update(ft, 6 / 30.0)
         assert not seen
     assert tr.id in gr.tracks and not tr.seen and tr.uv is None
+
+
+def test_unseen_leaves_a_track_without_view_members_or_pixel():
+    """``ObstacleTrack.unseen``, the one way every path (coasting, lost by takeover, by extended
+    texture, by misses; box tracks too) leaves a track with no view this frame."""
+    tr = ObstacleTrack(7, "cam0", np.array([3, 4], np.int64), unit([0.0, 0.0, 1.0]),
+                       uv=np.array([320.0, 240.0]))
+    tr.member_b_C = np.array([unit([0.01, 0.0, 1.0]), unit([0.0, 0.01, 1.0])])
+    tr.unseen()
+    assert tr.seen is False and tr.uv is None
+    assert tr.members.shape == (0,) and tr.member_b_C.shape == (0, 3)
+    with pytest.raises(ValueError):  # the shared empties cannot be written through
+        tr.member_b_C[...] = 0.0
