@@ -40,14 +40,32 @@ def check_shape(name: str, arr, shape: tuple) -> None:
         raise InputError(f"{name}: expected an array of shape {want}, got {actual}")
 
 
-def check_rows(name: str, arr, ncols: int, dtype=float):
-    """``arr`` as a finite ``(N, ncols)`` array of ``dtype``; an empty input becomes ``(0, ncols)``.
+def as_numbers(name: str, value, dtype, expected: str):
+    """``value`` as a numpy array of ``dtype``; InputError naming ``name`` and ``expected`` when
+    its entries are not numbers (numpy's own ValueError or TypeError says neither).
 
-    Raises InputError naming ``name`` on another shape or a NaN/infinite value.
+    >>> as_numbers("uv", ["x", 1], float, "a pixel (2,)")
+    Traceback (most recent call last):
+    ...
+    estimators.errors.InputError: uv: expected a pixel (2,), got ['x', 1] (not numbers)
     """
     import numpy as np
 
-    a = np.asarray(arr, dtype=dtype)
+    try:
+        return np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected {expected}, got {value!r} (not numbers)") from None
+
+
+def check_rows(name: str, arr, ncols: int, dtype=float):
+    """``arr`` as a finite ``(N, ncols)`` array of ``dtype``; an empty input becomes ``(0, ncols)``.
+
+    Raises InputError naming ``name`` on another shape, a NaN/infinite value or entries that are not
+    numbers.
+    """
+    import numpy as np
+
+    a = as_numbers(name, arr, dtype, f"numbers of shape (N, {ncols})")
     if a.size == 0:
         return a.reshape(0, ncols)
     if a.ndim != 2 or a.shape[1] != ncols:

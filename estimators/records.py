@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from estimators.errors import InputError, check_rows
+from estimators.errors import InputError, as_numbers, check_rows
 
 TrackStatus = Literal["tentative", "confirmed", "lost"]
 TRACK_STATUSES: tuple[str, ...] = ("tentative", "confirmed", "lost")
@@ -64,21 +64,24 @@ class CameraView:
         # already float64/int64 of the right shape, the fields written once into __dict__ (7.2 -> ~4 us).
         b = b_C
         if type(b) is not np.ndarray or b.dtype is not _F64 or b.shape != (3,):
-            b = np.asarray(b, dtype=float).reshape(-1)
+            b = as_numbers("CameraView.b_C", b, float, "a finite unit 3-vector").reshape(-1)
         if b.shape != (3,):
             raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {b_C!r}")
         x, y, z = b.tolist()
         n2 = x * x + y * y + z * z  # NaN or inf in any component -> n2 not finite
         if not (math.isfinite(n2) and abs(math.sqrt(n2) - 1.0) <= 1e-6):
             raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {b_C!r}")
-        sig = float(sigma_rad)
+        try:
+            sig = float(sigma_rad)
+        except (TypeError, ValueError):
+            sig = math.nan
         if not (math.isfinite(sig) and sig > 0):
             raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {sigma_rad!r}")
         ids = feature_ids
         if ids is None:
             ids = np.zeros(0, dtype=np.int64)
         elif type(ids) is not np.ndarray or ids.dtype is not _I64 or ids.ndim != 1:
-            ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+            ids = as_numbers("CameraView.feature_ids", ids, np.int64, "integer ids (N,)").reshape(-1)
         fb = feature_b_C
         if fb is None:
             fb = np.zeros((0, 3))
@@ -99,7 +102,7 @@ class CameraView:
             )
         if uv is not None:
             if type(uv) is not np.ndarray or uv.dtype is not _F64 or uv.shape != (2,):
-                uv = np.asarray(uv, dtype=float).reshape(-1)
+                uv = as_numbers("CameraView.uv", uv, float, "a finite pixel (2,) or None").reshape(-1)
                 if uv.shape != (2,):
                     raise InputError(f"CameraView.uv: expected a finite pixel (2,) or None, got {uv!r}")
             u, v = uv.tolist()

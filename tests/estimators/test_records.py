@@ -29,6 +29,14 @@ def test_azimuth_elevation_flu(b_B, az, el):
         (dict(uv=[np.nan, 1.0]), "finite pixel"),
         (dict(uv=np.array([1.0, np.inf])), "finite pixel"),
         (dict(uv=[1.0, 2.0, 3.0]), "finite pixel"),
+        # entries that are not numbers: an InputError naming the field, not numpy's bare ValueError
+        (dict(b_C=["a", "b", "c"]), r"CameraView.b_C: .*not numbers"),
+        (dict(uv=["x", "y"]), r"CameraView.uv: .*not numbers"),
+        (dict(uv={"u": 1}), r"CameraView.uv: .*not numbers"),
+        (dict(sigma_rad="wide"), "positive angle"),
+        (dict(sigma_rad=None), "positive angle"),
+        (dict(feature_ids=["q"], feature_b_C=[[0, 0, 1]]), r"CameraView.feature_ids: .*not numbers"),
+        (dict(feature_ids=[1], feature_b_C=[["a", 0, 1]]), r"CameraView.feature_b_C: .*not numbers"),
     ],
 )
 def test_camera_view_validation(kwargs, match):
