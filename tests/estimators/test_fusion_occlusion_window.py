@@ -1,0 +1,114 @@
+"""A report whose direction passes within the tracked window's angle of the convex hull of another
+track's nearer member points (not inside it, and no single point of it inside the window's angle)
+gets a range sigma that reaches that track's depth (``ObstacleFusion._occluded_by_members``, the
+hull widened by the window angle).
+
+Truth by hand: a mono rig (camera at the body origin, 0.15 deg per px: the window angle of
+feature_window_px 5.5 is 5.5 * 0.15 = 0.825 deg) flies along +x at 5 m/s for 20 frames at 30 fps,
+so the body ends at o = (19 / 6, 0, 0). Track 2: three corners of a far wall at
+(20 + 0.05 i, 6, 0.05 i), i = -1, 0, 1 (17.9-18.0 m from o). Track 1: four corners of a near plate
+halfway along o's ray u toward the far wall's middle corner (~9 m), set off that ray in the
+plane-tangent coordinates (w, v) about u by (a, +-1.0 deg) and (a + 1.0 deg, +-1.0 deg): the
+plate's edge nearest u lies a off it, its nearest corner hypot(a, 1.0) off (> 0.825 deg for every a
+used, so ``_window_neighbours`` leaves the far report). a = 0.6 deg: the edge within the window
+angle of u (the plate's surface, which spans at least its corners' hull, reaches into the window of
+the tracked far corner: the far point may be hidden behind it); a = 1.5 deg: clear of it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from estimators.cameras import Equidistant
+from estimators.egomotion import ConstantVelocity
+from estimators.fusion import FusionSettings, ObstacleFusion
+from estimators.records import CameraView, ObstacleObservation
+from estimators.rig import mono_forward_rig
+
+MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
+FPS = 30.0
+FRAMES = 20
+SPEED = 5.0
+FAR = [np.array([20.0 + 0.05 * i, 6.0, 0.05 * i]) for i in (-1, 0, 1)]
+O_END = np.array([SPEED * (FRAMES - 1) / FPS, 0.0, 0.0])
+
+
+def _near_plate(a_deg: float) -> list[np.ndarray]:
+    """The near plate's four corners, halfway along o_end's ray toward FAR[1], at the tangent-plane
+    offsets (a, +-1), (a + 1, +-1) deg about that ray."""
+    d = FAR[1] - O_END
+    half = 0.5 * float(np.linalg.norm(d))
+    u = d / np.linalg.norm(d)
+    w = np.cross(u, [1.0, 0.0, 0.0])
+    w /= np.linalg.norm(w)
+    v = np.cross(u, w)
+    out = []
+    for x in (a_deg, a_deg + 1.0):
+        for y in (-1.0, 1.0):
+            q = u + math.tan(math.radians(x)) * w + math.tan(math.radians(y)) * v  # (gnomonic offsets)
+            out.append(O_END + half * q / np.linalg.norm(q))
+    return out
+
+
+def _bearing(cam, T_W_B, p_W):
+    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
+    return p_C / np.linalg.norm(p_C)
+
+
+def _far_report(a_deg: float, settings: FusionSettings | None = None):
+    rig = mono_forward_rig(MODEL)
+    ego = ConstantVelocity(SPEED)
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    near = _near_plate(a_deg)
+    cam = rig[rig.names[0]]
+    for k in range(FRAMES):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        obs = []
+        for tid, pts, ids in ((1, near, np.arange(4)), (2, FAR, np.arange(100, 103))):
+            fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
+            obs.append(ObstacleObservation(tid, k, t, "confirmed", (
+                CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids, feature_b_C=fb),)))
+        reps = fus.step(obs, k, t)
+    assert T_W_B.t == pytest.approx(O_END)
+    return next(r for r in reps if r.id == 2)
+
+
+def _angles_deg(a_deg: float, r) -> tuple[float, float]:
+    """(nearest plate corner, the plate's nearest edge) off the far report's direction, deg."""
+    u = np.asarray(r.bearing_body, float)  # (the body frame is W's here: no rotation)
+    u = u / np.linalg.norm(u)
+    P = np.array([(p - O_END) / np.linalg.norm(p - O_END) for p in _near_plate(a_deg)])
+    corner = math.degrees(math.acos(min(1.0, float((P @ u).max()))))
+    # the edge between the two corners at tangent offset a: its great circle's angular distance
+    n = np.cross(P[0], P[1])
+    n /= np.linalg.norm(n)
+    edge = math.degrees(math.asin(abs(float(n @ u))))
+    return corner, edge
+
+
+def test_a_far_point_within_the_window_angle_of_a_nearer_tracks_hull_gets_a_sigma_reaching_it():
+    r = _far_report(0.6)
+    r_far = [float(np.linalg.norm(p - O_END)) for p in FAR]
+    assert min(r_far) - 1e-3 <= r.range_m <= max(r_far) + 1e-3  # a far corner's own point
+    corner, edge = _angles_deg(0.6, r)
+    assert corner > 0.825 + 0.05  # no single plate point inside the window angle
+    assert edge < 0.825 - 0.05  # the plate's hull within it
+    r_near = [float(np.linalg.norm(p - O_END)) for p in _near_plate(0.6)]
+    assert r.range_sigma_m >= r.range_m - float(np.median(r_near)) - 1e-6
+    # the widening is the window margin's: the same scene with the window terms off
+    r_off = _far_report(0.6, FusionSettings(feature_window_px=0.0))
+    assert r_off.range_m == pytest.approx(r.range_m)
+    assert r_off.range_sigma_m < 0.1 * (r.range_m - max(r_near))
+
+
+def test_a_far_point_beyond_the_window_angle_of_the_hull_keeps_its_sigma():
+    r = _far_report(1.5)
+    _corner, edge = _angles_deg(1.5, r)
+    assert edge > 0.825 + 0.05
+    r_off = _far_report(1.5, FusionSettings(feature_window_px=0.0))
+    assert r.range_m == pytest.approx(r_off.range_m)
+    assert r.range_sigma_m == r_off.range_sigma_m < 1.0
