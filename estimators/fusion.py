@@ -1112,6 +1112,8 @@ def _polar_enclosed(ang: np.ndarray, grp: np.ndarray, n: int) -> np.ndarray:
     """Mask (n,): the groups grp (K,) in [0, n) whose points, at polar angles ang (K,) rad about
     an origin, enclose it: no half-plane through the origin holds them all, i.e. the largest gap
     between their sorted angles (with the wrap) is below pi (False for an empty group)."""
+    if not len(ang):
+        return np.zeros(n, dtype=bool)
     order = np.lexsort((ang, grp))
     a_s, q_s = ang[order], grp[order]
     cnt = np.bincount(grp, minlength=n)
