@@ -36,18 +36,22 @@ FAR = [np.array([20.0 + 0.05 * i, 6.0, 0.05 * i]) for i in (-1, 0, 1)]
 O_END = np.array([SPEED * (FRAMES - 1) / FPS, 0.0, 0.0])
 
 
-def _near_plate(a_deg: float) -> list[np.ndarray]:
+def _near_plate(a_deg: float, width_deg: float = 1.0, half_deg: float = 1.0,
+                phi_deg: float = 0.0) -> list[np.ndarray]:
     """The near plate's four corners, halfway along o_end's ray toward FAR[1], at the tangent-plane
-    offsets (a, +-1), (a + 1, +-1) deg about that ray."""
+    offsets (a, +-half), (a + width, +-half) deg about that ray, in axes (w, v) turned by phi about
+    it."""
     d = FAR[1] - O_END
     half = 0.5 * float(np.linalg.norm(d))
     u = d / np.linalg.norm(d)
-    w = np.cross(u, [1.0, 0.0, 0.0])
-    w /= np.linalg.norm(w)
-    v = np.cross(u, w)
+    w0 = np.cross(u, [1.0, 0.0, 0.0])
+    w0 /= np.linalg.norm(w0)
+    v0 = np.cross(u, w0)
+    c, s_ = math.cos(math.radians(phi_deg)), math.sin(math.radians(phi_deg))
+    w, v = c * w0 + s_ * v0, -s_ * w0 + c * v0
     out = []
-    for x in (a_deg, a_deg + 1.0):
-        for y in (-1.0, 1.0):
+    for x in (a_deg, a_deg + width_deg):
+        for y in (-half_deg, half_deg):
             q = u + math.tan(math.radians(x)) * w + math.tan(math.radians(y)) * v  # (gnomonic offsets)
             out.append(O_END + half * q / np.linalg.norm(q))
     return out
@@ -58,11 +62,11 @@ def _bearing(cam, T_W_B, p_W):
     return p_C / np.linalg.norm(p_C)
 
 
-def _far_report(a_deg: float, settings: FusionSettings | None = None):
+def _far_report(a_deg: float, settings: FusionSettings | None = None, **plate):
     rig = mono_forward_rig(MODEL)
     ego = ConstantVelocity(SPEED)
     fus = ObstacleFusion(rig, ego, settings or FusionSettings())
-    near = _near_plate(a_deg)
+    near = _near_plate(a_deg, **plate)
     cam = rig[rig.names[0]]
     for k in range(FRAMES):
         t = k / FPS
@@ -77,11 +81,11 @@ def _far_report(a_deg: float, settings: FusionSettings | None = None):
     return next(r for r in reps if r.id == 2)
 
 
-def _angles_deg(a_deg: float, r) -> tuple[float, float]:
+def _angles_deg(a_deg: float, r, **plate) -> tuple[float, float]:
     """(nearest plate corner, the plate's nearest edge) off the far report's direction, deg."""
     u = np.asarray(r.bearing_body, float)  # (the body frame is W's here: no rotation)
     u = u / np.linalg.norm(u)
-    P = np.array([(p - O_END) / np.linalg.norm(p - O_END) for p in _near_plate(a_deg)])
+    P = np.array([(p - O_END) / np.linalg.norm(p - O_END) for p in _near_plate(a_deg, **plate)])
     corner = math.degrees(math.acos(min(1.0, float((P @ u).max()))))
     # the edge between the two corners at tangent offset a: its great circle's angular distance
     n = np.cross(P[0], P[1])
@@ -112,3 +116,42 @@ def test_a_far_point_beyond_the_window_angle_of_the_hull_keeps_its_sigma():
     r_off = _far_report(1.5, FusionSettings(feature_window_px=0.0))
     assert r.range_m == pytest.approx(r_off.range_m)
     assert r.range_sigma_m == r_off.range_sigma_m < 1.0
+
+
+def test_a_hull_within_the_window_angle_is_found_when_the_report_lies_outside_the_tracks_cap():
+    """The pre-selection by track (the cap about the near points' mean direction) must reach the
+    window's angle past it: a plate 2 deg long toward the report and 1.4 deg high, its nearest edge
+    0.6 deg off u, its corners' cap (radius hypot(1, 0.7) = 1.22 deg about the plate's middle)
+    1.6 deg from u, so u is 0.38 deg outside the cap and 0.6 deg from the hull."""
+    plate = {"width_deg": 2.0, "half_deg": 0.7}
+    r = _far_report(0.6, **plate)
+    corner, edge = _angles_deg(0.6, r, **plate)
+    assert corner > 0.825 + 0.05 and edge < 0.825 - 0.05
+    u = np.asarray(r.bearing_body, float) / np.linalg.norm(r.bearing_body)
+    P = np.array([(p - O_END) / np.linalg.norm(p - O_END) for p in _near_plate(0.6, **plate)])
+    c = P.sum(axis=0) / np.linalg.norm(P.sum(axis=0))
+    cap = max(math.degrees(math.acos(min(1.0, float(p @ c)))) for p in P)
+    assert math.degrees(math.acos(float(u @ c))) > cap + 0.3  # u outside the cap of the plate
+    r_near = [float(np.linalg.norm(p - O_END)) for p in _near_plate(0.6, **plate)]
+    assert r.range_sigma_m >= r.range_m - float(np.median(r_near)) - 1e-6
+
+
+@pytest.mark.parametrize("phi_deg", [0.0, 22.5, 45.0, 67.5])
+def test_the_hull_is_widened_by_at_least_0_92_window_angles_in_every_direction(phi_deg):
+    """The regular octagon about each point (circumradius tan(rho)) widens the hull by at least
+    tan(rho) cos(pi / 8) in every direction, 0.762 deg for rho = 0.825 deg: a plate edge 0.72 deg
+    off u is within it however the plate is turned about u (a square, inradius 0.71 rho = 0.58 deg,
+    would miss it for turns more than 29 deg off its vertices, one of these four turns at least)."""
+    plate = {"phi_deg": phi_deg}
+    r = _far_report(0.72, **plate)
+    corner, edge = _angles_deg(0.72, r, **plate)
+    assert corner > 0.825 + 0.05 and edge < 0.762 - 0.02
+    r_near = [float(np.linalg.norm(p - O_END)) for p in _near_plate(0.72, **plate)]
+    assert r.range_sigma_m >= r.range_m - float(np.median(r_near)) - 1e-6
+
+
+def test_the_widened_hull_still_needs_occluder_min_members_points():
+    """Four plate corners within the window angle's reach, but occluder_min_members 5: no hull."""
+    r = _far_report(0.6, FusionSettings(occluder_min_members=5))
+    r_near = [float(np.linalg.norm(p - O_END)) for p in _near_plate(0.6)]
+    assert r.range_sigma_m < 0.1 * (r.range_m - max(r_near))
