@@ -42,19 +42,35 @@ def check_shape(name: str, arr, shape: tuple) -> None:
 
 def as_numbers(name: str, value, dtype, expected: str):
     """``value`` as a numpy array of ``dtype``; InputError naming ``name`` and ``expected`` when
-    its entries are not numbers (numpy's own ValueError or TypeError says neither).
+    its entries are not numbers (numpy's own ValueError or TypeError says neither), lie outside
+    ``dtype``'s range (numpy's or Python's OverflowError), or, for an integer ``dtype``, are not
+    whole numbers (numpy would cut 1.5 to 1 and NaN to -2**63 without a word).
 
     >>> as_numbers("uv", ["x", 1], float, "a pixel (2,)")
     Traceback (most recent call last):
     ...
     estimators.errors.InputError: uv: expected a pixel (2,), got ['x', 1] (not numbers)
+    >>> as_numbers("ids", [3, 1.5], int, "integer ids (N,)")
+    Traceback (most recent call last):
+    ...
+    estimators.errors.InputError: ids: expected integer ids (N,), got [3, 1.5] (not whole numbers)
     """
     import numpy as np
 
     try:
-        return np.asarray(value, dtype=dtype)
-    except (TypeError, ValueError):
+        with np.errstate(invalid="ignore"):  # (a float NaN cast to an integer: refused below)
+            a = np.asarray(value, dtype=dtype)
+        if a.dtype.kind in "iu" and np.asarray(value).dtype.kind not in "iu":
+            # (float, bool, str or object entries: whole numbers only, compared as floats)
+            if not np.array_equal(a, np.asarray(value, dtype=float)):
+                raise InputError(f"{name}: expected {expected}, got {value!r} (not whole numbers)")
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
         raise InputError(f"{name}: expected {expected}, got {value!r} (not numbers)") from None
+    except OverflowError:
+        raise InputError(f"{name}: expected {expected}, got {value!r} (out of range)") from None
+    return a
 
 
 def check_rows(name: str, arr, ncols: int, dtype=float):

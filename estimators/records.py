@@ -73,7 +73,7 @@ class CameraView:
             raise InputError(f"CameraView.b_C: expected a finite unit 3-vector, got {b_C!r}")
         try:
             sig = float(sigma_rad)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             sig = math.nan
         if not (math.isfinite(sig) and sig > 0):
             raise InputError(f"CameraView.sigma_rad: expected a positive angle, got {sigma_rad!r}")
@@ -112,7 +112,7 @@ class CameraView:
         d["camera"] = camera
         d["b_C"] = b
         d["uv"] = uv
-        d["sigma_rad"] = sigma_rad
+        d["sigma_rad"] = sig  # (a float: not the input, which may be a string float() reads)
         d["feature_ids"] = ids
         d["feature_b_C"] = fb
 
@@ -153,10 +153,18 @@ class ObstacleObservation:
             raise InputError(f"ObstacleObservation.status: expected one of {TRACK_STATUSES}, got {status!r}")
         try:
             finite = math.isfinite(t_s)  # a float (or numpy float); 0.05 us against np.isfinite's 1.5
-        except TypeError:
+        except (TypeError, OverflowError):
             finite = False
         if not finite:
             raise InputError(f"ObstacleObservation.t_s: expected a finite time, got {t_s!r}")
+        # (the track id: a dict key in the fusion, int() in the output)
+        if type(track_id) is not int and not isinstance(track_id, np.integer):  # (bool: not int's type)
+            raise InputError(f"ObstacleObservation.track_id: expected an integer id, got {track_id!r}")
+        if type(views) is not tuple and type(views) is not list:
+            raise InputError(f"ObstacleObservation.views: expected a tuple of CameraView, got {views!r}")
+        for v in views:
+            if type(v) is not CameraView:
+                raise InputError(f"ObstacleObservation.views: expected a tuple of CameraView, got {views!r}")
         if len(views) > 1:
             names = [v.camera for v in views]
             if len(set(names)) != len(names):

@@ -37,6 +37,17 @@ def test_azimuth_elevation_flu(b_B, az, el):
         (dict(sigma_rad=None), "positive angle"),
         (dict(feature_ids=["q"], feature_b_C=[[0, 0, 1]]), r"CameraView.feature_ids: .*not numbers"),
         (dict(feature_ids=[1], feature_b_C=[["a", 0, 1]]), r"CameraView.feature_b_C: .*not numbers"),
+        # beyond float64 / int64 (Python's or numpy's bare OverflowError before)
+        (dict(b_C=[10**400, 0, 0]), r"CameraView.b_C: .*out of range"),
+        (dict(uv=[10**400, 0]), r"CameraView.uv: .*out of range"),
+        (dict(sigma_rad=10**400), "positive angle"),
+        (dict(feature_ids=[2**70], feature_b_C=[[0, 0, 1]]), r"CameraView.feature_ids: .*out of range"),
+        (dict(feature_ids=[1e30], feature_b_C=[[0, 0, 1]]), r"CameraView.feature_ids: .*out of range"),
+        (dict(feature_ids=[1], feature_b_C=[[10**400, 0, 1]]), r"CameraView.feature_b_C: .*out of range"),
+        # ids that are not whole numbers (numpy cut 1.5 to 1 and NaN to -2**63 before, silently)
+        (dict(feature_ids=[1.5], feature_b_C=[[0, 0, 1]]), r"CameraView.feature_ids: .*not whole numbers"),
+        (dict(feature_ids=np.array([np.nan]), feature_b_C=[[0, 0, 1]]),
+         r"CameraView.feature_ids: .*not whole numbers"),
     ],
 )
 def test_camera_view_validation(kwargs, match):
@@ -82,6 +93,27 @@ def test_observation_rejects_a_non_finite_or_non_numeric_time():
         with pytest.raises(InputError, match="finite time"):
             ObstacleObservation(1, 0, t_s, "confirmed", (v,))
     assert ObstacleObservation(1, 0, np.float32(0.5), "confirmed", (v,)).t_s == 0.5
+
+
+def test_camera_view_keeps_numbers_it_reads():
+    """sigma_rad is kept as the float it was read as (a string '0.01' was stored as the string before,
+    to fail later in the fusion's arithmetic); whole-number float ids become int64."""
+    v = CameraView("cam0", [0, 0, 1], [1, 1], "0.01", np.array([3.0, 4.0]), [[0, 0, 1], [0, 0, 1]])
+    assert type(v.sigma_rad) is float and v.sigma_rad == 0.01
+    assert v.feature_ids.dtype == np.int64 and v.feature_ids.tolist() == [3, 4]
+
+
+def test_observation_rejects_a_time_beyond_float64_an_id_not_an_integer_and_views_not_camera_views():
+    v = CameraView("cam0", [0, 0, 1], [0, 0], 0.01)
+    with pytest.raises(InputError, match="finite time"):
+        ObstacleObservation(1, 0, 10**400, "confirmed", (v,))  # (OverflowError before)
+    for tid in ("x", 1.5, None, True):
+        with pytest.raises(InputError, match="ObstacleObservation.track_id: expected an integer id"):
+            ObstacleObservation(tid, 0, 0.0, "confirmed", (v,))
+    for views in (None, 5, ("cam0",), [v, "cam1"]):  # (TypeError, AttributeError or accepted before)
+        with pytest.raises(InputError, match="ObstacleObservation.views: expected a tuple of CameraView"):
+            ObstacleObservation(1, 0, 0.0, "confirmed", views)
+    assert ObstacleObservation(np.int64(7), 0, 0.0, "lost", ()).track_id == 7
 
 
 def test_observation_rejects_bad_status_and_duplicate_cameras():
