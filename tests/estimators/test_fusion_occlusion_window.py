@@ -23,17 +23,13 @@ import numpy as np
 import pytest
 
 from estimators.cameras import Equidistant
-from estimators.egomotion import ConstantVelocity
-from estimators.fusion import FusionSettings, ObstacleFusion
-from estimators.records import CameraView, ObstacleObservation
+from estimators.fusion import FusionSettings
 from estimators.rig import mono_forward_rig
+from tests.estimators.fusion_helpers import WALL_FAR, WALL_O_END, far_wall_report
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
-FPS = 30.0
-FRAMES = 20
-SPEED = 5.0
-FAR = [np.array([20.0 + 0.05 * i, 6.0, 0.05 * i]) for i in (-1, 0, 1)]
-O_END = np.array([SPEED * (FRAMES - 1) / FPS, 0.0, 0.0])
+FAR = WALL_FAR
+O_END = WALL_O_END
 
 
 def _near_plate(a_deg: float, width_deg: float = 1.0, half_deg: float = 1.0,
@@ -57,28 +53,8 @@ def _near_plate(a_deg: float, width_deg: float = 1.0, half_deg: float = 1.0,
     return out
 
 
-def _bearing(cam, T_W_B, p_W):
-    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-    return p_C / np.linalg.norm(p_C)
-
-
 def _far_report(a_deg: float, settings: FusionSettings | None = None, **plate):
-    rig = mono_forward_rig(MODEL)
-    ego = ConstantVelocity(SPEED)
-    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
-    near = _near_plate(a_deg, **plate)
-    cam = rig[rig.names[0]]
-    for k in range(FRAMES):
-        t = k / FPS
-        T_W_B = ego.pose_at(t)
-        obs = []
-        for tid, pts, ids in ((1, near, np.arange(4)), (2, FAR, np.arange(100, 103))):
-            fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
-            obs.append(ObstacleObservation(tid, k, t, "confirmed", (
-                CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids, feature_b_C=fb),)))
-        reps = fus.step(obs, k, t)
-    assert T_W_B.t == pytest.approx(O_END)
-    return next(r for r in reps if r.id == 2)
+    return far_wall_report(mono_forward_rig(MODEL), _near_plate(a_deg, **plate), settings)
 
 
 def _angles_deg(a_deg: float, r, **plate) -> tuple[float, float]:

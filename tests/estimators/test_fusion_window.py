@@ -21,15 +21,13 @@ import pytest
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
 from estimators.fusion import FusionSettings, ObstacleFusion
-from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import mono_forward_rig, stereo_forward_rig
+from tests.estimators.fusion_helpers import WALL_FAR, WALL_O_END, WALL_SPEED, far_wall_report
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
-FPS = 30.0
-FRAMES = 20
-SPEED = 5.0
-FAR = [np.array([20.0 + 0.05 * i, 6.0, 0.05 * i]) for i in (-1, 0, 1)]
-O_END = np.array([SPEED * (FRAMES - 1) / FPS, 0.0, 0.0])
+SPEED = WALL_SPEED
+FAR = WALL_FAR
+O_END = WALL_O_END
 
 
 def _near_plate(off_deg: float) -> list[np.ndarray]:
@@ -45,28 +43,8 @@ def _near_plate(off_deg: float) -> list[np.ndarray]:
     return [p0, p0 + 0.3 * w, p0 + 0.3 * w + 0.3 * v]  # (away from the far corners: not around them)
 
 
-def _bearing(cam, T_W_B, p_W):
-    p_C = (cam.T_C_B @ T_W_B.inverse()).apply(p_W)
-    return p_C / np.linalg.norm(p_C)
-
-
 def _far_report(off_deg: float, settings: FusionSettings | None = None):
-    rig = mono_forward_rig(MODEL)
-    ego = ConstantVelocity(SPEED)
-    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
-    near = _near_plate(off_deg)
-    cam = rig[rig.names[0]]
-    for k in range(FRAMES):
-        t = k / FPS
-        T_W_B = ego.pose_at(t)
-        obs = []
-        for tid, pts, ids in ((1, near, np.arange(3)), (2, FAR, np.arange(100, 103))):
-            fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
-            obs.append(ObstacleObservation(tid, k, t, "confirmed", (
-                CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids, feature_b_C=fb),)))
-        reps = fus.step(obs, k, t)
-    assert T_W_B.t == pytest.approx(O_END)
-    return next(r for r in reps if r.id == 2)
+    return far_wall_report(mono_forward_rig(MODEL), _near_plate(off_deg), settings)
 
 
 def test_a_member_point_at_another_depth_inside_the_window_angle_widens_the_sigma():
@@ -100,23 +78,7 @@ def test_the_window_angle_follows_the_rig_focal_length():
 def _far_report_stereo(off_deg: float, settings: FusionSettings | None = None):
     """The scene above seen by a stereo rig (baseline 0.3 m, cam0 at y = +0.15 m): both tracks in
     both cameras, every ray exact."""
-    rig = stereo_forward_rig(MODEL, 0.30)
-    ego = ConstantVelocity(SPEED)
-    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
-    near = _near_plate(off_deg)
-    for k in range(FRAMES):
-        t = k / FPS
-        T_W_B = ego.pose_at(t)
-        obs = []
-        for tid, pts, ids in ((1, near, np.arange(3)), (2, FAR, np.arange(100, 103))):
-            views = []
-            for cam in rig:
-                fb = np.array([_bearing(cam, T_W_B, p) for p in pts])
-                views.append(CameraView(cam.name, fb[1].copy(), np.zeros(2), 1e-3, feature_ids=ids,
-                                        feature_b_C=fb))
-            obs.append(ObstacleObservation(tid, k, t, "confirmed", tuple(views)))
-        reps = fus.step(obs, k, t)
-    return next(r for r in reps if r.id == 2)
+    return far_wall_report(stereo_forward_rig(MODEL, 0.30), _near_plate(off_deg), settings)
 
 
 def test_on_a_stereo_rig_a_member_point_inside_the_window_angle_widens_the_sigma_too():
