@@ -105,6 +105,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -480,7 +481,8 @@ class FusionSettings:
             (any track's) lies within the tracked window's angle of its direction at another depth
             beyond their joint noise: max_i (r_i - r)^2 - s_i^2 - var0 (``_window_neighbours``). The
             angle is this half-width of the front end's KLT window (px; trackers FeatureTracker
-            win_px 11) over the rig's px per rad (as feature_sigma_focal_px's f): a window that
+            win_px 11, in tracked px: see ObstacleFusion's pixel_scale) over the rig's px per rad
+            (as feature_sigma_focal_px's f): a window that
             holds a second surface (a T-junction of a near outline and a farther surface, a curved
             obstacle's limb, a point a nearer obstacle is passing) moves with a blend of two
             parallaxes, which on a mono rig fits a static point at a wrong depth as well as a real
@@ -1245,23 +1247,46 @@ class ObstacleFusion:
         rig: the cameras (names, models, ``T_C_B`` mounts).
         egomotion: ``T_W_B(t_s)`` and the drone's velocity; times it does not cover raise InputError.
         settings: :class:`FusionSettings`.
+        pixel_scale: per camera name, the scale of the images its features are tracked in (the
+            front end's ``FrontEnd.scale``, ``trackers.frontend.tracked_scale``: a frame wider than
+            its max_width is tracked downscaled); None or a missing camera: 1, the full frame. The
+            settings' pixel quantities (feature_sigma_focal_px's f, feature_window_px) are of
+            tracked pixels, so a rig's px per rad is taken at that scale.
 
     Attributes:
         timings: the last step's seconds in ``estimate`` (triangulations, bounds) and ``fuse`` (filters).
     """
 
-    def __init__(self, rig: Rig, egomotion: EgoMotion, settings: FusionSettings | None = None):
+    def __init__(
+        self,
+        rig: Rig,
+        egomotion: EgoMotion,
+        settings: FusionSettings | None = None,
+        pixel_scale: Mapping[str, float] | None = None,
+    ):
         self.rig = rig
         self.egomotion = egomotion
         s = settings or FusionSettings()
+        scale = {} if pixel_scale is None else dict(pixel_scale)
+        for name, k in scale.items():
+            try:
+                scale[name] = float(k)
+            except (TypeError, ValueError):
+                scale[name] = math.nan
+            if not (math.isfinite(scale[name]) and 0.0 < scale[name] <= 1.0):
+                raise InputError(
+                    f"ObstacleFusion pixel_scale['{name}']: expected the scale of the images the "
+                    f"features are tracked in, in (0, 1], got {k!r}"
+                )
         f_ref = s.feature_sigma_focal_px
         f_rig = None
         if len(rig):
             # f: px per rad at the image centre, d uv / d b_C on the optical axis (fx, fy for
-            # Equidistant; fx / (1 + xi) for DoubleSphere)
+            # Equidistant; fx / (1 + xi) for DoubleSphere), of the images the features are tracked
+            # in (a frame wider than the front end's max_width is tracked downscaled: pixel_scale)
             axis = np.array([[0.0, 0.0, 1.0]])
             f_rig = min(float(np.min(np.abs(np.diagonal(c.model.bearing_to_pixel_jacobian(axis)[0]))))
-                        for c in rig)
+                        * scale.get(c.name, 1.0) for c in rig)
         # a feature's error is a pixel error (see the setting)
         if f_ref is not None and f_rig is not None and f_rig < f_ref * (1.0 - 1e-9):
             # (rounding of the Jacobian: equal focal lengths stay equal)

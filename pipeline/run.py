@@ -56,6 +56,7 @@ __all__ = [
     "build_egomotion",
     "build_frontend",
     "build_fusion",
+    "tracked_pixel_scale",
     "open_inputs",
     "run",
     "run_batch",
@@ -256,11 +257,21 @@ def build_frontend(cfg: PipelineConfig, rig: Any) -> Any:
         raise ConfigError(f"detector.options / tracker: {e}") from None
 
 
+def tracked_pixel_scale(cfg: PipelineConfig, rig: Any) -> dict[str, float]:
+    """Per camera, the scale its features are tracked at by the front end ``cfg`` configures
+    (``trackers.frontend.tracked_scale`` of its max_width): fusion's ``pixel_scale``."""
+    from trackers.frontend import MAX_WIDTH_PX, tracked_scale
+
+    return tracked_scale(rig, cfg.tracker.frontend_options().get("max_width", MAX_WIDTH_PX))
+
+
 def build_fusion(cfg: PipelineConfig, rig: Any, egomotion: Any) -> Any:
-    """``estimators.fusion.ObstacleFusion(rig, egomotion, FusionSettings(**fusion))``."""
+    """``estimators.fusion.ObstacleFusion(rig, egomotion, FusionSettings(**fusion), pixel_scale)``,
+    pixel_scale the front end's (``tracked_pixel_scale``)."""
     from estimators.fusion import FusionSettings, ObstacleFusion
 
-    return ObstacleFusion(rig, egomotion, FusionSettings(**cfg.fusion.settings_kwargs()))
+    return ObstacleFusion(rig, egomotion, FusionSettings(**cfg.fusion.settings_kwargs()),
+                          pixel_scale=tracked_pixel_scale(cfg, rig))
 
 
 def wants_grey(cfg: PipelineConfig) -> bool:

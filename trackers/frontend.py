@@ -24,7 +24,7 @@ import numpy as np
 from estimators.errors import ConfigError, InputError
 from estimators.geometry import _isin
 from estimators.records import CameraView, ObstacleObservation
-from estimators.rig import Camera
+from estimators.rig import Camera, Rig
 from trackers.association import (
     BoxStereo,
     box_pairs,
@@ -51,6 +51,25 @@ _OPTION_GROUPS = (
     "densify_below",
     "densify_every",
 )
+
+
+MAX_WIDTH_PX = 1280  # the front end's default max_width
+
+
+def tracked_scale(rig: Rig, max_width: int | None = MAX_WIDTH_PX) -> dict[str, float]:
+    """Per camera name, the scale of the images its features are tracked in (1.0: the full frame):
+    frames wider than ``max_width`` px are tracked downscaled to that width, the camera model scaled
+    alike, so bearings are unchanged but a tracked pixel (the KLT window, a feature's pixel noise)
+    spans 1 / scale of the frame's pixels. ``None``: never downscaled.
+
+    Raises ConfigError for a max_width that is not an integer >= 64 px or None.
+    """
+    if max_width is not None and (not isinstance(max_width, int) or max_width < 64):
+        raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {max_width!r}")
+    return {
+        c.name: (1.0 if max_width is None or c.model.width <= max_width else max_width / c.model.width)
+        for c in rig.cameras
+    }
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -244,16 +263,11 @@ class FrontEnd:
             )
         # frames wider than max_width are tracked downscaled (the camera model scaled alike, so
         # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
-        mw = options.get("max_width", 1280)
-        if mw is not None and (not isinstance(mw, int) or mw < 64):
-            raise ConfigError(f"FrontEnd: max_width expected an integer >= 64 px or None, got {mw!r}")
+        self.scale = tracked_scale(rig, options.get("max_width", MAX_WIDTH_PX))
         self.densify_below = int(options.get("densify_below", 8))
         self.densify_every = int(options.get("densify_every", 2))
         self._densified: dict[int, int] = {}  # track id -> frame of its last densify
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
-        self.scale = {
-            c.name: (1.0 if mw is None or c.model.width <= mw else mw / c.model.width) for c in rig.cameras
-        }
         self.cams = {
             c.name: c
             if self.scale[c.name] == 1.0

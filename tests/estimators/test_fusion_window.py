@@ -20,6 +20,7 @@ import pytest
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
+from estimators.errors import InputError
 from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.rig import mono_forward_rig, stereo_forward_rig
 from tests.estimators.fusion_helpers import WALL_FAR, WALL_O_END, WALL_SPEED, far_wall_report
@@ -73,6 +74,35 @@ def test_the_window_angle_follows_the_rig_focal_length():
                             ConstantVelocity(SPEED))
     assert fus._window_rad == pytest.approx(5.5 * math.radians(0.15))
     assert coarse._window_rad == pytest.approx(2.0 * fus._window_rad)
+
+
+def test_a_frame_tracked_downscaled_takes_the_angle_of_its_tracked_pixels():
+    """A 1920-px-wide lens of 0.10 deg per px tracked downscaled to 1280 px (the front end's
+    max_width: pixel_scale 2/3) tracks 0.15 deg pixels: the 5.5-px half-window is 5.5 x 0.15 deg,
+    as on MODEL, not 5.5 x 0.10 deg (the full frame's pixels)."""
+    wide = mono_forward_rig(Equidistant.from_deg_per_px(0.10, 1920, 1920))
+    full = ObstacleFusion(wide, ConstantVelocity(SPEED))
+    tracked = ObstacleFusion(wide, ConstantVelocity(SPEED), pixel_scale={"cam0": 1280 / 1920})
+    assert full._window_rad == pytest.approx(5.5 * math.radians(0.10))
+    assert tracked._window_rad == pytest.approx(5.5 * math.radians(0.15))
+    # the feature sigma's pixel part likewise: a 2560-px lens of 0.15 deg per px tracked at half
+    # scale has 0.30 deg pixels, as a 1280-px lens of 0.30 deg per px (coarser than the reference
+    # focal length 204.5 px/rad: sigma x 204.5 / (1 / 0.30 deg))
+    coarse = ObstacleFusion(mono_forward_rig(Equidistant.from_deg_per_px(0.30, 1280, 1280)),
+                            ConstantVelocity(SPEED))
+    halved = ObstacleFusion(mono_forward_rig(Equidistant.from_deg_per_px(0.15, 2560, 2560)),
+                            ConstantVelocity(SPEED), pixel_scale={"cam0": 0.5})
+    s0 = FusionSettings().feature_sigma_rad
+    want = s0 * FusionSettings().feature_sigma_focal_px * math.radians(0.30)
+    assert coarse.settings.feature_sigma_rad == pytest.approx(want)
+    assert halved.settings.feature_sigma_rad == pytest.approx(want)
+    assert halved._window_rad == pytest.approx(coarse._window_rad)
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.5, 1.5, float("nan"), "half", None])
+def test_a_pixel_scale_outside_0_1_is_refused(bad):
+    with pytest.raises(InputError, match=r"pixel_scale\['cam0'\].*\(0, 1\]"):
+        ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(SPEED), pixel_scale={"cam0": bad})
 
 
 def _far_report_stereo(off_deg: float, settings: FusionSettings | None = None):

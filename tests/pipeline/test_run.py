@@ -501,3 +501,20 @@ def test_frozen_gc_unfreezes_when_the_loop_raises():
         assert gc.get_freeze_count() > 0
         raise KeyboardInterrupt
     assert gc.get_freeze_count() == 0
+
+
+@pytest.mark.parametrize("max_width, scale", [(None, 1280 / 1920), (960, 0.5), (2048, 1.0)])
+def test_fusion_takes_the_scale_the_front_end_tracks_at(max_width, scale):
+    """A 1920-px-wide lens of 0.10 deg per px: the front end tracks it downscaled to max_width
+    (default 1280 px), and the fusion built from the same config takes its pixel quantities (the
+    5.5-px half-window) at that scale: 5.5 x 0.10 deg / scale."""
+    import math
+
+    from estimators.cameras import Equidistant
+    from estimators.rig import mono_forward_rig
+
+    rig = mono_forward_rig(Equidistant.from_deg_per_px(0.10, 1920, 1920))
+    cfg = load_config(None, overrides=[] if max_width is None else [f"tracker.max_width={max_width}"])
+    assert run_mod.build_frontend(cfg, rig).scale == {"cam0": pytest.approx(scale)}
+    fusion = run_mod.build_fusion(cfg, rig, ConstantVelocity(5.0))
+    assert fusion._window_rad == pytest.approx(5.5 * math.radians(0.10) / scale)
