@@ -518,7 +518,7 @@ class FusionSettings:
             than it beyond their joint noise (``_occluded_by_members``) is hidden from the body
             origin by that track's surface: its range sigma reaches the depth of those points
             (0 = off). Default 3 (the fewest points that enclose a direction). The hull is widened
-            by the tracked window's angle (feature_window_px over the rig's px per rad): a nearer
+            by the tracked window's angle (feature_window_px's, as for _window_neighbours): a nearer
             surface that comes within it reaches into the reported point's own KLT window (not
             fitted: the window's half-width, as feature_window_px's term). Replays over the
             recorded front end of 27e4165 (accuracy --set all, tuned | held-out | validation |
@@ -1125,7 +1125,7 @@ def _polar_enclosed(ang: np.ndarray, grp: np.ndarray, n: int) -> np.ndarray:
     gmax = np.zeros(n)
     if len(gaps):
         np.maximum.at(gmax, q_s[1:], gaps)
-    last = np.maximum(start + cnt - 1, 0)
+    last = start + cnt - 1  # (an empty group's -1 or len: clamped below, masked by cnt > 0)
     wrap = a_s[np.minimum(start, len(a_s) - 1)] + 2.0 * math.pi - a_s[np.minimum(last, len(a_s) - 1)]
     return (cnt > 0) & (np.maximum(gmax, wrap) < math.pi)
 
@@ -3413,10 +3413,10 @@ class ObstacleFusion:
         that track's surface spans the bearing in front of the reported point, and the range along
         the bearing is that surface's: the term is r - median(r_i) (the report stays: its point is
         real, but its bearing is not clear up to its range). The hull is widened by the tracked
-        window's angle rho (``_window_neighbours``' angle, feature_window_px over the rig's px per
-        rad): the nearer surface spans at least its points' hull, and when it comes within rho of
-        u it reaches into the window the front end tracks the reported point by, so that point may
-        be a corner the surface is passing over (its window a blend of two depths, the window
+        window's angle rho (``_window_neighbours``' angle: feature_window_px over the px per rad of
+        the tracked images): the nearer surface spans at least its points' hull, and when it comes
+        within rho of u it reaches into the window the front end tracks the reported point by, so
+        that point may be a corner the surface is passing over (its window a blend of two depths, the window
         term's model) or already behind it (val_turning, with the mono outline rule: track 73's
         point at 17.7 m, its ray on a nearer box at 7.4-8.1 m, 1.0-1.6 deg outside the hull of
         the box's track's points, none of them within rho: z^2 70-2039). The hull test: the points
