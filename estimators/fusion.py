@@ -476,36 +476,6 @@ class FusionSettings:
             points nearest its direction and in its depth cluster (``_stereo_neighbours``; 0 = off).
             Default 3 (the fewest that surround a direction; the tuned stereo_hover's sphere limb
             needs 3, 2 leave it).
-        feature_window_px: a report ranged by a member feature's static point
-            (``feature_point``) gets a range-sigma term when a static member point of this frame
-            (any track's) lies within the tracked window's angle of its direction at another depth
-            beyond their joint noise: max_i (r_i - r)^2 - s_i^2 - var0 (``_window_neighbours``). The
-            angle is this half-width of the front end's KLT window (px; trackers FeatureTracker
-            win_px 11, in tracked px: see ObstacleFusion's pixel_scale) over the rig's px per rad
-            (as feature_sigma_focal_px's f): a window that
-            holds a second surface (a T-junction of a near outline and a farther surface, a curved
-            obstacle's limb, a point a nearer obstacle is passing) moves with a blend of two
-            parallaxes, which on a mono rig fits a static point at a wrong depth as well as a real
-            point fits its own (renderer truth over tuned/held-out/validation mono_straight-family
-            scenes and thesis_speed_15mps: the chosen feature's chi, its rays' spread across their
-            epipolar plane and its short-memory slide statistic do not separate the reports with
-            z^2 > 25 from the rest). 0 = off. Default 5.5 (not fitted: the window's half-width).
-            Replays over one recording of 7ca8491's front end (accuracy --set all, tuned |
-            held-out | validation | demo), off -> on: range NEES 0.944 -> 0.924 | 1.416 -> 1.280 |
-            1.660 -> 1.485 | 1.018, median z^2 0.208 -> 0.196 | 0.186 -> 0.166 | 0.207 -> 0.186,
-            z^2 > 9 1.32 -> 1.22 | 1.41 -> 1.27 | 2.69 -> 2.13 %, 1-sigma 76.92 -> 77.34 | 78.59 ->
-            79.89 | 76.23 -> 77.97 %; ranges, coverage and (the term then on mono rigs only) stereo
-            rigs unchanged. The tuned NEES, already below its interval (0.951), moves further below: a trade.
-            On stereo rigs too (with stereo_point_sigma_k 1.0; replays over one recording of
-            7a24c93's front end, tuned | held-out | validation | demo, mono only -> every rig):
-            range NEES 0.954 -> 0.940 | 1.032 -> 0.983 | 1.537 -> 1.491 | 1.207 -> 1.006 (in its
-            interval again: the demo's moving box, track 70, and 5 of its reports with z^2 > 9 are
-            caught), median z^2 0.208 -> 0.196 | 0.182 -> 0.166 | 0.203 -> 0.192 | 0.206 -> 0.153,
-            z^2 > 9 1.22 -> 1.22 | 1.37 -> 1.34 | 2.24 -> 2.15 | 2.32 -> 1.59 %, 1-sigma 76.47 ->
-            77.24 | 77.46 -> 78.38 | 76.62 -> 77.49 | 75.11 -> 77.57 %; ranges unchanged. It widens
-            11-16 % of the stereo scenes' reports (tuned stereo_flying 129 of 806, none of them
-            with z^2 > 9 without it; held-out stereo_flying 105 of 946, one): a trade of the bulk's
-            width for the demo's and held-out's tails.
         static_own_stereo: on a stereo rig, a report ranged by its static-point fix (one member
             feature's least-squares point over its rays of all frames and both cameras,
             ``feature_point``) whose feature also has a two-ray point this frame (its two
@@ -518,9 +488,9 @@ class FusionSettings:
             than it beyond their joint noise (``_occluded_by_members``) is hidden from the body
             origin by that track's surface: its range sigma reaches the depth of those points
             (0 = off). Default 3 (the fewest points that enclose a direction). The hull is widened
-            by the tracked window's angle (feature_window_px's, as for _window_neighbours): a nearer
+            by the tracked window's angle (ObstacleFusion's window_px, as for _window_neighbours): a nearer
             surface that comes within it reaches into the reported point's own KLT window (not
-            fitted: the window's half-width, as feature_window_px's term). Replays over the
+            fitted: the window's half-width, as window_px's term). Replays over the
             recorded front end of 27e4165 (accuracy --set all, tuned | held-out | validation |
             demo), without -> with the margin: range NEES 0.996 -> 0.996 | 0.963 -> 0.958 | 1.463 ->
             1.453 | 1.170 -> 1.110, 1-sigma 74.98 -> 74.98 | 77.04 -> 77.07 | 76.58 -> 76.75 |
@@ -598,7 +568,6 @@ class FusionSettings:
     member_spread_weight: float = 1.0
     member_spread_min_n: int = 6
     stereo_neighbour_n: int = 3
-    feature_window_px: float = 5.5
     static_own_stereo: bool = True
     occluder_min_members: int = 3
     feature_mad_all_weight: float = 0.5
@@ -1250,8 +1219,40 @@ class ObstacleFusion:
         pixel_scale: per camera name, the scale of the images its features are tracked in (the
             front end's ``FrontEnd.scale``, ``trackers.frontend.tracked_scale``: a frame wider than
             its max_width is tracked downscaled); None or a missing camera: 1, the full frame. The
-            settings' pixel quantities (feature_sigma_focal_px's f, feature_window_px) are of
-            tracked pixels, so a rig's px per rad is taken at that scale.
+            settings' pixel quantities (feature_sigma_focal_px's f) and window_px are of tracked
+            pixels, so a rig's px per rad is taken at that scale.
+        window_px: per camera name, the full width (tracked px, see pixel_scale) of the KLT window its
+            features are tracked by (the front end's ``features.win_px``: the FeatureTracker's temporal
+            window and the stereo KLT's; ``trackers.frontend.tracked_window``). A report ranged by a
+            member feature's static point (``feature_point``) gets a range-sigma term when a static member
+            point of this frame (any track's) lies within the tracked window's angle of its direction at
+            another depth beyond their joint noise: max_i (r_i - r)^2 - s_i^2 - var0
+            (``_window_neighbours``). The angle is the window's half-width over the camera's px per rad at
+            its tracked scale (as feature_sigma_focal_px's f; the largest over the cameras): a window that
+            holds a second surface (a T-junction of a near outline and a farther surface, a curved
+            obstacle's limb, a point a nearer obstacle is passing) moves with a blend of two parallaxes,
+            which on a mono rig fits a static point at a wrong depth as well as a real point fits its own
+            (renderer truth over tuned/held-out/validation mono_straight-family scenes and
+            thesis_speed_15mps: the chosen feature's chi, its rays' spread across their epipolar plane and
+            its short-memory slide statistic do not separate the reports with z^2 > 25 from the rest).
+            None (or no camera): no window term, for rays not tracked by a window (synthetic bearings).
+            Not fitted: the window's half-width. As the former FusionSettings.feature_window_px 5.5 (the
+            11-px window's half-width, set by hand; removed: it did not follow win_px): replays over one
+            recording of 7ca8491's front end (accuracy --set all, tuned | held-out | validation | demo),
+            off -> on: range NEES 0.944 -> 0.924 | 1.416 -> 1.280 | 1.660 -> 1.485 | 1.018, median z^2
+            0.208 -> 0.196 | 0.186 -> 0.166 | 0.207 -> 0.186, z^2 > 9 1.32 -> 1.22 | 1.41 -> 1.27 | 2.69
+            -> 2.13 %, 1-sigma 76.92 -> 77.34 | 78.59 -> 79.89 | 76.23 -> 77.97 %; ranges, coverage and
+            (the term then on mono rigs only) stereo rigs unchanged. The tuned NEES, already below its
+            interval (0.951), moves further below: a trade. On stereo rigs too (with stereo_point_sigma_k
+            1.0; replays over one recording of 7a24c93's front end, tuned | held-out | validation | demo,
+            mono only -> every rig): range NEES 0.954 -> 0.940 | 1.032 -> 0.983 | 1.537 -> 1.491 | 1.207
+            -> 1.006 (in its interval again: the demo's moving box, track 70, and 5 of its reports with
+            z^2 > 9 are caught), median z^2 0.208 -> 0.196 | 0.182 -> 0.166 | 0.203 -> 0.192 | 0.206 ->
+            0.153, z^2 > 9 1.22 -> 1.22 | 1.37 -> 1.34 | 2.24 -> 2.15 | 2.32 -> 1.59 %, 1-sigma 76.47 ->
+            77.24 | 77.46 -> 78.38 | 76.62 -> 77.49 | 75.11 -> 77.57 %; ranges unchanged. It widens 11-16
+            % of the stereo scenes' reports (tuned stereo_flying 129 of 806, none of them with z^2 > 9
+            without it; held-out stereo_flying 105 of 946, one): a trade of the bulk's width for the
+            demo's and held-out's tails.
 
     Attributes:
         timings: the last step's seconds in ``estimate`` (triangulations, bounds) and ``fuse`` (filters).
@@ -1263,6 +1264,7 @@ class ObstacleFusion:
         egomotion: EgoMotion,
         settings: FusionSettings | None = None,
         pixel_scale: Mapping[str, float] | None = None,
+        window_px: Mapping[str, float] | None = None,
     ):
         self.rig = rig
         self.egomotion = egomotion
@@ -1278,22 +1280,35 @@ class ObstacleFusion:
                     f"ObstacleFusion pixel_scale['{name}']: expected the scale of the images the "
                     f"features are tracked in, in (0, 1], got {k!r}"
                 )
+        win = {} if window_px is None else dict(window_px)
+        for name, w in win.items():
+            try:
+                win[name] = float(w)
+            except (TypeError, ValueError):
+                win[name] = math.nan
+            if not (math.isfinite(win[name]) and win[name] > 0.0):
+                raise InputError(
+                    f"ObstacleFusion window_px['{name}']: expected the width of the KLT window the "
+                    f"features are tracked by, in tracked px > 0, got {w!r}"
+                )
         f_ref = s.feature_sigma_focal_px
         f_rig = None
-        if len(rig):
-            # f: px per rad at the image centre, d uv / d b_C on the optical axis (fx, fy for
-            # Equidistant; fx / (1 + xi) for DoubleSphere), of the images the features are tracked
-            # in (a frame wider than the front end's max_width is tracked downscaled: pixel_scale)
-            axis = np.array([[0.0, 0.0, 1.0]])
-            f_rig = min(float(np.min(np.abs(np.diagonal(c.model.bearing_to_pixel_jacobian(axis)[0]))))
-                        * scale.get(c.name, 1.0) for c in rig)
+        # f: px per rad at the image centre, d uv / d b_C on the optical axis (fx, fy for
+        # Equidistant; fx / (1 + xi) for DoubleSphere), of the images the features are tracked
+        # in (a frame wider than the front end's max_width is tracked downscaled: pixel_scale)
+        axis = np.array([[0.0, 0.0, 1.0]])
+        f_cam = {c.name: float(np.min(np.abs(np.diagonal(c.model.bearing_to_pixel_jacobian(axis)[0]))))
+                 * scale.get(c.name, 1.0) for c in rig}
+        if f_cam:
+            f_rig = min(f_cam.values())
         # a feature's error is a pixel error (see the setting)
         if f_ref is not None and f_rig is not None and f_rig < f_ref * (1.0 - 1e-9):
             # (rounding of the Jacobian: equal focal lengths stay equal)
             s = replace(s, feature_sigma_rad=s.feature_sigma_rad * (f_ref / f_rig))
         self.settings = s  # (feature_sigma_rad: the rig's own)
-        # the tracked window's half-width as an angle (rad): ``_window_neighbours``
-        self._window_rad = s.feature_window_px / f_rig if f_rig else 0.0
+        # the tracked window's half-width as an angle (rad), the widest of the cameras':
+        # ``_window_neighbours`` and the occlusion hull's margin
+        self._window_rad = max((0.5 * w / f_cam[n] for n, w in win.items() if f_cam.get(n)), default=0.0)
         self.timings: dict[str, float] = dict.fromkeys(STAGES, 0.0)
         self._tracks: dict[int, _Track] = {}
         self._last_t: float | None = None
@@ -3312,8 +3327,8 @@ class ObstacleFusion:
         variances so far var0 (K,) m^2; 0 except for a track ranged by a member feature's static
         point this frame (``feature_point``), on any rig.
 
-        The front end tracks a feature by the image window around it (KLT, half-width
-        feature_window_px, as an angle rho = feature_window_px / f with f the rig's px per rad).
+        The front end tracks a feature by the image window around it (KLT, ``window_px`` wide, as
+        an angle rho = window_px / 2 / f with f the camera's tracked px per rad).
         When that window holds a surface at another depth (the feature sits near an occluding edge:
         a T-junction of a near outline and a farther surface, a curved obstacle's limb, a point
         that a nearer obstacle is passing), the window's motion is a blend of two parallaxes, and
@@ -3329,7 +3344,7 @@ class ObstacleFusion:
         the reported bearing may be either surface's). On a stereo rig too: each camera's window
         holds its own blend, and the static point over both cameras' rays of 0.5 s is no check of
         it (the demo's moving box, track 70, and a static point 1.5 m beyond its obstacle, track 46:
-        see FusionSettings.feature_window_px)."""
+        see ObstacleFusion's window_px)."""
         K = len(trs)
         out = np.zeros(K)
         rho = self._window_rad
@@ -3413,7 +3428,7 @@ class ObstacleFusion:
         that track's surface spans the bearing in front of the reported point, and the range along
         the bearing is that surface's: the term is r - median(r_i) (the report stays: its point is
         real, but its bearing is not clear up to its range). The hull is widened by the tracked
-        window's angle rho (``_window_neighbours``' angle: feature_window_px over the px per rad of
+        window's angle rho (``_window_neighbours``' angle: window_px / 2 over the px per rad of
         the tracked images): the nearer surface spans at least its points' hull, and when it comes
         within rho of u it reaches into the window the front end tracks the reported point by, so
         that point may be a corner the surface is passing over (its window a blend of two depths, the window

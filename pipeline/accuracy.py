@@ -1091,9 +1091,8 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
     of :func:`scored_ranges`)."""
     import tempfile
 
-    from estimators.fusion import ObstacleFusion
     from pipeline.evaluate import ScenarioTruth, score_reports
-    from pipeline.run import build_egomotion, build_rig, run, tracked_pixel_scale
+    from pipeline.run import build_egomotion, build_fusion, build_rig, run
     from pipeline.sim.scene import load_scenario
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
@@ -1114,7 +1113,7 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
         cfg = scene_config(sdir, opts.overrides)
         rig = build_rig(cfg)
         ego = build_egomotion(cfg)
-        fusion = ObstacleFusion(rig, ego, opts.settings, pixel_scale=tracked_pixel_scale(cfg, rig))
+        fusion = build_fusion(cfg, rig, ego, opts.settings)
         obs_path = rdir / OBSERVATIONS_NAME
         parts = frontend_key_parts(scene_parts, cfg, sdir)  # (portable: a copied --out replays)
         stale = (_stale_parts(obs_path, parts, frontend_key_parts(scene_parts, cfg))

@@ -188,7 +188,9 @@ class TrackerConfig(_Section):
         "null, opt-in: one per px_per_feature (700) px^2 of the lens mask, clipped to [250, 500], picked "
         "for CPU, not fitted: it costs worst-obstacle coverage at 640x480), "
         "grid ([cols, rows]), "
-        "redetect_every (frames), win_px (px), levels (int), fb_max_px (px, forward-backward check), "
+        "redetect_every (frames), win_px (px, default 11: the KLT window's side, the temporal and the stereo "
+        "KLT's; the fusion's window angle is its half-width over each camera's tracked px per rad), "
+        "levels (int), fb_max_px (px, forward-backward check), "
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
         "fb_retry (bool, a level-0 failure is checked again one level up), "
         "min_distance_px (px), history (frames).",
@@ -528,6 +530,20 @@ def _is_path_field(loc: tuple[str | int, ...]) -> bool:
     return "_resolve_path" in text
 
 
+# Keys that were removed or renamed: key path -> what to set instead (an error names it).
+_REMOVED_KEYS: dict[tuple[str, ...], str] = {
+    ("fusion", "feature_window_px"): "the fusion's window angle follows the front end's KLT window: set "
+    "tracker.features.win_px (the window's side in tracked px; the fusion takes its half-width over each "
+    "camera's tracked px per rad)",
+}
+
+
+def _removed(loc: tuple) -> str | None:
+    """The message for a removed key at ``loc``, or None."""
+    key = tuple(str(p) for p in loc)
+    return f"'{'.'.join(key)}' was removed: {_REMOVED_KEYS[key]}" if key in _REMOVED_KEYS else None
+
+
 def _suggest(key: str, valid: list[str]) -> str:
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
@@ -609,6 +625,9 @@ def _check_override_key(parts: tuple[str, ...], origin: str) -> None:
         if model is None:
             return  # inside a free-form dict (options/settings)
         if p not in model.model_fields:
+            gone = _removed(parts[: i + 1])
+            if gone:
+                raise ConfigError(f"{origin}: {gone}")
             where = ".".join(parts[:i]) or "top level"
             raise ConfigError(
                 f"{origin}: unknown key '{p}' in {where}" + _suggest(p, list(model.model_fields))
@@ -743,6 +762,9 @@ def _format_error(e: ValidationError, path: Path | None, lines: dict, origins: d
     dotted = ".".join(str(p) for p in loc) or "(top level)"
     more = f" (and {len(errors) - 1} more error{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
     if err["type"] == "extra_forbidden":
+        gone = _removed(loc)
+        if gone:
+            return f"{where}: {gone}{more}"
         owner = _descend(loc[:-1])
         valid = list(owner.model_fields) if owner is not None else []
         parent = ".".join(str(p) for p in loc[:-1]) or "top level"

@@ -57,6 +57,7 @@ __all__ = [
     "build_frontend",
     "build_fusion",
     "tracked_pixel_scale",
+    "tracked_window_px",
     "open_inputs",
     "run",
     "run_batch",
@@ -265,13 +266,24 @@ def tracked_pixel_scale(cfg: PipelineConfig, rig: Any) -> dict[str, float]:
     return tracked_scale(rig, cfg.tracker.frontend_options().get("max_width", MAX_WIDTH_PX))
 
 
-def build_fusion(cfg: PipelineConfig, rig: Any, egomotion: Any) -> Any:
-    """``estimators.fusion.ObstacleFusion(rig, egomotion, FusionSettings(**fusion), pixel_scale)``,
-    pixel_scale the front end's (``tracked_pixel_scale``)."""
+def tracked_window_px(cfg: PipelineConfig, rig: Any) -> dict[str, int]:
+    """Per camera, the KLT window (tracked px) of the front end ``cfg`` configures
+    (``trackers.frontend.tracked_window`` of ``tracker.features``): fusion's ``window_px``."""
+    from trackers.frontend import tracked_window
+
+    return tracked_window(rig, cfg.tracker.features)
+
+
+def build_fusion(cfg: PipelineConfig, rig: Any, egomotion: Any, settings: Any = None) -> Any:
+    """``estimators.fusion.ObstacleFusion(rig, egomotion, settings, pixel_scale, window_px)``:
+    settings ``FusionSettings(**fusion)`` of ``cfg`` unless given; pixel_scale and window_px the
+    front end's (``tracked_pixel_scale``, ``tracked_window_px``)."""
     from estimators.fusion import FusionSettings, ObstacleFusion
 
-    return ObstacleFusion(rig, egomotion, FusionSettings(**cfg.fusion.settings_kwargs()),
-                          pixel_scale=tracked_pixel_scale(cfg, rig))
+    if settings is None:
+        settings = FusionSettings(**cfg.fusion.settings_kwargs())
+    return ObstacleFusion(rig, egomotion, settings, pixel_scale=tracked_pixel_scale(cfg, rig),
+                          window_px=tracked_window_px(cfg, rig))
 
 
 def wants_grey(cfg: PipelineConfig) -> bool:

@@ -17,6 +17,7 @@ import numpy as np
 
 # np.cross and np.linalg.norm(x, axis=1) bit for bit, without their axis handling
 from estimators.geometry import _cross, _isin, _norm_rows
+from trackers.features import KLT_WIN_PX
 
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
@@ -224,7 +225,7 @@ def stereo_klt(
     R_b_a: np.ndarray,
     t_b_a: np.ndarray,
     epipolar_rad: float = np.radians(1.0),
-    win_px: int = 11,
+    win_px: int = KLT_WIN_PX,
     levels: int = 4,
     fb_max_px: float = 1.0,
     off_a: np.ndarray | None = None,
@@ -244,6 +245,8 @@ def stereo_klt(
         grey_a, grey_b: (H, W) uint8 frames of cameras a and b (same time).
         b_a: (N, 3) unit bearings in C_a; uv_a: (N, 2) their pixels in a.
         model_b: camera b's CameraModel; R_b_a (3, 3), t_b_a (3,) m: p_Cb = R p_Ca + t.
+        win_px: the KLT window (px): the front end passes camera a's FeatureTracker window, so the
+            stereo match is the temporal track's window (``trackers.frontend.tracked_window``).
         off_a, off_b: (2,) px, when grey_a / grey_b are crops of the full frames: the crops'
             origins in the full frames (full-frame pixel = crop pixel + origin); uv_a and the
             returned uv_b are full-frame pixels either way.

@@ -64,6 +64,9 @@ class FeatureHistory:
 
 MAX_FEATURES = 500  # FeatureTracker's largest derived feature budget (a 720p lens's)
 MIN_FEATURES = 250  # and its smallest
+# the KLT window (tracked px, square): FeatureTracker's win_px default; the front end's stereo KLT and
+# the fusion's window angle take the tracker's window (trackers.frontend.tracked_window)
+KLT_WIN_PX = 11
 POPCOUNT8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
 
 
@@ -117,6 +120,19 @@ def _check_int(name: str, value) -> None:
         )
 
 
+def klt_window_px(win_px=KLT_WIN_PX) -> int:
+    """The side (px of the tracked image) of the square KLT window of the ``win_px`` setting: the
+    one window the temporal KLT, the stereo KLT and the fusion's window angle take
+    (``trackers.frontend.tracked_window``).
+
+    Raises ConfigError unless win_px is an integer >= 3 (OpenCV's LK needs a window over 2 px).
+    """
+    _check_int("win_px", win_px)
+    if win_px < 3:
+        raise ConfigError(f"FeatureTracker: win_px (KLT window, px) expected an integer >= 3, got {win_px!r}")
+    return int(win_px)
+
+
 class FeatureTracker:
     """KLT + ORB feature tracker of one camera (see the module docstring).
 
@@ -154,7 +170,9 @@ class FeatureTracker:
             74.7, validation 83.9 -> 83.5 %), held-out stereo heading 8.3 -> 13.0 deg (target 10)
             and range NEES 1.83 -> 2.07, validation NEES 2.99 -> 2.78; for about 1 ms a frame of
             detect + track CPU at 1280x720, as measured when the option was added.)
-        win_px, levels: KLT window (px) and pyramid levels.
+        win_px, levels: KLT window (px, the side of the square) and pyramid levels. The window is
+            also the front end's stereo KLT's and the fusion's window angle (its half-width):
+            ``trackers.frontend.tracked_window``.
         fb_max_px: forward-backward check: a feature is dropped when tracking it forward then
             backward misses its start by more than this (px).
         fb_levels: pyramid levels of the backward pass (0: the full-resolution image only). It
@@ -202,7 +220,7 @@ class FeatureTracker:
         grid: tuple[int, int] = (16, 9),
         min_per_cell: int = 1,
         redetect_every: int = 4,
-        win_px: int = 11,
+        win_px: int = KLT_WIN_PX,
         levels: int = 2,
         fb_max_px: float = 1.0,
         fb_levels: int = 1,
@@ -222,7 +240,6 @@ class FeatureTracker:
             ("max_features", max_features),
             ("min_per_cell", min_per_cell),
             ("redetect_every", redetect_every),
-            ("win_px", win_px),
             ("levels", levels),
             ("fb_levels", fb_levels),
             ("reacquire_frames", reacquire_frames),
@@ -259,7 +276,8 @@ class FeatureTracker:
         self.grid = (int(grid[0]), int(grid[1]))
         self.min_per_cell = int(min_per_cell)
         self.redetect_every = int(redetect_every)
-        self.win = (int(win_px), int(win_px))
+        k = klt_window_px(win_px)
+        self.win = (k, k)
         self.levels = int(levels)
         self.fb_max_px = float(fb_max_px)
         self.fb_levels = int(fb_levels)
@@ -280,7 +298,7 @@ class FeatureTracker:
         # KLT runs on the bounding box of the lens circle: a fisheye's circle often fills half the
         # frame or less (a 1280x720 frame with a 338-px circle: 53%)
         ys, xs = np.nonzero(self.mask)
-        pad = max(int(win_px), 16) + 4  # room for the KLT window and ORB's edge threshold
+        pad = max(k, 16) + 4  # room for the KLT window and ORB's edge threshold
         h0, w0 = self.shape_hw
         # (origin on a multiple of 16 px so the crop's pyramid levels, up to the stereo search's
         # 4, sample the frame's own grid)

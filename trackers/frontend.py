@@ -37,7 +37,7 @@ from trackers.association import (
     unheld,
 )
 from trackers.detectors import Detector, make_detector, to_grey
-from trackers.features import FeatureTracker, lens_mask
+from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
 STAGES = ("resize", "detect", "track", "group", "associate", "report")
@@ -70,6 +70,19 @@ def tracked_scale(rig: Rig, max_width: int | None = MAX_WIDTH_PX) -> dict[str, f
         c.name: (1.0 if max_width is None or c.model.width <= max_width else max_width / c.model.width)
         for c in rig.cameras
     }
+
+
+def tracked_window(rig: Rig, features: Mapping[str, Any] | None = None) -> dict[str, int]:
+    """Per camera name, the side (px of the images its features are tracked in: ``tracked_scale``)
+    of the square KLT window its features are tracked by: ``features['win_px']`` (FeatureTracker's
+    keyword, default ``KLT_WIN_PX``), the one window setting: the temporal KLT's, the stereo KLT's
+    (``stereo_klt`` is given the reference camera's tracker's window) and the fusion's window angle
+    (``ObstacleFusion(window_px=)``, its half-width over the tracked px per rad).
+
+    Raises ConfigError for a win_px that is not an integer >= 3 (``klt_window_px``).
+    """
+    w = klt_window_px((features or {}).get("win_px", KLT_WIN_PX))
+    return {c.name: w for c in rig.cameras}
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -622,6 +635,7 @@ class FrontEnd:
                 T.R,
                 T.t,
                 self.epipolar_rad,
+                win_px=fa.win[0],  # the temporal KLT's window (tracked_window)
                 off_a=oa,
                 off_b=ob,
                 guess_b=guess,

@@ -36,15 +36,17 @@ def exact_bearing(cam, T_W_B, p_W):
     return p_C / np.linalg.norm(p_C)
 
 
-def far_wall_report(rig, near, settings=None):
+def far_wall_report(rig, near, settings=None, window_px=11):
     """The far wall's report (track 2) at the last frame of the far-wall scene flown by rig, with
-    the nearer points near (list of (3,) in W, ids 0, 1, ...; the wall's 100-102) as track 1."""
+    the nearer points near (list of (3,) in W, ids 0, 1, ...; the wall's 100-102) as track 1; every
+    camera's features tracked by a window_px KLT window (the front end's default; 0: no window)."""
     from estimators.egomotion import ConstantVelocity
     from estimators.fusion import FusionSettings, ObstacleFusion
     from estimators.records import CameraView, ObstacleObservation
 
     ego = ConstantVelocity(WALL_SPEED)
-    fus = ObstacleFusion(rig, ego, settings or FusionSettings())
+    fus = ObstacleFusion(rig, ego, settings or FusionSettings(),
+                         window_px={c.name: window_px for c in rig} if window_px else None)
     for k in range(WALL_FRAMES):
         t = k / WALL_FPS
         T_W_B = ego.pose_at(t)

@@ -3,8 +3,8 @@ track's nearer member points (not inside it, and no single point of it inside th
 gets a range sigma that reaches that track's depth (``ObstacleFusion._occluded_by_members``, the
 hull widened by the window angle).
 
-Truth by hand: a mono rig (camera at the body origin, 0.15 deg per px: the window angle of
-feature_window_px 5.5 is 5.5 * 0.15 = 0.825 deg) flies along +x at 5 m/s for 20 frames at 30 fps,
+Truth by hand: a mono rig (camera at the body origin, 0.15 deg per px: the angle of the 11-px
+window's half-width is 5.5 * 0.15 = 0.825 deg) flies along +x at 5 m/s for 20 frames at 30 fps,
 so the body ends at o = (19 / 6, 0, 0). Track 2: three corners of a far wall at
 (20 + 0.05 i, 6, 0.05 i), i = -1, 0, 1 (17.9-18.0 m from o). Track 1: four corners of a near plate
 halfway along o's ray u toward the far wall's middle corner (~9 m), set off that ray in the
@@ -53,8 +53,8 @@ def _near_plate(a_deg: float, width_deg: float = 1.0, half_deg: float = 1.0,
     return out
 
 
-def _far_report(a_deg: float, settings: FusionSettings | None = None, **plate):
-    return far_wall_report(mono_forward_rig(MODEL), _near_plate(a_deg, **plate), settings)
+def _far_report(a_deg: float, settings: FusionSettings | None = None, window_px: int = 11, **plate):
+    return far_wall_report(mono_forward_rig(MODEL), _near_plate(a_deg, **plate), settings, window_px)
 
 
 def _angles_deg(a_deg: float, r, **plate) -> tuple[float, float]:
@@ -80,7 +80,7 @@ def test_a_far_point_within_the_window_angle_of_a_nearer_tracks_hull_gets_a_sigm
     r_near = [float(np.linalg.norm(p - O_END)) for p in _near_plate(0.6)]
     assert r.range_sigma_m >= r.range_m - float(np.median(r_near)) - 1e-6
     # the widening is the window margin's: the same scene with the window terms off
-    r_off = _far_report(0.6, FusionSettings(feature_window_px=0.0))
+    r_off = _far_report(0.6, window_px=0)
     assert r_off.range_m == pytest.approx(r.range_m)
     assert r_off.range_sigma_m < 0.1 * (r.range_m - max(r_near))
 
@@ -89,7 +89,7 @@ def test_a_far_point_beyond_the_window_angle_of_the_hull_keeps_its_sigma():
     r = _far_report(1.5)
     _corner, edge = _angles_deg(1.5, r)
     assert edge > 0.825 + 0.05
-    r_off = _far_report(1.5, FusionSettings(feature_window_px=0.0))
+    r_off = _far_report(1.5, window_px=0)
     assert r.range_m == pytest.approx(r_off.range_m)
     assert r.range_sigma_m == r_off.range_sigma_m < 1.0
 

@@ -173,6 +173,18 @@ def test_fusion_section_mirrors_fusion_settings():
         load_config(None, ["fusion.lost_after=1"])
 
 
+def test_the_removed_fusion_window_setting_names_the_tracker_window(tmp_path):
+    """fusion.feature_window_px (5.5, set by hand to half the tracker's window) was removed: the
+    fusion takes the front end's window; a config or --set giving it is told where the window is."""
+    p = tmp_path / "old.yaml"
+    p.write_text("fusion:\n  feature_window_px: 5.5\n")
+    gone = r"'fusion\.feature_window_px' was removed.*set tracker\.features\.win_px"
+    with pytest.raises(ConfigError, match=r"old\.yaml:2: " + gone):
+        load_config(p)
+    with pytest.raises(ConfigError, match=r"--set fusion\.feature_window_px=4: " + gone):
+        load_config(None, ["fusion.feature_window_px=4"])
+
+
 def test_grouping_help_names_the_grouper_s_pixel_keys():
     """The help text of tracker.grouping names ObstacleGrouper's own keywords (link_px, max_radius_px)."""
     import inspect

@@ -504,17 +504,23 @@ def test_frozen_gc_unfreezes_when_the_loop_raises():
 
 
 @pytest.mark.parametrize("max_width, scale", [(None, 1280 / 1920), (960, 0.5), (2048, 1.0)])
-def test_fusion_takes_the_scale_the_front_end_tracks_at(max_width, scale):
+@pytest.mark.parametrize("win_px", [None, 7])
+def test_fusion_takes_the_scale_and_window_the_front_end_tracks_at(max_width, scale, win_px):
     """A 1920-px-wide lens of 0.10 deg per px: the front end tracks it downscaled to max_width
-    (default 1280 px), and the fusion built from the same config takes its pixel quantities (the
-    5.5-px half-window) at that scale: 5.5 x 0.10 deg / scale."""
+    (default 1280 px) with the KLT window tracker.features.win_px (default 11), and the fusion
+    built from the same config takes its window's half-width at that scale: 5.5 (3.5) x 0.10 deg
+    / scale."""
     import math
 
     from estimators.cameras import Equidistant
     from estimators.rig import mono_forward_rig
 
     rig = mono_forward_rig(Equidistant.from_deg_per_px(0.10, 1920, 1920))
-    cfg = load_config(None, overrides=[] if max_width is None else [f"tracker.max_width={max_width}"])
-    assert run_mod.build_frontend(cfg, rig).scale == {"cam0": pytest.approx(scale)}
+    sets = ([] if max_width is None else [f"tracker.max_width={max_width}"]) + (
+        [] if win_px is None else [f"tracker.features.win_px={win_px}"])
+    cfg = load_config(None, overrides=sets)
+    fe = run_mod.build_frontend(cfg, rig)
+    assert fe.scale == {"cam0": pytest.approx(scale)}
+    assert fe.trackers["cam0"].win[0] == (win_px or 11)
     fusion = run_mod.build_fusion(cfg, rig, ConstantVelocity(5.0))
-    assert fusion._window_rad == pytest.approx(5.5 * math.radians(0.10) / scale)
+    assert fusion._window_rad == pytest.approx((win_px or 11) / 2 * math.radians(0.10) / scale)

@@ -163,3 +163,41 @@ def test_texture_sample_index_is_the_strided_masked_sample():
         got = np.take(grey, _sample_index(mask))
         assert len(want) > 100
         np.testing.assert_array_equal(got, want)
+
+
+def test_the_stereo_klt_takes_the_trackers_window(monkeypatch):
+    """One window setting: features.win_px (7 here) is the temporal KLT's window and the stereo
+    KLT's (it was 11 whatever win_px said); tracked_window gives every camera that window."""
+    import trackers.frontend as fe_mod
+    from estimators.rig import stereo_forward_rig
+    from tests.trackers.conftest import equidistant, rot_axis
+
+    model = equidistant(320, 240)
+    rig = stereo_forward_rig(model, 0.30)
+    scene = SphereScene(model)  # the environment at infinity: both cameras see one image
+    seen = []
+    real = fe_mod.stereo_klt
+
+    def recording(*a, **kw):
+        seen.append(kw.get("win_px"))
+        return real(*a, **kw)
+
+    monkeypatch.setattr(fe_mod, "stereo_klt", recording)
+    fe = FrontEnd(rig, features={"win_px": 7})
+    assert fe.trackers["cam0"].win == fe.trackers["cam1"].win == (7, 7)
+    for k in range(6):
+        img = scene.render(rot_axis([0, 1, 0], np.radians(0.5) * k))
+        fe.process({"cam0": img, "cam1": img}, k, k / 30)
+    assert seen and set(seen) == {7}
+    assert fe_mod.tracked_window(rig, {"win_px": 7}) == {"cam0": 7, "cam1": 7}
+    assert fe_mod.tracked_window(rig) == fe_mod.tracked_window(rig, {}) == {"cam0": 11, "cam1": 11}
+
+
+@pytest.mark.parametrize("bad", [2, 0, -11, 11.5, True, "11", None])
+def test_a_window_that_is_not_an_integer_of_3_px_or_more_is_refused(rig, bad):
+    from trackers.frontend import tracked_window
+
+    with pytest.raises(ConfigError, match=r"win_px"):
+        tracked_window(rig, {"win_px": bad})
+    with pytest.raises(ConfigError, match=r"win_px"):
+        FrontEnd(rig, features={"win_px": bad})
