@@ -58,7 +58,8 @@ __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", 
            "run_accuracy", "pool_coverage", "TARGETS", "SCENE_SETS", "SET_GROUPS", "PIPELINE_SCENES",
            "PIPELINE_SCENES_HELDOUT", "PIPELINE_SCENES_VALIDATION", "range_z2_reports", "z2_stats",
            "settings_from_overrides", "render_cache_dir", "scored_ranges", "format_scored",
-           "PIPELINE_SCENES_DEMO", "demo_render"]
+           "PIPELINE_SCENES_DEMO", "PIPELINE_SCENES_LOWRES", "LOWRES_PREFIX", "LOWRES_RESOLUTION",
+           "harness_scenario", "scene_render"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -111,10 +112,11 @@ class AccuracyOptions:
     In pipeline mode a set's valid names are its scenes and its --quick scenes; "validation" (the
     ``val_*`` / ``val2_*`` presets: fresh seeds of nine tuned and held-out scenes, used to fit
     nothing) has no --quick scenes, nor has "demo" (the scene of ``fisheye-des demo``, rendered as the
-    demo renders it: :func:`demo_render`); "all" = tuned, heldout, validation and demo. overrides (pipeline
-    mode): ``section.key=value`` strings applied to each scene's run config exactly like ``fisheye-des
-    run --set`` (``pipeline.config.load_config``); front-end sections change the recording key, so
-    ``reuse_frontend`` re-records. Fusion overrides reach ``settings`` through
+    demo renders it: :func:`scene_render`), nor has "lowres" (640x360 copies of six scenes, lens
+    scaled: ``PIPELINE_SCENES_LOWRES``); "all" = tuned, heldout, validation, demo and lowres.
+    overrides (pipeline mode): ``section.key=value`` strings applied to each scene's run config
+    exactly like ``fisheye-des run --set`` (``pipeline.config.load_config``); front-end sections
+    change the recording key, so ``reuse_frontend`` re-records. Fusion overrides reach ``settings`` through
     :func:`settings_from_overrides` (the command does that). render_cache (pipeline mode): scene renders
     are kept in :func:`render_cache_dir` keyed on the parsed scenario and the simulator's sources, and
     linked into ``out_dir/scenes`` (False: rendered into ``out_dir/scenes`` as before)."""
@@ -273,7 +275,7 @@ def run_bearings(scn, opts: AccuracyOptions, rng) -> list[Sample]:
     from pipeline.sim.world import World
 
     world = World(scn)
-    rig = build_rig(scn.rig)
+    rig = build_rig(scn.rig, LOWRES_RESOLUTION if scn.name in PIPELINE_SCENES_LOWRES else None)
     n = scn.n_frames
     traj = observer_trajectory(scn.observer, max((n - 1) / scn.fps, 1.0 / scn.fps))
     fus = ObstacleFusion(rig, traj, opts.settings)
@@ -636,11 +638,9 @@ def _bearings_scenes(opts: AccuracyOptions, set_name: str) -> list:
     held-out presets."""
     if set_name == "tuned":
         return preset_scenarios(opts.quick) + random_scenarios(opts.quick, opts.seed, opts.n_random)
-    from pipeline.sim.scene import load_scenario
-
     # (with --quick the first three: the set's tiny pipeline scene is too short for bearings mode)
     names = SCENE_SETS[set_name][0][:3] if opts.quick else SCENE_SETS[set_name][0]
-    return [load_scenario(scenarios_dir() / f"{n}.yaml") for n in names]
+    return [harness_scenario(n)[1] for n in names]
 
 
 def _pipeline_names(opts: AccuracyOptions, set_name: str) -> tuple[str, ...]:
@@ -730,7 +730,7 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         from estimators.errors import ConfigError
 
         raise ConfigError(f"accuracy --set {opts.scene_set} --quick: the set has no --quick scenes in "
-                          f"{opts.mode} mode (the validation and demo sets have none); drop --quick")
+                          f"{opts.mode} mode (the validation, demo and lowres sets have none); drop --quick")
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
@@ -1043,29 +1043,57 @@ _VAL_FAMILIES = ("heldout_fast_18mps", "heldout_mono_straight", "heldout_moving"
 PIPELINE_SCENES_VALIDATION = (tuple(f"val_{f}" for f in _VAL_FAMILIES)
                               + tuple(f"val2_{f}" for f in _VAL_FAMILIES))
 # The scene of `fisheye-des demo` (the README's first command; configs/scenarios/demo.yaml), rendered
-# as the demo renders it (see demo_render): its summary's numbers are the harness's scored_ranges there
+# as the demo renders it (see scene_render): its summary's numbers are the harness's scored_ranges there
 PIPELINE_SCENES_DEMO = ("demo",)
+# The low-resolution set: 640x360 copies (the lens scaled with the image, so the same field of view
+# at half the pixels per radian) of two tuned mono scenes and four stereo flying scenes of every set,
+# used to fit nothing. A copy is named LOWRES_PREFIX + its original's name and derived from the
+# original's YAML (see harness_scenario and scene_render); the thesis's camera is 640x480.
+LOWRES_PREFIX = "lowres_"
+LOWRES_RESOLUTION = (640, 360)
+PIPELINE_SCENES_LOWRES = tuple(LOWRES_PREFIX + n for n in (
+    "mono_straight", "moving_crossing", "stereo_flying", "heldout_stereo_flying", "val_stereo_flying",
+    "val2_stereo_flying"))
 # scene set -> (pipeline scenes, pipeline --quick scenes)
 SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "tuned": (PIPELINE_SCENES, PIPELINE_SCENES_QUICK),
     "heldout": (PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_HELDOUT_QUICK),
     "validation": (PIPELINE_SCENES_VALIDATION, ()),
     "demo": (PIPELINE_SCENES_DEMO, ()),
+    "lowres": (PIPELINE_SCENES_LOWRES, ()),
 }
 # --set names that stand for several sets (run in this order, each scored on its own)
-SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation", "demo")}
+SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation", "demo", "lowres")}
 SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
               "heldout": "held-out: scenes no setting was fitted on",
               "validation": "validation: 18 fresh-seed copies of 9 scenes, used to fit nothing",
-              "demo": "demo: the scene of fisheye-des demo, rendered as the demo renders it"}
+              "demo": "demo: the scene of fisheye-des demo, rendered as the demo renders it",
+              "lowres": "lowres: 640x360 copies (lens scaled) of six scenes, used to fit nothing"}
 
 
-def demo_render(name: str, overrides: tuple[str, ...] | list[str] = ()) -> dict:
-    """``pipeline.sim.writer.simulate``'s keywords that render scene ``name`` as ``fisheye-des demo``
-    renders its scene: for the demo's scene (``PIPELINE_SCENES_DEMO``) its resolution
+def harness_scenario(name: str):
+    """(the preset YAML, the ``pipeline.sim.scene.Scenario``) of harness scene ``name``: the preset
+    ``configs/scenarios/<name>.yaml``, or for a low-resolution copy (``LOWRES_PREFIX`` + a preset's
+    name) its original's YAML and scenario renamed ``name`` (:func:`scene_render` gives its
+    resolution; the scenario keeps its original's, which the render overrides)."""
+    from pipeline.sim.scene import load_scenario
+
+    base = name.removeprefix(LOWRES_PREFIX) if name in PIPELINE_SCENES_LOWRES else name
+    path = scenarios_dir() / f"{base}.yaml"
+    scn = load_scenario(path)
+    return path, (scn if base == name else scn.model_copy(update={"name": name}))
+
+
+def scene_render(name: str, overrides: tuple[str, ...] | list[str] = ()) -> dict:
+    """``pipeline.sim.writer.simulate``'s keywords that render harness scene ``name``: for the demo's
+    scene (``PIPELINE_SCENES_DEMO``) as ``fisheye-des demo`` renders it, its resolution
     (``pipeline.commands.demo.DEFAULT_RESOLUTION``) and grey videos when the run's detector works on
-    grey (``pipeline.run.wants_grey`` of the config after ``overrides``); {} (the scenario's own
-    resolution, colour, as always) for every other scene. Part of the render key when not {}."""
+    grey (``pipeline.run.wants_grey`` of the config after ``overrides``); for a low-resolution copy
+    (``PIPELINE_SCENES_LOWRES``) ``LOWRES_RESOLUTION`` (the same lens scaled, colour); {} (the
+    scenario's own resolution, colour, as always) for every other scene. Part of the render key when
+    not {}."""
+    if name in PIPELINE_SCENES_LOWRES:
+        return {"resolution": list(LOWRES_RESOLUTION)}
     if name not in PIPELINE_SCENES_DEMO:
         return {}
     from pipeline.commands.demo import DEFAULT_RESOLUTION
@@ -1093,18 +1121,16 @@ def _run_pipeline(opts: AccuracyOptions, out_dir, progress,
 
     from pipeline.evaluate import ScenarioTruth, score_reports
     from pipeline.run import build_egomotion, build_fusion, build_rig, run
-    from pipeline.sim.scene import load_scenario
 
     root = Path(out_dir) if out_dir is not None else Path(tempfile.mkdtemp(prefix="fisheye-des-accuracy-"))
     samples: list[Sample] = []
     per_scene: dict = {}
     rows_by_scene: dict[str, tuple[str, list]] = {}
     for name in names:
-        yaml_path = scenarios_dir() / f"{name}.yaml"
-        scn = load_scenario(yaml_path)
+        yaml_path, scn = harness_scenario(name)
         if opts.quick:  # long enough for "after 1 s in view"
             scn = scn.model_copy(update={"duration_s": max(scn.duration_s, 2.0)})
-        how = demo_render(name, opts.overrides)
+        how = scene_render(name, opts.overrides)
         scene_parts = {"quick": bool(opts.quick), "duration_s": float(scn.duration_s),
                        "scenario_yaml": yaml_path.read_text(), "render": render_key(scn, how)}
         sdir = _scene_dir(opts, root, name, scn, scene_parts, progress, how)
@@ -1295,7 +1321,7 @@ def _sim_hash() -> str:
 def render_key(scn, how: dict | None = None) -> str:
     """16 hex digits naming a render of scenario ``scn`` (a ``pipeline.sim.scene.Scenario``, after any
     --quick length change): sha1 of the parsed scenario (so comments and layout of its YAML do not
-    matter), of the simulator's sources and of ``how`` (``simulate``'s keywords, :func:`demo_render`;
+    matter), of the simulator's sources and of ``how`` (``simulate``'s keywords, :func:`scene_render`;
     left out when empty, so the keys of plain renders are what they were)."""
     parts = {"scenario": scn.model_dump(mode="json"), "simulator": _sim_hash()}
     if how:
@@ -1308,7 +1334,7 @@ RENDER_DONE_NAME = "render_key.json"  # written last into a cached render: it is
 
 def _cached_render(scn, progress, how: dict | None = None) -> Path:
     """The render of ``scn`` in :func:`render_cache_dir` (made with ``simulate``'s keywords ``how``,
-    :func:`demo_render`), rendered there first when missing (into a private folder renamed into
+    :func:`scene_render`), rendered there first when missing (into a private folder renamed into
     place, so concurrent runs never see half a render)."""
     import os
     import shutil
@@ -1357,14 +1383,14 @@ def _pid_alive(pid: int) -> bool:
 
 
 def _simulate_kw(how: dict) -> dict:
-    """:func:`demo_render`'s JSON-friendly keywords as ``simulate`` takes them (resolution a tuple)."""
+    """:func:`scene_render`'s JSON-friendly keywords as ``simulate`` takes them (resolution a tuple)."""
     return {k: tuple(v) if k == "resolution" else v for k, v in how.items()}
 
 
 def _scene_dir(opts: AccuracyOptions, root: Path, name: str, scn, scene_parts: dict, progress,
                how: dict | None = None) -> Path:
     """``root/scenes/<name>``, holding the render of ``scn`` (with ``simulate``'s keywords ``how``,
-    :func:`demo_render`): an earlier run's own render there whose scene key (``scene_parts``:
+    :func:`scene_render`): an earlier run's own render there whose scene key (``scene_parts``:
     --quick, length, scenario text, render key) matches is used as it is; otherwise, with
     ``opts.render_cache``, a link to the cached render (:func:`_cached_render`); without it, a
     render made there."""

@@ -170,12 +170,12 @@ def test_validation_halves_get_the_scored_rows(monkeypatch, tmp_path):
 
 
 # ------------------------------------------------------------------------- the demo's scene (--set demo)
-def test_set_demo_is_the_demo_scenario_and_all_ends_with_it():
+def test_set_demo_is_the_demo_scenario_and_all_holds_it():
     from pipeline.accuracy import SCENE_SETS, SET_GROUPS
     from pipeline.commands.demo import DEFAULT_SCENARIO
 
     assert SCENE_SETS["demo"] == ((DEFAULT_SCENARIO.removesuffix(".yaml"),), ())
-    assert SET_GROUPS["all"][-1] == "demo" and "demo" not in SET_GROUPS["both"]
+    assert "demo" in SET_GROUPS["all"] and "demo" not in SET_GROUPS["both"]
 
 
 def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
@@ -187,13 +187,13 @@ def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
     from pipeline.config import scenarios_dir
     from pipeline.sim.scene import load_scenario
 
-    assert acc.demo_render("demo") == {"resolution": [640, 360], "grey": False}
-    assert acc.demo_render("demo", ("detector.name=orb",)) == {"resolution": [640, 360], "grey": True}
-    assert acc.demo_render("demo", ("detector.name=navlights",)) == {"resolution": [640, 360], "grey": False}
-    assert acc.demo_render("mono_straight") == {}
+    assert acc.scene_render("demo") == {"resolution": [640, 360], "grey": False}
+    assert acc.scene_render("demo", ("detector.name=orb",)) == {"resolution": [640, 360], "grey": True}
+    assert acc.scene_render("demo", ("detector.name=navlights",)) == {"resolution": [640, 360], "grey": False}
+    assert acc.scene_render("mono_straight") == {}
     scn = load_scenario(scenarios_dir() / "demo.yaml")
     assert acc.render_key(scn, {}) == acc.render_key(scn)
-    keys = {acc.render_key(scn), acc.render_key(scn, acc.demo_render("demo", ("detector.name=orb",))),
+    keys = {acc.render_key(scn), acc.render_key(scn, acc.scene_render("demo", ("detector.name=orb",))),
             acc.render_key(scn, {"resolution": [640, 360], "grey": False})}
     assert len(keys) == 3
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
@@ -205,7 +205,7 @@ def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
         (Path(out) / "gt.jsonl").write_text("{}\n")
 
     monkeypatch.setattr(writer, "simulate", fake_simulate)
-    how = acc.demo_render("demo", ("detector.name=orb",))
+    how = acc.scene_render("demo", ("detector.name=orb",))
     on = acc.AccuracyOptions(mode="pipeline")
     d = acc._scene_dir(on, tmp_path / "out", "demo", scn, {"x": 1}, None, how)
     assert calls == [{"resolution": (640, 360), "grey": True}]
@@ -213,3 +213,97 @@ def test_demo_scene_is_rendered_as_the_demo_renders_it(tmp_path, monkeypatch):
     off = acc.AccuracyOptions(mode="pipeline", render_cache=False)
     acc._scene_dir(off, tmp_path / "out2", "demo", scn, {"x": 1}, None, how)
     assert calls[-1] == {"resolution": (640, 360), "grey": True}
+
+
+# ------------------------------------------------------------ the low-resolution set (--set lowres)
+_LOWRES = ("lowres_mono_straight", "lowres_moving_crossing", "lowres_stereo_flying",
+           "lowres_heldout_stereo_flying", "lowres_val_stereo_flying", "lowres_val2_stereo_flying")
+
+
+def test_set_lowres_lists_its_scenes_and_all_ends_with_it():
+    from estimators.errors import ConfigError
+    from pipeline.accuracy import SCENE_SETS, SET_GROUPS, AccuracyOptions, run_accuracy
+    from pipeline.config import scenarios_dir
+
+    assert SCENE_SETS["lowres"] == (_LOWRES, ())
+    assert SET_GROUPS["all"] == ("tuned", "heldout", "validation", "demo", "lowres")
+    assert "lowres" not in SET_GROUPS["both"]
+    for n in _LOWRES:  # copies of presets (the originals stay in their own sets)
+        assert (scenarios_dir() / f"{n.removeprefix('lowres_')}.yaml").is_file()
+    with pytest.raises(ConfigError, match="lowres, both, all"):
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowers"))
+    with pytest.raises(ConfigError, match="the validation, demo and lowres sets have none"):
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowres", quick=True))
+
+
+def _kb_pixel(f, c, k, theta, phi):
+    """Kannala-Brandt by hand: r = f theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)."""
+    import math
+
+    r = f * theta * (1 + k[0] * theta**2 + k[1] * theta**4 + k[2] * theta**6 + k[3] * theta**8)
+    return c[0] + r * math.cos(phi), c[1] + r * math.sin(phi)
+
+
+def test_lowres_copy_is_its_original_rendered_at_640x360_with_the_lens_scaled(tmp_path, monkeypatch):
+    """lowres_<scene> is <scene>.yaml renamed, rendered at 640x360 with the same lens scaled: half the
+    focal length, the principal point at the centre of a 640x360 image, the same distortion and
+    field of view, so every bearing lands half as far from the centre (checked by hand)."""
+    import math
+
+    import numpy as np
+
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.config import scenarios_dir
+    from pipeline.sim.scene import load_scenario
+
+    for name in _LOWRES:
+        path, scn = acc.harness_scenario(name)
+        orig = load_scenario(scenarios_dir() / f"{name.removeprefix('lowres_')}.yaml")
+        assert path == scenarios_dir() / f"{orig.name}.yaml"
+        assert scn.name == name and scn.model_dump(exclude={"name"}) == orig.model_dump(exclude={"name"})
+        assert acc.scene_render(name) == {"resolution": [640, 360]}
+        assert acc.scene_render(name, ("detector.name=orb",)) == {"resolution": [640, 360]}  # colour
+    assert acc.harness_scenario("mono_straight")[1] == load_scenario(scenarios_dir() / "mono_straight.yaml")
+    assert acc.scene_render("mono_straight") == {}
+    # the rig the render is made with (the writer's), against the original's 1280x720 lens
+    _, scn = acc.harness_scenario("lowres_stereo_flying")
+    lo = writer.Simulation(scn, (640, 360), 1).rig
+    hi = writer.Simulation(acc.harness_scenario("stereo_flying")[1], None, 1).rig
+    assert [c.name for c in lo] == [c.name for c in hi] == ["cam0", "cam1"]
+    for a, b in zip(lo, hi, strict=True):
+        pa, pb = a.model.params(), b.model.params()
+        assert (pa["width"], pa["height"], pb["width"], pb["height"]) == (640, 360, 1280, 720)
+        assert pb["fx"] == pytest.approx(204.524, abs=1e-3) and pa["fx"] == pytest.approx(pb["fx"] / 2)
+        assert (pa["cx"], pa["cy"]) == (319.5, 179.5)  # (639.5 + 0.5) / 2 - 0.5: the centre
+        assert pa["max_angle_rad"] == pb["max_angle_rad"]
+        k = [pa[f"k{i}"] for i in range(1, 5)]
+        assert k == [pb[f"k{i}"] for i in range(1, 5)]
+        np.testing.assert_allclose(a.T_C_B.t, b.T_C_B.t)  # the same 0.30 m baseline
+        for theta, phi in ((0.3, 0.7), (1.0, -2.0), (1.5, 2.9)):
+            st = math.sin(theta)
+            b_C = np.array([st * math.cos(phi), st * math.sin(phi), math.cos(theta)])
+            uv, ok = a.model.bearing_to_pixel(b_C[None])
+            assert ok[0]
+            np.testing.assert_allclose(uv[0], _kb_pixel(102.262, (319.5, 179.5), k, theta, phi), atol=2e-3)
+    # pipeline mode renders the copy at 640x360 from its original's YAML; bearings mode uses that rig
+    seen = []
+
+    def stop(opts, root, name, scn, scene_parts, progress, how=None):
+        seen.append((name, scn.name, how, scene_parts["scenario_yaml"]))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(acc, "_scene_dir", stop)
+    with pytest.raises(KeyboardInterrupt):
+        acc.run_accuracy(acc.AccuracyOptions(mode="pipeline", scene_set="lowres"), tmp_path)
+    assert seen == [("lowres_mono_straight", "lowres_mono_straight", {"resolution": [640, 360]},
+                     (scenarios_dir() / "mono_straight.yaml").read_text())]
+
+    def no_fusion(rig, traj, settings):
+        seen.append([(c.model.width, c.model.height) for c in rig])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(acc, "ObstacleFusion", no_fusion)
+    with pytest.raises(KeyboardInterrupt):
+        acc.run_accuracy(acc.AccuracyOptions(scene_set="lowres"))
+    assert seen[-1] == [(640, 360)]
