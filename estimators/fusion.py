@@ -118,6 +118,7 @@ from estimators.fusion_stats import chi2_ppf, median_variance_factor
 from estimators.geometry import (
     _cross,  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
     _isin,  # np.isin of integer arrays without its overhead
+    _norm,  # |x| of a 1-D array, np.linalg.norm's own formula without its dispatch
 )
 from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
@@ -895,7 +896,7 @@ class _FeatureRays:
             rank[first.argsort(kind="stable")] = np.arange(len(uniq))
             r_new = self.size + rank  # row of each new id (by first appearance)
             self._grow(self.size + len(uniq))
-            self.b0[r_new] = b_W[new[first]]
+            self.b0[r_new] = b_W.take(new[first], 0)
             self.S[r_new] = 0.0  # (rows past size may hold compacted-away data)
             self.S_new[r_new] = 0.0
             self.size += len(uniq)
@@ -1527,7 +1528,7 @@ class ObstacleFusion:
             trk = np.arange(len(vs_l), dtype=np.int64)  # each view's track
             if not one:
                 trk = trk.repeat(nv)
-            feats = (ids, FB, c_W[fcam], trk.repeat(fcnt), fcam, B[first_view])
+            feats = (ids, FB, c_W.take(fcam, 0), trk.repeat(fcnt), fcam, B.take(first_view, 0))
         offs = (fcnt.cumsum() - fcnt).tolist()
         o_W = T_W_B.t
         mk = _View
@@ -2031,7 +2032,7 @@ class ObstacleFusion:
         first = first[eligible[g[first]]]
         if len(first) == 0:
             return
-        g, rows, b_now, c_now = g[first], rows[first], b_now[first], c_now[first]
+        g, rows, b_now, c_now = g[first], rows[first], b_now.take(first, 0), c_now.take(first, 0)
         n_min = s.feature_min_count
         cnt = np.bincount(g, minlength=G)
         b0 = fs.b0.take(rows, 0)
@@ -2055,18 +2056,18 @@ class ObstacleFusion:
         if not good.any():
             return
         g, rows, b_now, c_now = g[good], rows[good], b_now.compress(good, 0), c_now.compress(good, 0)
-        Sr = fs.S[rows]  # the features' running sums (_FeatureRays._set_sums: A, y, bc, cc, bcc, n)
+        Sr = fs.S.take(rows, 0)  # the features' running sums (_FeatureRays._set_sums: A, y, bc, cc, bcc, n)
         adj, det = _adjugate_det3(Sr[:, 0:9].reshape(len(Sr), 3, 3))
         ok = det > 1e-12
         g, rows = g[ok], rows[ok]
         b_now, c_now, Sr = b_now.compress(ok, 0), c_now.compress(ok, 0), Sr.compress(ok, 0)
         if not len(g):
             return
-        Ainv = adj[ok] / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
+        Ainv = adj.compress(ok, 0) / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
         p = np.einsum("kij,kj->ki", Ainv, Sr[:, 9:12])  # A_f p_f = y_f
         o = work[0][1].o_W
         r_vec = p - o
-        r = np.linalg.norm(r_vec, axis=1)
+        r = np.sqrt(_dot_rows(r_vec, r_vec))  # (np.linalg.norm's values)
         d_vec = p - c_now
         depth = np.sum(d_vec * b_now, axis=1)
         # the current ray's own miss of p_f (rad^2): |(I - b b^T)(p_f - c)|^2 / d^2
@@ -2133,13 +2134,13 @@ class ObstacleFusion:
         # T-junction) misses it now while the mean over its older rays (chi) hardly moves
         sig_post = np.maximum(sig_post, sig_r * np.sqrt(miss2 / (2.0 * s.feature_sigma_rad ** 2)))
         # every track's static member points: range, direction from the body origin, range sigma
-        self._members_ls = (g[fit], r[fit], (p[fit] - o) / r[fit][:, None], k_pt * sig_post[fit])
+        self._members_ls = (g[fit], r[fit], (p.compress(fit, 0) - o) / r[fit][:, None], k_pt * sig_post[fit])
         keep = np.bincount(g, minlength=G)[g] >= n_min
         if not keep.any():
             return
         g, rows, b_now, p, r, sig_r, chi, chi_cut, sig_post = (
-            g[keep], rows[keep], b_now[keep], p[keep], r[keep], sig_r[keep], chi[keep], chi_cut[keep],
-            sig_post[keep])
+            g[keep], rows[keep], b_now.compress(keep, 0), p.compress(keep, 0), r[keep], sig_r[keep],
+            chi[keep], chi_cut[keep], sig_post[keep])
         if behind is None:
             chi_med = _group_median(g, chi, G)
         else:
@@ -2819,7 +2820,8 @@ class ObstacleFusion:
             P[mov, 3, 3] = P[mov, 4, 4] = P[mov, 5, 5] = vp
             for k in mov:
                 batch[k][0].vel_assumed = True
-        r = np.linalg.norm(X[:, :3] - o, axis=1).tolist()
+        rel = X[:, :3] - o
+        r = np.sqrt(_dot_rows(rel, rel)).tolist()  # (np.linalg.norm's values)
         v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
             tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
@@ -3056,7 +3058,7 @@ class ObstacleFusion:
         if b is None:
             return
         d = tr.kf.x[:3] - sg.o_W
-        r = float(np.linalg.norm(d))
+        r = _norm(d)
         if r < 1e-9:
             return
         if r < b.range_min_m:
@@ -3243,7 +3245,7 @@ class ObstacleFusion:
         if got is None:
             return out
         jj, r, b, sr = got
-        cos = _dot_rows(b, u[jj])
+        cos = _dot_rows(b, u.take(jj, 0))
         sel = _nearest_per_group(jj, cos, K, s.member_spread_min_n)
         js = jj[sel]
         k = np.bincount(js, minlength=K)
@@ -3306,7 +3308,7 @@ class ObstacleFusion:
         if got is None:
             return out
         jj, r, b, sr = got
-        cos = _dot_rows(b, u[jj])
+        cos = _dot_rows(b, u.take(jj, 0))
         # in the depth cluster, within 60 deg of u, not the reported point itself (cos 1 mrad = 1 - 5e-7)
         keep = ((np.abs(r - rng[jj]) <= s.feature_depth_gap_frac * rng[jj]) & (cos > 0.5)
                 & (cos < math.cos(1e-3)))
