@@ -457,7 +457,7 @@ class ObstacleGrouper:
                 good = self._agree(f_sel, fn_sel, t_o, loose, _norm_rows(tflow)[o]) | ~has_flow[o]
                 if not good.all():  # (else the mean over the same members is the same)
                     owner[sel[~good]] = -1
-                    sel, o, f_sel, fn_sel = sel[good], o[good], f_sel[good], fn_sel[good]
+                    sel, o, f_sel, fn_sel = sel[good], o[good], f_sel.compress(good, 0), fn_sel[good]
                     tflow, has_flow = self._mean_flow(o, f_sel, tflow, T)
         # 2. unassigned features with a flow join the track of their nearest member (features
         # marked as extended texture too: they start no new group, but may move with a track)
@@ -477,10 +477,11 @@ class ObstacleGrouper:
         cnt_now = np.bincount(owner[owner >= 0], minlength=T) if T else np.zeros(0, np.int64)
         short = ((cnt_now < need_t) & (hits > 0)).nonzero()[0]
         free = ((owner < 0) & fvalid).nonzero()[0]
-        pred = rep[short] @ R1.T if R1 is not None else rep[short]
+        pred = rep.take(short, 0)
+        pred = pred @ R1.T if R1 is not None else pred
         pred = _normalise(pred + tflow.take(short, 0) * dt_s) if self.coast_predict else pred
         if len(short) and len(free):
-            cs = b[free] @ pred.T  # (F, S)
+            cs = b.take(free, 0) @ pred.T  # (F, S)
             ok = (cs > cos_link) & self._agree(
                 flow.take(free, 0)[:, None, :], fnorm[free][:, None], tflow.take(short, 0)[None, :, :]
             )
@@ -503,7 +504,7 @@ class ObstacleGrouper:
             rows_all = np.concatenate(pieces)
             piece_of = np.arange(K).repeat([len(p) for p in pieces])
             cnt_p = np.bincount(piece_of, minlength=K)
-            b_p, f_p = b[rows_all], flow[rows_all]
+            b_p, f_p = b.take(rows_all, 0), flow.take(rows_all, 0)
             pc = _normalise(_bincount3(piece_of, b_p, K))
             pf = _bincount3(piece_of, f_p, K) / cnt_p[:, None]
             tgt = T + np.arange(K)  # index of each piece's track: a new one unless revived
@@ -511,11 +512,12 @@ class ObstacleGrouper:
             cand = ((cnt_now < need_t) & (hits > 0)).nonzero()[0]
             if len(cand):
                 # where each candidate is now: b <- normalise(R_C_Cprev b + flow dt)
-                pred = rep[cand] @ R1.T if R1 is not None else rep[cand]
-                pred = _normalise(pred + tflow[cand] * dt_s) if self.coast_predict else pred
+                pred = rep.take(cand, 0)
+                pred = pred @ R1.T if R1 is not None else pred
+                pred = _normalise(pred + tflow.take(cand, 0) * dt_s) if self.coast_predict else pred
                 cs = pc @ pred.T  # (K, C)
                 pi, ci = np.nonzero(cs > cos_r)
-                agree = self._agree(pf[pi], _norm_rows(pf)[pi], tflow[cand[ci]])
+                agree = self._agree(pf.take(pi, 0), _norm_rows(pf)[pi], tflow.take(cand[ci], 0))
                 pi, ci = pi[agree], ci[agree]
                 used_p, used_c = set(), set()
                 order = (-cs[pi, ci]).argsort(kind="stable")  # closest pairs first
@@ -611,7 +613,8 @@ class ObstacleGrouper:
         if self.extended_sectors and (alive & tent).any():
             a_idx = (alive & tent).nonzero()[0]
             ext[a_idx] = self._embedded(
-                new_rep[a_idx], reach[a_idx], tflow[a_idx], a_idx, b, flow, fvalid, owner, ft.model
+                new_rep.take(a_idx, 0), reach[a_idx], tflow.take(a_idx, 0), a_idx, b, flow, fvalid, owner,
+                ft.model,
             )
         # 6. the tracks' new state, the life cycle (array work first, then one pass over tracks)
         # (python lists: the loop below reads them one element at a time)
@@ -622,7 +625,7 @@ class ObstacleGrouper:
         # field as the obstacle leaves it) has no pixel: uv None, never a made-up one
         uv_all: list[np.ndarray | None] = [None] * TK
         if len(show):
-            uv, ok = ft.model.bearing_to_pixel(new_rep[show])
+            uv, ok = ft.model.bearing_to_pixel(new_rep.take(show, 0))
             for ti, u in zip(show[ok].tolist(), uv[ok], strict=True):
                 uv_all[ti] = u
         coast_b = rep[:T] @ R1.T if R1 is not None else rep[:T]
@@ -1274,7 +1277,7 @@ class ObstacleGrouper:
         m = len(free)
         if m == 0:
             return [], np.zeros(0, bool)
-        bf, ff = b[free], flow[free]
+        bf, ff = b.take(free, 0), flow.take(free, 0)
         f2 = f2_all[free]
         fn = np.sqrt(f2)
         # |f_i - f_j|^2 = |f_i|^2 + |f_j|^2 - 2 f_i.f_j;  agree: |f_i - f_j| < abs + rel max(|f_i|, |f_j|)
@@ -1301,8 +1304,8 @@ class ObstacleGrouper:
             ok_f = age[free] >= self.isolated_min_age
             # isolated: a member's live neighbours (itself included) are all members, or move
             # unlike it (a small obstacle crossing the background: its motion sets it apart)
-            ci, nj = np.nonzero(bf[cand] @ b.T > cos_link)  # (candidate, live feature) pairs near
-            fc = ff[cand]
+            ci, nj = np.nonzero(bf.take(cand, 0) @ b.T > cos_link)  # (candidate, live feature) pairs near
+            fc = ff.take(cand, 0)
             g2 = f2_all[nj]
             dd = (f2[cand][ci] + g2) - 2.0 * (fc @ flow.T)[ci, nj]
             th = self.flow_abs + self.flow_rel * np.maximum(fn[cand][ci], np.sqrt(g2))
@@ -1340,7 +1343,7 @@ class ObstacleGrouper:
                 # cut: a piece around the member farthest from the centre, so the rest stays compact
                 far = comp[np.argmin(cc)]
                 piece = comp[bc @ bf[far] > cos_r]
-                c2 = _normalise(np.add.reduce(bf[piece], 0) / len(piece))
+                c2 = _normalise(np.add.reduce(bf.take(piece, 0), 0) / len(piece))
                 inside = bc @ c2 > cos_r
                 piece = comp[inside] if inside.any() else np.array([far])
                 if len(piece) >= self.min_features:
