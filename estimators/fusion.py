@@ -755,7 +755,7 @@ def _near_group_choice(g: np.ndarray, r: np.ndarray, s: np.ndarray, pick: np.nda
     a_idx = (support >= n_min).nonzero()[0]  # (ascending: by track, then range)
     # each track's first anchor (np.unique's index of first occurrence; an assignment through
     # repeated indices has no guaranteed order in numpy)
-    g_a, at = np.unique(gs[a_idx], return_index=True)
+    g_a, at = _unique_first(gs[a_idx])
     first[g_a] = a_idx[at]
     a_pick = np.full(len(pick), -1, dtype=np.int64)
     a_pick[live] = first[g[pick[live]]]
@@ -1108,6 +1108,19 @@ def _median_rows(X: np.ndarray) -> np.ndarray:
     if n % 2:
         return Xs[n // 2]
     return (Xs[n // 2 - 1] + Xs[n // 2]) / 2.0
+
+
+def _unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_index=True)`` of integer keys (N,): the sorted distinct keys and the
+    index of each one's first occurrence, the same arrays by np.unique's own steps (a stable argsort,
+    then each sorted key unlike the one before it), without its overhead (11 us against 16 on a few
+    hundred keys)."""
+    order = keys.argsort(kind="stable")
+    ks = keys[order]
+    new = np.empty(len(ks), dtype=bool)
+    new[:1] = True
+    np.not_equal(ks[1:], ks[:-1], out=new[1:])
+    return ks[new], order[new]
 
 
 def _group_median(g: np.ndarray, v: np.ndarray, n_groups: int) -> np.ndarray:
@@ -2003,7 +2016,7 @@ class ObstacleFusion:
         ids, b_now, c_now, g, cam = feats[:5]
         rows = fs.rows(ids, b_now)
         ncam = len(self._cam_index)
-        _, first = np.unique(rows * ncam + cam, return_index=True)  # one ray per feature and camera
+        _, first = _unique_first(rows * ncam + cam)  # one ray per feature and camera
         fs.add(rows[first], b_now.take(first, 0), c_now.take(first, 0), t_s, s.feature_memory_s,
                unique=ncam == 1, short_memory_s=s.feature_slide_memory_s if ncam > 1 else 0.0)
         # the features on their track's outline in a view (``_outline_flags``): not chosen to range
@@ -2028,7 +2041,7 @@ class ObstacleFusion:
         key_n = fs.size + 1
         # (track, feature) on an outline in a view
         edge_keys = np.unique(g[edge] * key_n + rows[edge]) if avoid_ls else None
-        _, first = np.unique(g * key_n + rows, return_index=True)
+        _, first = _unique_first(g * key_n + rows)
         first = first[eligible[g[first]]]
         if len(first) == 0:
             return
@@ -2496,7 +2509,7 @@ class ObstacleFusion:
                 bad[m.nonzero()[0][_dot_rows(dp, dp) > self._gate3 * var]] = True
         # this frame's points (accepted or not) become their ids' last ones; ids unseen for
         # lost_after_s are dropped
-        nid, sel = np.unique(fid, return_index=True)
+        nid, sel = _unique_first(fid)
         if last is not None and len(last[0]):
             hid, hp, hs, ht = last
             old = (t_s - ht <= s.lost_after_s) & ~_isin(hid, nid)
@@ -3555,7 +3568,7 @@ class ObstacleFusion:
             if not sel.any():
                 continue
             med = _group_median(inv[sel], r[mm[sel]], n_q)
-            hq = np.unique(inv[sel])
+            hq = (np.bincount(inv[sel], minlength=n_q) > 0).nonzero()[0]
             np.maximum.at(out, q_rep[hq], rng[q_rep[hq]] - med[hq])
         return out
 
