@@ -1090,8 +1090,8 @@ def _polar_enclosed(ang: np.ndarray, grp: np.ndarray, n: int) -> np.ndarray:
     a_s, q_s = ang[order], grp[order]
     cnt = np.bincount(grp, minlength=n)
     start = cnt.cumsum() - cnt
-    gaps = np.diff(a_s)
-    gaps[np.diff(q_s) != 0] = 0.0  # (no gap across groups)
+    gaps = a_s[1:] - a_s[:-1]
+    gaps[q_s[1:] != q_s[:-1]] = 0.0  # (no gap across groups)
     gmax = np.zeros(n)
     if len(gaps):
         np.maximum.at(gmax, q_s[1:], gaps)
@@ -3483,8 +3483,9 @@ class ObstacleFusion:
         if len(g) > 1 and (g[1:] < g[:-1]).any():  # (each part is sorted by track already)
             order = g.argsort(kind="stable")
             g, r, b, sr = g[order], r[order], b[order], sr[order]
-        gstart = np.diff(g, prepend=-1).nonzero()[0]  # (np.unique of the sorted g, cheaper)
-        gcnt = np.diff(np.append(gstart, len(g)))
+        # each track's run of rows in the sorted g (np.unique's, cheaper) and its length
+        gstart = np.concatenate(([0], (g[1:] != g[:-1]).nonzero()[0] + 1))
+        gcnt = np.concatenate((gstart[1:], [len(g)])) - gstart
         ug = g[gstart]
         cg = np.add.reduceat(b, gstart, axis=0)
         cg /= np.maximum(np.sqrt(_dot_rows(cg, cg)), 1e-12)[:, None]
@@ -3515,7 +3516,7 @@ class ObstacleFusion:
         np.not_equal(key[1:], key[:-1], out=first_q[1:])
         inv = first_q.cumsum() - 1
         q0 = first_q.nonzero()[0]
-        ukey, cnt = key[q0], np.diff(np.append(q0, len(key)))
+        ukey, cnt = key[q0], np.concatenate((q0[1:], [len(key)])) - q0
         n_q = len(ukey)
         q_rep = ukey // (int(g.max()) + 1)  # each (report, track) pair's report
         # (a) the hull test, all pairs at once: the polar angle of each point about u_j in the
