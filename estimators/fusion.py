@@ -2049,7 +2049,7 @@ class ObstacleFusion:
         n_min = s.feature_min_count
         cnt = np.bincount(g, minlength=G)
         b0 = fs.b0.take(rows, 0)
-        cosp = np.sum(b0 * b_now, axis=1).clip(-1.0, 1.0)
+        cosp = _dot_rows(b0, b_now).clip(-1.0, 1.0)
         # (tracks with fewer than feature_min_count features get no feature range, but their
         # features' points still tell the spread of depths around the track: _member_spread)
         # parallax floor: theta >= 10 sigma_f, the bearing noise at most a tenth of the parallax,
@@ -2082,7 +2082,7 @@ class ObstacleFusion:
         r_vec = p - o
         r = np.sqrt(_dot_rows(r_vec, r_vec))  # (np.linalg.norm's values)
         d_vec = p - c_now
-        depth = np.sum(d_vec * b_now, axis=1)
+        depth = _dot_rows(d_vec, b_now)
         # the current ray's own miss of p_f (rad^2): |(I - b b^T)(p_f - c)|^2 / d^2
         miss2 = np.maximum(_dot_rows(d_vec, d_vec) - depth * depth, 0.0) / np.maximum(depth * depth, 1e-12)
         u = r_vec / np.maximum(r, 1e-9)[:, None]
@@ -2185,7 +2185,7 @@ class ObstacleFusion:
             g, rows, r, sig_r = g[fit], rows[fit], r[fit], sig_post[fit]
             b_now, p = b_now.compress(fit, 0), p.compress(fit, 0)
         b_rep = feats[5]  # (G, 3) first views' bearings
-        ang = np.arccos(np.sum(b_now * b_rep.take(g, 0), axis=1).clip(-1.0, 1.0))
+        ang = np.arccos(_dot_rows(b_now, b_rep.take(g, 0)).clip(-1.0, 1.0))
         inner = ang <= _group_median(g, ang, G)[g]
         cnt_in = np.bincount(g[inner], minlength=G)
         if s.feature_inner_half:
