@@ -632,6 +632,33 @@ class FusionSettings:
             )
 
 
+def _per_camera(rig: Rig, what: str, values, ok, expected: str) -> dict[str, float]:
+    """``values`` (a mapping camera name -> number, or None: {}) as floats, each checked by
+    ``ok``: ObstacleFusion's per-camera keywords (pixel_scale, window_px).
+
+    Raises InputError naming ``what`` and the camera for a key that is not one of the rig's
+    cameras (a misspelt camera would leave its camera out silently), and for a value that is not a
+    finite real number (a bool or a string is not one) or fails ``ok`` (``expected`` says what is).
+    """
+    if values is None:
+        return {}
+    if not isinstance(values, Mapping):
+        raise InputError(f"ObstacleFusion {what}: expected a mapping camera name -> number, got {values!r}")
+    out = {}
+    for name, v in values.items():
+        if name not in rig.names:
+            raise InputError(
+                f"ObstacleFusion {what}['{name}']: not a camera of the rig (expected one of "
+                f"{', '.join(rig.names)})"
+            )
+        real = isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
+        x = float(v) if real else math.nan
+        if not (math.isfinite(x) and ok(x)):
+            raise InputError(f"ObstacleFusion {what}['{name}']: expected {expected}, got {v!r}")
+        out[name] = x
+    return out
+
+
 def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
     """``tangent_basis`` of a unit 3-tuple: the columns (e1, e2) as 3-tuples of floats."""
     a0, a1, a2 = abs(u[0]), abs(u[1]), abs(u[2])
@@ -1234,7 +1261,8 @@ class ObstacleFusion:
             front end's ``FrontEnd.scale``, ``trackers.frontend.tracked_scale``: a frame wider than
             its max_width is tracked downscaled); None or a missing camera: 1, the full frame. The
             settings' pixel quantities (feature_sigma_focal_px's f) and window_px are of tracked
-            pixels, so a rig's px per rad is taken at that scale.
+            pixels, so a rig's px per rad is taken at that scale. InputError for a name that is not
+            one of the rig's cameras or a value that is not a real number in (0, 1] (a bool is not).
         window_px: per camera name, the full width (tracked px, see pixel_scale) of the KLT window its
             features are tracked by (the front end's ``features.win_px``: the FeatureTracker's temporal
             window and the stereo KLT's; ``trackers.frontend.tracked_window``). A report ranged by a
@@ -1250,6 +1278,7 @@ class ObstacleFusion:
             thesis_speed_15mps: the chosen feature's chi, its rays' spread across their epipolar plane and
             its short-memory slide statistic do not separate the reports with z^2 > 25 from the rest).
             None (or no camera): no window term, for rays not tracked by a window (synthetic bearings).
+            InputError, as for pixel_scale, for a name not of the rig or a value not a real number > 0.
             Not fitted: the window's half-width. As the former FusionSettings.feature_window_px 5.5 (the
             11-px window's half-width, set by hand; removed: it did not follow win_px): replays over one
             recording of 7ca8491's front end (accuracy --set all, tuned | held-out | validation | demo),
@@ -1283,28 +1312,10 @@ class ObstacleFusion:
         self.rig = rig
         self.egomotion = egomotion
         s = settings or FusionSettings()
-        scale = {} if pixel_scale is None else dict(pixel_scale)
-        for name, k in scale.items():
-            try:
-                scale[name] = float(k)
-            except (TypeError, ValueError):
-                scale[name] = math.nan
-            if not (math.isfinite(scale[name]) and 0.0 < scale[name] <= 1.0):
-                raise InputError(
-                    f"ObstacleFusion pixel_scale['{name}']: expected the scale of the images the "
-                    f"features are tracked in, in (0, 1], got {k!r}"
-                )
-        win = {} if window_px is None else dict(window_px)
-        for name, w in win.items():
-            try:
-                win[name] = float(w)
-            except (TypeError, ValueError):
-                win[name] = math.nan
-            if not (math.isfinite(win[name]) and win[name] > 0.0):
-                raise InputError(
-                    f"ObstacleFusion window_px['{name}']: expected the width of the KLT window the "
-                    f"features are tracked by, in tracked px > 0, got {w!r}"
-                )
+        scale = _per_camera(rig, "pixel_scale", pixel_scale, lambda k: 0.0 < k <= 1.0,
+                            "the scale of the images the features are tracked in, in (0, 1]")
+        win = _per_camera(rig, "window_px", window_px, lambda w: w > 0.0,
+                          "the width of the KLT window the features are tracked by, in tracked px > 0")
         f_ref = s.feature_sigma_focal_px
         f_rig = None
         # f: px per rad at the image centre, d uv / d b_C on the optical axis (fx, fy for

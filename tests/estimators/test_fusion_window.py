@@ -116,16 +116,36 @@ def test_a_frame_tracked_downscaled_takes_the_angle_of_its_tracked_pixels():
     assert halved._window_rad == pytest.approx(coarse._window_rad)
 
 
-@pytest.mark.parametrize("bad", [0.0, -0.5, 1.5, float("nan"), "half", None])
+@pytest.mark.parametrize("bad", [0.0, -0.5, 1.5, float("nan"), "half", None, True, np.True_, "0.5"])
 def test_a_pixel_scale_outside_0_1_is_refused(bad):
     with pytest.raises(InputError, match=r"pixel_scale\['cam0'\].*\(0, 1\]"):
         ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(SPEED), pixel_scale={"cam0": bad})
 
 
-@pytest.mark.parametrize("bad", [0, -5, float("nan"), float("inf"), "eleven", None])
+@pytest.mark.parametrize("bad", [0, -5, float("nan"), float("inf"), "eleven", None, True, np.True_, "11"])
 def test_a_window_that_is_not_a_positive_width_is_refused(bad):
+    # (a bool is no width: True would be a 1-px window; a string is not a number, as the tracker's
+    # win_px refuses "11")
     with pytest.raises(InputError, match=r"window_px\['cam0'\].*> 0, got"):
         ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(SPEED), window_px={"cam0": bad})
+
+
+def test_numpy_numbers_are_widths_and_scales():
+    fus = ObstacleFusion(mono_forward_rig(MODEL), ConstantVelocity(SPEED),
+                         pixel_scale={"cam0": np.float32(1.0)}, window_px={"cam0": np.int64(11)})
+    assert fus._window_rad == pytest.approx(5.5 * math.radians(0.15))
+
+
+@pytest.mark.parametrize("keyword", ["pixel_scale", "window_px"])
+def test_a_camera_the_rig_does_not_have_is_refused(keyword):
+    """A misspelt camera name would leave that camera at no window (or the full frame's scale)
+    without a word: refused, naming the rig's cameras; so is a value that is not a mapping."""
+    rig = stereo_forward_rig(MODEL, 0.30)
+    good = {"pixel_scale": 0.5, "window_px": 11}[keyword]
+    with pytest.raises(InputError, match=rf"{keyword}\['cam2'\]: not a camera of the rig.*cam0, cam1"):
+        ObstacleFusion(rig, ConstantVelocity(SPEED), **{keyword: {"cam0": good, "cam2": good}})
+    with pytest.raises(InputError, match=rf"{keyword}: expected a mapping camera name -> number"):
+        ObstacleFusion(rig, ConstantVelocity(SPEED), **{keyword: good})
 
 
 def _far_report_stereo(off_deg: float, settings: FusionSettings | None = None, window_px: int = 11):
