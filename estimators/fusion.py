@@ -3354,7 +3354,8 @@ class ObstacleFusion:
         point this frame (``feature_point``), on any rig.
 
         The front end tracks a feature by the image window around it (KLT, ``window_px`` wide, as
-        an angle rho = window_px / 2 / f with f the camera's tracked px per rad).
+        an angle rho = window_px / 2 / f with f the camera's tracked px per rad; one rho for every
+        report, the widest over the rig's cameras).
         When that window holds a surface at another depth (the feature sits near an occluding edge:
         a T-junction of a near outline and a farther surface, a curved obstacle's limb, a point
         that a nearer obstacle is passing), the window's motion is a blend of two parallaxes, and
@@ -3454,8 +3455,8 @@ class ObstacleFusion:
         that track's surface spans the bearing in front of the reported point, and the range along
         the bearing is that surface's: the term is r - median(r_i) (the report stays: its point is
         real, but its bearing is not clear up to its range). The hull is widened by the tracked
-        window's angle rho (``_window_neighbours``' angle: window_px / 2 over the px per rad of
-        the tracked images): the nearer surface spans at least its points' hull, and when it comes
+        window's angle rho (``_window_neighbours``' one angle: the largest window_px / 2 over the px per
+        rad of the tracked images): the nearer surface spans at least its points' hull, and when it comes
         within rho of u it reaches into the window the front end tracks the reported point by, so
         that point may be a corner the surface is passing over (its window a blend of two depths, the window
         term's model) or already behind it (val_turning, with the mono outline rule: track 73's
