@@ -524,3 +524,32 @@ def test_fusion_takes_the_scale_and_window_the_front_end_tracks_at(max_width, sc
     assert fe.trackers["cam0"].win[0] == (win_px or 11)
     fusion = run_mod.build_fusion(cfg, rig, ConstantVelocity(5.0))
     assert fusion._window_rad == pytest.approx((win_px or 11) / 2 * math.radians(0.10) / scale)
+
+
+@pytest.mark.parametrize("max_width, scales, want_deg", [
+    (None, (1280 / 1920, 1.0), 1.10),  # cam0 5.5 x 0.15 = 0.825, cam1 5.5 x 0.20 = 1.10
+    (960, (0.5, 0.75), 5.5 * 0.20 / 0.75),  # cam0 5.5 x 0.20 = 1.10, cam1 5.5 x 0.2667 = 1.467
+])
+@pytest.mark.parametrize("win_px", [None, 7])
+def test_two_unlike_lenses_each_take_their_own_tracked_scale(max_width, scales, want_deg, win_px):
+    """A stereo rig of unlike lenses: cam0 1920 px wide at 0.10 deg per px, cam1 1280 px at 0.20 deg
+    per px. The front end tracks each at its own scale (max_width, default 1280: cam0 at 2/3, cam1
+    in full; 960: 1/2 and 3/4), both with the KLT window tracker.features.win_px (default 11), and
+    the fusion's window angle is the widest camera's half-width over its own tracked px per rad:
+    w / 2 x (deg per px / scale), by hand in the parameters above for w = 11 (x 7 / 11 for w = 7)."""
+    import math
+
+    from estimators.cameras import Equidistant
+    from estimators.rig import stereo_forward_rig
+
+    rig = stereo_forward_rig(Equidistant.from_deg_per_px(0.10, 1920, 1920), 0.30,
+                             model_right=Equidistant.from_deg_per_px(0.20, 1280, 1280))
+    sets = ([] if max_width is None else [f"tracker.max_width={max_width}"]) + (
+        [] if win_px is None else [f"tracker.features.win_px={win_px}"])
+    cfg = load_config(None, overrides=sets)
+    fe = run_mod.build_frontend(cfg, rig)
+    assert fe.scale == {"cam0": pytest.approx(scales[0]), "cam1": pytest.approx(scales[1])}
+    w = win_px or 11
+    assert fe.trackers["cam0"].win == fe.trackers["cam1"].win == (w, w)
+    fusion = run_mod.build_fusion(cfg, rig, ConstantVelocity(5.0))
+    assert math.degrees(fusion._window_rad) == pytest.approx(want_deg * w / 11)
