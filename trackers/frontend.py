@@ -76,8 +76,9 @@ def tracked_window(rig: Rig, features: Mapping[str, Any] | None = None) -> dict[
     """Per camera name, the side (px of the images its features are tracked in: ``tracked_scale``)
     of the square KLT window its features are tracked by: ``features['win_px']`` (FeatureTracker's
     keyword, default ``KLT_WIN_PX``), the one window setting: the temporal KLT's, the stereo KLT's
-    (``stereo_klt`` is given the reference camera's tracker's window) and the fusion's window angle
-    (``ObstacleFusion(window_px=)``, its half-width over the tracked px per rad).
+    (``stereo_klt`` searching camera a's features in b is given a's tracker's window, for every
+    ordered pair of cameras) and the fusion's window angle (``ObstacleFusion(window_px=)``, its
+    half-width over the tracked px per rad).
 
     Raises ConfigError for a win_px that is not an integer >= 3 (``klt_window_px``).
     """
