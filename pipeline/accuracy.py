@@ -59,7 +59,7 @@ __all__ = ["AccuracyOptions", "Sample", "random_scenarios", "preset_scenarios", 
            "PIPELINE_SCENES_HELDOUT", "PIPELINE_SCENES_VALIDATION", "range_z2_reports", "z2_stats",
            "settings_from_overrides", "render_cache_dir", "scored_ranges", "format_scored",
            "PIPELINE_SCENES_DEMO", "PIPELINE_SCENES_LOWRES", "LOWRES_PREFIX", "LOWRES_RESOLUTION",
-           "harness_scenario", "scene_render"]
+           "PIPELINE_SCENES_HIGHFPS", "HIGHFPS_PREFIX", "HIGHFPS_FPS", "harness_scenario", "scene_render"]
 
 # The issue's numbers to reach: metric -> (comparison, value)
 TARGETS: dict[str, tuple[str, float]] = {
@@ -113,7 +113,8 @@ class AccuracyOptions:
     ``val_*`` / ``val2_*`` presets: fresh seeds of nine tuned and held-out scenes, used to fit
     nothing) has no --quick scenes, nor has "demo" (the scene of ``fisheye-des demo``, rendered as the
     demo renders it: :func:`scene_render`), nor has "lowres" (640x360 copies of six scenes, lens
-    scaled: ``PIPELINE_SCENES_LOWRES``); "all" = tuned, heldout, validation, demo and lowres.
+    scaled: ``PIPELINE_SCENES_LOWRES``), nor has "highfps" (100-fps copies of four scenes:
+    ``PIPELINE_SCENES_HIGHFPS``); "all" = tuned, heldout, validation, demo, lowres and highfps.
     overrides (pipeline mode): ``section.key=value`` strings applied to each scene's run config
     exactly like ``fisheye-des run --set`` (``pipeline.config.load_config``); front-end sections
     change the recording key, so ``reuse_frontend`` re-records. Fusion overrides reach ``settings`` through
@@ -730,7 +731,8 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
         from estimators.errors import ConfigError
 
         raise ConfigError(f"accuracy --set {opts.scene_set} --quick: the set has no --quick scenes in "
-                          f"{opts.mode} mode (the validation, demo and lowres sets have none); drop --quick")
+                          f"{opts.mode} mode (the validation, demo, lowres and highfps sets have none); "
+                          "drop --quick")
     sets: dict[str, dict] = {}
     tables = []
     for set_name in set_names:
@@ -1054,6 +1056,16 @@ LOWRES_RESOLUTION = (640, 360)
 PIPELINE_SCENES_LOWRES = tuple(LOWRES_PREFIX + n for n in (
     "mono_straight", "moving_crossing", "stereo_flying", "heldout_stereo_flying", "val_stereo_flying",
     "val2_stereo_flying"))
+# The high-frame-rate set: 100-fps copies (the thesis's camera runs at 100 Hz; every preset is 30 fps)
+# of two tuned mono scenes and the tuned and held-out stereo flying scenes, same resolution, length,
+# trajectory and world, used to fit nothing: the grouping's frame counts and flow tolerance were fitted
+# at 30 fps. A copy is named HIGHFPS_PREFIX + its original's name and derived from the original's YAML
+# (see harness_scenario); its frame times are the simulator's k / fps, read back from the render's
+# timestamps files by the run.
+HIGHFPS_PREFIX = "fps100_"
+HIGHFPS_FPS = 100.0
+PIPELINE_SCENES_HIGHFPS = tuple(HIGHFPS_PREFIX + n for n in (
+    "mono_straight", "moving_crossing", "stereo_flying", "heldout_stereo_flying"))
 # scene set -> (pipeline scenes, pipeline --quick scenes)
 SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "tuned": (PIPELINE_SCENES, PIPELINE_SCENES_QUICK),
@@ -1061,27 +1073,37 @@ SCENE_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "validation": (PIPELINE_SCENES_VALIDATION, ()),
     "demo": (PIPELINE_SCENES_DEMO, ()),
     "lowres": (PIPELINE_SCENES_LOWRES, ()),
+    "highfps": (PIPELINE_SCENES_HIGHFPS, ()),
 }
 # --set names that stand for several sets (run in this order, each scored on its own)
-SET_GROUPS = {"both": ("tuned", "heldout"), "all": ("tuned", "heldout", "validation", "demo", "lowres")}
+SET_GROUPS = {"both": ("tuned", "heldout"),
+              "all": ("tuned", "heldout", "validation", "demo", "lowres", "highfps")}
 SET_TITLES = {"tuned": "tuned: the scenes the settings were fitted on",
               "heldout": "held-out: scenes no setting was fitted on",
               "validation": "validation: 18 fresh-seed copies of 9 scenes, used to fit nothing",
               "demo": "demo: the scene of fisheye-des demo, rendered as the demo renders it",
-              "lowres": "lowres: 640x360 copies (lens scaled) of six scenes, used to fit nothing"}
+              "lowres": "lowres: 640x360 copies (lens scaled) of six scenes, used to fit nothing",
+              "highfps": "highfps: 100-fps copies of four scenes, used to fit nothing"}
 
 
 def harness_scenario(name: str):
     """(the preset YAML, the ``pipeline.sim.scene.Scenario``) of harness scene ``name``: the preset
-    ``configs/scenarios/<name>.yaml``, or for a low-resolution copy (``LOWRES_PREFIX`` + a preset's
-    name) its original's YAML and scenario renamed ``name`` (:func:`scene_render` gives its
-    resolution; the scenario keeps its original's, which the render overrides)."""
+    ``configs/scenarios/<name>.yaml``, or for a derived copy (``LOWRES_PREFIX`` or ``HIGHFPS_PREFIX`` +
+    a preset's name) its original's YAML and scenario renamed ``name``: a low-resolution copy keeps
+    its original's resolution, which the render overrides (:func:`scene_render`); a high-frame-rate
+    copy has ``fps`` ``HIGHFPS_FPS`` (everything else its original's)."""
     from pipeline.sim.scene import load_scenario
 
-    base = name.removeprefix(LOWRES_PREFIX) if name in PIPELINE_SCENES_LOWRES else name
+    update: dict = {"name": name}
+    if name in PIPELINE_SCENES_LOWRES:
+        base = name.removeprefix(LOWRES_PREFIX)
+    elif name in PIPELINE_SCENES_HIGHFPS:
+        base, update["fps"] = name.removeprefix(HIGHFPS_PREFIX), HIGHFPS_FPS
+    else:
+        base = name
     path = scenarios_dir() / f"{base}.yaml"
     scn = load_scenario(path)
-    return path, (scn if base == name else scn.model_copy(update={"name": name}))
+    return path, (scn if base == name else scn.model_copy(update=update))
 
 
 def scene_render(name: str, overrides: tuple[str, ...] | list[str] = ()) -> dict:

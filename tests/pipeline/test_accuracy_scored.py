@@ -220,19 +220,19 @@ _LOWRES = ("lowres_mono_straight", "lowres_moving_crossing", "lowres_stereo_flyi
            "lowres_heldout_stereo_flying", "lowres_val_stereo_flying", "lowres_val2_stereo_flying")
 
 
-def test_set_lowres_lists_its_scenes_and_all_ends_with_it():
+def test_set_lowres_lists_its_scenes_and_all_holds_it():
     from estimators.errors import ConfigError
     from pipeline.accuracy import SCENE_SETS, SET_GROUPS, AccuracyOptions, run_accuracy
     from pipeline.config import scenarios_dir
 
     assert SCENE_SETS["lowres"] == (_LOWRES, ())
-    assert SET_GROUPS["all"] == ("tuned", "heldout", "validation", "demo", "lowres")
+    assert SET_GROUPS["all"][:5] == ("tuned", "heldout", "validation", "demo", "lowres")
     assert "lowres" not in SET_GROUPS["both"]
     for n in _LOWRES:  # copies of presets (the originals stay in their own sets)
         assert (scenarios_dir() / f"{n.removeprefix('lowres_')}.yaml").is_file()
-    with pytest.raises(ConfigError, match="lowres, both, all"):
+    with pytest.raises(ConfigError, match="lowres, highfps, both, all"):
         run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowers"))
-    with pytest.raises(ConfigError, match="the validation, demo and lowres sets have none"):
+    with pytest.raises(ConfigError, match="the validation, demo, lowres and highfps sets have none"):
         run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowres", quick=True))
 
 
@@ -307,3 +307,69 @@ def test_lowres_copy_is_its_original_rendered_at_640x360_with_the_lens_scaled(tm
     with pytest.raises(KeyboardInterrupt):
         acc.run_accuracy(acc.AccuracyOptions(scene_set="lowres"))
     assert seen[-1] == [(640, 360)]
+
+
+# ------------------------------------------------------------ the high-frame-rate set (--set highfps)
+_HIGHFPS = ("fps100_mono_straight", "fps100_moving_crossing", "fps100_stereo_flying",
+            "fps100_heldout_stereo_flying")
+
+
+def test_set_highfps_lists_its_scenes_and_all_ends_with_it():
+    from estimators.errors import ConfigError
+    from pipeline.accuracy import SCENE_SETS, SET_GROUPS, AccuracyOptions, run_accuracy
+    from pipeline.config import scenarios_dir
+
+    assert SCENE_SETS["highfps"] == (_HIGHFPS, ())
+    assert SET_GROUPS["all"] == ("tuned", "heldout", "validation", "demo", "lowres", "highfps")
+    assert "highfps" not in SET_GROUPS["both"]
+    for n in _HIGHFPS:  # copies of presets (the originals stay in their own sets)
+        assert (scenarios_dir() / f"{n.removeprefix('fps100_')}.yaml").is_file()
+    with pytest.raises(ConfigError, match="lowres and highfps sets have none"):
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="highfps", quick=True))
+
+
+def test_highfps_copy_is_its_original_at_100_fps_and_the_run_reads_its_frame_times(tmp_path, monkeypatch):
+    """fps100_<scene> is <scene>.yaml renamed with fps 100 and nothing else changed (same length,
+    trajectory, world, resolution): 100 / 30 as many frames, each at k / 100 s; the render's
+    timestamps files carry those times and the run config of the render reads them back."""
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.config import scenarios_dir
+    from pipeline.run import build_rig, open_inputs
+    from pipeline.sim.scene import load_scenario
+
+    for name in _HIGHFPS:
+        path, scn = acc.harness_scenario(name)
+        orig = load_scenario(scenarios_dir() / f"{name.removeprefix('fps100_')}.yaml")
+        assert path == scenarios_dir() / f"{orig.name}.yaml"
+        assert orig.fps == 30 and scn.fps == 100
+        assert scn.name == name
+        assert scn.model_dump(exclude={"name", "fps"}) == orig.model_dump(exclude={"name", "fps"})
+        assert scn.n_frames == round(orig.duration_s * 100) and orig.n_frames == round(orig.duration_s * 30)
+        assert acc.scene_render(name) == {} and acc.scene_render(name, ("detector.name=orb",)) == {}
+        assert acc.render_key(scn) != acc.render_key(orig)  # its own cached render
+    sim = writer.Simulation(acc.harness_scenario("fps100_stereo_flying")[1], None, 3)
+    assert [sim.frame_time(k) for k in range(3)] == [0.0, 0.01, 0.02]
+    assert [(c.model.width, c.model.height) for c in sim.rig] == [(1280, 720)] * 2
+    # a tiny render of the copy (3 frames at 96x54): the run's frame sets are at k / 100 s
+    _, scn = acc.harness_scenario("fps100_stereo_flying")
+    writer.simulate(scn, tmp_path / "r", frames=3, resolution=(96, 54))
+    cfg = acc.scene_config(tmp_path / "r")
+    src = open_inputs(cfg, build_rig(cfg))
+    try:
+        got = [(fs.frame, fs.t_s) for fs in src]
+    finally:
+        src.close()
+    assert got == [(0, 0.0), (1, 0.01), (2, 0.02)]
+    # pipeline mode renders the copy (the 100-fps scenario) from its original's YAML
+    seen = []
+
+    def stop(opts, root, name, scn, scene_parts, progress, how=None):
+        seen.append((name, scn.name, scn.fps, how, scene_parts["scenario_yaml"]))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(acc, "_scene_dir", stop)
+    with pytest.raises(KeyboardInterrupt):
+        acc.run_accuracy(acc.AccuracyOptions(mode="pipeline", scene_set="highfps"), tmp_path)
+    assert seen == [("fps100_mono_straight", "fps100_mono_straight", 100.0, {},
+                     (scenarios_dir() / "mono_straight.yaml").read_text())]

@@ -119,9 +119,10 @@ def test_set_validation_runs_the_18_and_prints_verdicts_pooled_figures_halves_an
     assert (tmp_path / "accuracy_validation.json").is_file()
 
 
-def test_set_all_is_tuned_heldout_validation_demo_lowres_and_both_is_unchanged(monkeypatch, tmp_path):
+def test_set_all_is_tuned_heldout_validation_demo_lowres_highfps_and_both_is_unchanged(monkeypatch, tmp_path):
     from pipeline.accuracy import (
         PIPELINE_SCENES_HELDOUT,
+        PIPELINE_SCENES_HIGHFPS,
         PIPELINE_SCENES_LOWRES,
         PIPELINE_SCENES_VALIDATION,
         AccuracyOptions,
@@ -132,11 +133,12 @@ def test_set_all_is_tuned_heldout_validation_demo_lowres_and_both_is_unchanged(m
     _canned(monkeypatch, calls)
     res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="all"), tmp_path)
     assert calls == [TUNED, PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_VALIDATION, ("demo",),
-                     PIPELINE_SCENES_LOWRES]
-    assert list(res["sets"]) == ["tuned", "heldout", "validation", "demo", "lowres"]
+                     PIPELINE_SCENES_LOWRES, PIPELINE_SCENES_HIGHFPS]
+    assert list(res["sets"]) == ["tuned", "heldout", "validation", "demo", "lowres", "highfps"]
     assert "range z^2 mean without the top 1 %" in res["table"]  # side by side
     header = next(line for line in res["table"].splitlines() if line.startswith("metric (side by side)"))
-    assert header.split()[4:] == ["tuned", "held-out", "validation", "demo", "lowres", "target"]
+    assert header.split()[4:] == ["tuned", "held-out", "validation", "demo", "lowres", "highfps",
+                                   "target"]
     calls.clear()
     run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
     assert calls == [TUNED, PIPELINE_SCENES_HELDOUT]
