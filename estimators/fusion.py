@@ -39,8 +39,11 @@ Measurements
       physical points), each shared feature is triangulated from its two rays of this frame and
       the fix is the point on the first camera's representative ray at their median range
       (``_feature_stereo``); it is fused as a point (never the second camera's representative
-      bearing, which lies on another part of the object: the ghost of centroid stereo). Without
-      shared ids the representative bearings are triangulated, as follows.
+      bearing, which lies on another part of the object: the ghost of centroid stereo). Two views
+      that list member features but share none of them (or too few for that fix though each lists
+      enough) are not one point either: no stereo fix, only the first view's bearing
+      (``_ghost_prone``). Otherwise (views sharing a feature, views without member features: box
+      tracks, bearings mode) the representative bearings are triangulated, as follows.
     * Stereo: when two cameras see the track in one frame, ``geometry.triangulate`` gives a point.
       It initialises the track (moving hypothesis) and switches a mono-initialised track to the
       moving hypothesis. The update itself (``stereo_update``): ``"bearings"`` (default) fuses the
@@ -1696,15 +1699,25 @@ class ObstacleFusion:
 
     def _ghost_prone(self, tr: _Track, sg: _Sighting) -> bool:
         """Whether the two cameras' representative bearings of this sighting are likely different
-        physical points: both views list member features (>= stereo_feature_min_count each) but
-        too few shared ids for a feature stereo fix. Their triangulation is then a ghost (tracked
-        stereo_hover, sphere at 1.4 m: +30 % every frame), so it is not used (no stereo fix, and
-        only the first view's bearing is fused; tracked pipeline scenes with it used instead:
-        stereo <= 3 m median 1.30 -> 1.32 %, no gain elsewhere)."""
+        physical points: both views list member features and either share none of them, or each
+        lists enough for a feature stereo fix (>= stereo_feature_min_count) and they still gave none
+        (too few shared ids). Feature ids are physical-point ids, so two views sharing no id give no
+        evidence that their representative rays meet at one point; their triangulation is then a
+        ghost (tracked stereo_hover, sphere at 1.4 m: +30 % every frame; fps100_stereo_flying's box:
+        0.36 m against 1.9 m from a view of one ground feature beside a view of four box features,
+        rays 21.8 deg apart). So it is not used: no stereo fix, and only the first view's bearing is
+        fused (both bearings fused into one state would triangulate them all the same; the first
+        view's is the one the track's mono pairs and bounds use) (tracked pipeline scenes with the
+        fix used instead: stereo <= 3 m median 1.30 -> 1.32 %, no gain elsewhere). Views without
+        member features (box tracks, bearings mode) carry no ids to compare: their representative
+        bearings are triangulated."""
         if tr.feature_stereo is not None or len(sg.views) < 2:
             return False
+        fa, fb = sg.views[0].feature_ids, sg.views[1].feature_ids
+        if not len(fa) or not len(fb):
+            return False
         m = max(1, self.settings.stereo_feature_min_count)
-        return len(sg.views[0].feature_ids) >= m and len(sg.views[1].feature_ids) >= m
+        return (len(fa) >= m and len(fb) >= m) or not _isin(fa, fb).any()
 
     def _supported_update(self, tr: _Track, sg: _Sighting) -> None:
         """Update a state that stands for one member feature's point (``point_fid``: the median
