@@ -532,6 +532,18 @@ class FusionSettings:
             0.1 s kept (more reports on (a); small samples).
         velocity_report_max_sigma_mps: velocity is reported only when its largest sigma (m/s) is at
             most this, and only for tracks a stereo fix has fed. Default 1.0.
+        measurement_correlation_s: tau (s): a track's bearing or point update less than tau after
+            its last one has its noise covariance R scaled by tau / dt (``_repeat_scale``; 0 =
+            off): consecutive measurements of the same tracked features share their errors, so the
+            evidence grows per second, not per frame. Measured with the renderer's truth
+            (docs/ARCHITECTURE.md, "Measurements per second at 100 fps"): the feature bearing and
+            stereo disparity errors' correlation is a function of the lag in seconds, the same at
+            30 and 100 fps, and lasts far longer than either frame interval (bearings 0.92-0.96
+            one 30-fps frame apart, disparities 0.65-0.74), so a second carries the same
+            information at either rate; the noise settings were fitted per frame at 30 fps. Default
+            0.03, just under 1/30 s: a stream of <= 33 fps (30-fps timestamps k / 30 rounded to
+            1e-9 s included) is unchanged bit for bit; at 100 fps R is 3x (3.3x would be exact).
+            The velocity measurements have their own overlap model (``_feature_velocity``).
     """
 
     max_speed_mps: float | None = None
@@ -590,6 +602,7 @@ class FusionSettings:
     member_reset_frac: float = 0.5
     velocity_report_max_sigma_mps: float = 1.0
     feature_velocity_lag_s: float = 0.1
+    measurement_correlation_s: float = 0.03
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -1719,7 +1732,7 @@ class ObstacleFusion:
         m = max(1, self.settings.stereo_feature_min_count)
         return (len(fa) >= m and len(fb) >= m) or not _isin(fa, fb).any()
 
-    def _supported_update(self, tr: _Track, sg: _Sighting) -> None:
+    def _supported_update(self, tr: _Track, sg: _Sighting, scale: float = 1.0) -> None:
         """Update a state that stands for one member feature's point (``point_fid``: the median
         feature's own point when ``feature_point`` set it, or the member whose ray passed nearest a
         mono triangulation of the representative rays) in a frame whose features do not range it.
@@ -1755,11 +1768,21 @@ class ObstacleFusion:
         if tr.point_is_feature:
             sig_f = self.settings.feature_point_sigma_k * self.settings.feature_sigma_rad
             for v, j in seen:
-                self._bearing_update(tr, _View(v.camera, v.c_W, v.feature_b_W[j], sig_f))
+                self._bearing_update(tr, _View(v.camera, v.c_W, v.feature_b_W[j], sig_f), scale)
         else:
             for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
-                self._bearing_update(tr, v)
+                self._bearing_update(tr, v, scale)
         tr.sources.add("mono")
+
+    def _repeat_scale(self, tr: _Track, t_s: float) -> float:
+        """The factor c = max(1, tau / dt) >= 1 on the noise covariance R of a track's bearing and
+        point updates at t_s, dt the time since its last sighting (one update per frame),
+        tau = measurement_correlation_s: its measurements come from the same tracked features,
+        whose errors drift together, so updates closer than tau carry dt / tau of one's
+        information and the evidence grows per second, not per frame."""
+        tau = self.settings.measurement_correlation_s
+        dt = t_s - tr.last_seen_t
+        return tau / dt if 0.0 < dt < tau else 1.0
 
     def _process(self, tr: _Track, sg: _Sighting, stereo_fix=None) -> float:
         """Update one track that its member features do not range (``_set_from_features_batch``
@@ -1806,6 +1829,7 @@ class ObstacleFusion:
             else:
                 tr.reason = init_pair if isinstance(init_pair, str) else "no earlier sighting yet"
         else:
+            c = self._repeat_scale(tr, sg.t_s)  # (>= 1: updates closer than the errors' correlation)
             self._predict(tr, sg.t_s)
             if stereo is not None:
                 if not tr.moving:  # first stereo fix: velocity becomes observable, drop the static prior
@@ -1816,10 +1840,10 @@ class ObstacleFusion:
                 elif s.stereo_update == "point" or tr.feature_stereo is not None:
                     # (a feature stereo fix lies on the first camera's representative ray; the
                     # second camera's representative bearing points at another part of the object)
-                    self._point_update(tr, *stereo)
+                    self._point_update(tr, *stereo, c)
                 else:  # the two cameras' bearings: Gaussian noise, no double counting
                     for v in sg.views:
-                        self._bearing_update(tr, v)
+                        self._bearing_update(tr, v, c)
                 tr.sources.add("stereo")
                 tr.t_ranged = sg.t_s
                 tr.point_fid = None  # (the state is the stereo fixes' point now)
@@ -1829,10 +1853,10 @@ class ObstacleFusion:
                 elif tr.vel_assumed and tr.vel_acc is not None:  # (no measurement this frame)
                     self._adopt_velocity_evidence(tr)
             elif tr.point_fid is not None:  # the state is one member feature's point (support)
-                self._supported_update(tr, sg)
+                self._supported_update(tr, sg, c)
             else:  # (only the first view's bearing when the two are different points: ghost)
                 for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
-                    self._bearing_update(tr, v)
+                    self._bearing_update(tr, v, c)
                 tr.sources.add("mono")
             if tr.gated_run >= s.reinit_after_gated:  # diverged or re-associated: start again
                 self._restart(tr, f"filter restarted after {s.reinit_after_gated} gated measurements")
@@ -3015,7 +3039,8 @@ class ObstacleFusion:
         tr.gated_run = 0
         return True
 
-    def _bearing_update(self, tr: _Track, v: _View) -> bool:
+    def _bearing_update(self, tr: _Track, v: _View, scale: float = 1.0) -> bool:
+        """Fuse the ray of view v (its sigma_rad; R scaled by scale >= 1: ``_repeat_scale``)."""
         x = tr.kf.x
         c, b = v.c_W, v.b_W
         d = (float(x[0]) - float(c[0]), float(x[1]) - float(c[1]), float(x[2]) - float(c[2]))
@@ -3037,13 +3062,14 @@ class ObstacleFusion:
         H = np.array((  # d(gnomonic)/dp at the prediction: [E^T / rho, 0]
             (e1[0] / rho, e1[1] / rho, e1[2] / rho, 0.0, 0.0, 0.0),
             (e2[0] / rho, e2[1] / rho, e2[2] / rho, 0.0, 0.0, 0.0)))
-        s2 = v.sigma_rad * v.sigma_rad
+        s2 = v.sigma_rad * v.sigma_rad * scale
         R = np.array(((s2, 0.0), (0.0, s2)))
         return self._gated_update(tr, y, H, R, self._gate2)
 
-    def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> bool:
+    def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray, scale: float = 1.0) -> bool:
+        """Fuse a point p_W (3,) W of covariance R (3, 3) scaled by scale >= 1 (``_repeat_scale``)."""
         y = p_W - tr.kf.x[:3]  # z - H x,  H = [I 0]
-        return self._gated_update(tr, y, _H_POS, R, self._gate3)
+        return self._gated_update(tr, y, _H_POS, R * scale if scale != 1.0 else R, self._gate3)
 
     def _anchor_position(self, tr: _Track, p_W: np.ndarray, R: np.ndarray) -> None:
         """Put the filter's position on the feature stereo point p_W (3,) W, covariance R (3, 3),
