@@ -533,17 +533,21 @@ class FusionSettings:
         velocity_report_max_sigma_mps: velocity is reported only when its largest sigma (m/s) is at
             most this, and only for tracks a stereo fix has fed. Default 1.0.
         measurement_correlation_s: tau (s): a track's bearing or point update less than tau after
-            its last one has its noise covariance R scaled by tau / dt (``_repeat_scale``; 0 =
-            off): consecutive measurements of the same tracked features share their errors, so the
-            evidence grows per second, not per frame. Measured with the renderer's truth
-            (docs/ARCHITECTURE.md, "Measurements per second at 100 fps"): the feature bearing and
-            stereo disparity errors' correlation is a function of the lag in seconds, the same at
-            30 and 100 fps, and lasts far longer than either frame interval (bearings 0.92-0.96
-            one 30-fps frame apart, disparities 0.65-0.74), so a second carries the same
-            information at either rate; the noise settings were fitted per frame at 30 fps. Default
-            0.03, just under 1/30 s: a stream of <= 33 fps (30-fps timestamps k / 30 rounded to
-            1e-9 s included) is unchanged bit for bit; at 100 fps R is 3x (3.3x would be exact).
-            The velocity measurements have their own overlap model (``_feature_velocity``).
+            its last one has its noise covariance R scaled by tau / dt (``_repeat_scale``), and a
+            feature's ray less than tau after its last one counts as dt / tau of a ray in the
+            static-point sums (``_FeatureRays.add``: the point's sigma_r,f, the relative-sigma gate,
+            the posterior dof; the slide test's short-memory sums count each ray, a test of the
+            newest rays, not a sigma); 0 = off. Consecutive measurements of the same tracked
+            features share their errors, so the evidence grows per second, not per frame. Measured
+            with the renderer's truth (docs/ARCHITECTURE.md, "Measurements per second at 100
+            fps"): the feature bearing and stereo disparity errors' correlation is a function of
+            the lag in seconds, the same at 30 and 100 fps, and lasts far longer than either frame
+            interval (bearings 0.92-0.96 one 30-fps frame apart, disparities 0.65-0.74), so a
+            second carries the same information at either rate; the noise settings were fitted per
+            frame at 30 fps. Default 0.03, just under 1/30 s: a stream of <= 33 fps (30-fps
+            timestamps k / 30 rounded to 1e-9 s included) is unchanged bit for bit; at 100 fps R
+            is 3x (3.3x would be exact). The velocity measurements have their own overlap model
+            (``_feature_velocity``).
     """
 
     max_speed_mps: float | None = None
@@ -952,14 +956,17 @@ class _FeatureRays:
 
     def add(
         self, rows: np.ndarray, b_W: np.ndarray, c_W: np.ndarray, t_s: float, memory_s: float = 0.0,
-        unique: bool = False, short_memory_s: float = 0.0,
+        unique: bool = False, short_memory_s: float = 0.0, correlation_s: float = 0.0,
     ) -> None:
         """Add one ray per entry: rows (M,), unit bearings b_W (M, 3), centres c_W (M, 3), in W, at
         t_s (s); ``unique``: the caller knows the rows are distinct (no search for repeated rows).
         memory_s > 0 first scales the rows' sums by exp(-(t_s - t_last) / memory_s)
         (exponential forgetting: a tracked corner drifts over the object, so old rays stop meeting
         the point it tracks now). short_memory_s > 0 also keeps the sums ``S_new`` forgetting with
-        that time constant (the newest rays' point)."""
+        that time constant (the newest rays' point). correlation_s > 0: a row's ray less than
+        correlation_s after its last one enters the long-memory sums with weight dt / correlation_s
+        (FusionSettings.measurement_correlation_s; a new row's first ray 1), the short-memory ones
+        with 1."""
         M = len(rows)
         if not M:
             return
@@ -971,6 +978,12 @@ class _FeatureRays:
         # each ray's terms in the sums' layout (``_set_sums``): A, y, bc, cc, bcc, n
         new = np.concatenate((Pm.reshape(M, 9), Pc, bbc, cPc[:, None], (bdc * bdc)[:, None],
                               np.ones((M, 1))), axis=1)
+        new_s = new  # (the short memory's rays: counted one each)
+        if correlation_s > 0:  # a row's ray within correlation_s of its last one counts as
+            # dt / correlation_s of a ray (its error is mostly the last ray's; a new row's: 1)
+            w = np.where(self.n[rows] > 0, np.minimum((t_s - self.last_t[rows]) / correlation_s, 1.0), 1.0)
+            if (w < 1.0).any():
+                new = new * w[:, None]
         S = self.S
         rest = None
         if not unique:  # a row repeated (a feature's rays from several cameras): the sums take
@@ -984,11 +997,11 @@ class _FeatureRays:
                 rank = np.arange(M) - start.repeat(np.diff(np.append(start, M)))
                 rest = (order, rank)
                 first = order[brk]
-                rows_all, new_all = rows, new
-                rows, new = rows[first], new.take(first, 0)
+                rows_all, new_all, new_s_all = rows, new, new_s
+                rows, new, new_s = rows[first], new.take(first, 0), new_s.take(first, 0)
         if short_memory_s > 0:  # (before last_t moves) the same rays with the short memory
             f = np.exp(-(t_s - self.last_t[rows]) / short_memory_s)
-            self.S_new[rows] = self.S_new.take(rows, 0) * f[:, None] + new
+            self.S_new[rows] = self.S_new.take(rows, 0) * f[:, None] + new_s
         if memory_s > 0:  # forget old rays, w = exp(-(t_s - t_last) / memory_s): w s + new
             f = np.exp(-(t_s - self.last_t[rows]) / memory_s)
             S[rows] = S.take(rows, 0) * f[:, None] + new
@@ -1000,7 +1013,7 @@ class _FeatureRays:
                 sel = order[rank == k]
                 S[rows_all[sel]] += new_all[sel]
                 if short_memory_s > 0:
-                    self.S_new[rows_all[sel]] += new_all[sel]
+                    self.S_new[rows_all[sel]] += new_s_all[sel]
         self.last_t[rows] = t_s
 
     def prune(self, t_s: float, max_unseen_s: float) -> None:
@@ -2066,7 +2079,8 @@ class ObstacleFusion:
         ncam = len(self._cam_index)
         _, first = _unique_first(rows * ncam + cam)  # one ray per feature and camera
         fs.add(rows[first], b_now.take(first, 0), c_now.take(first, 0), t_s, s.feature_memory_s,
-               unique=ncam == 1, short_memory_s=s.feature_slide_memory_s if ncam > 1 else 0.0)
+               unique=ncam == 1, short_memory_s=s.feature_slide_memory_s if ncam > 1 else 0.0,
+               correlation_s=s.measurement_correlation_s)
         # the features on their track's outline in a view (``_outline_flags``): not chosen to range
         # the track while two interior ones can be
         # on a stereo rig only: the stereo fix's feature, and the static-point (multi-frame) fix's

@@ -4,19 +4,24 @@ measurements come from the same tracked features, whose errors are correlated ov
 seen at 100 Hz over the same seconds as at 30 Hz carries about the same evidence. Expected values
 from the closed form: n independent updates of noise R give a sigma ~ sqrt(R / n); with R scaled
 by tau / dt, 100 Hz for a second is 100 / 3 updates of R against 30 at 30 Hz (ratio ~0.95), without
-it 100 against 30 (~0.55)."""
+it 100 against 30 (~0.55). The same for a feature's rays in the static-point sums (``_FeatureRays``):
+a ray less than tau after the row's last one counts dt / tau of a ray."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import pytest
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
-from estimators.fusion import FusionSettings, ObstacleFusion
+from estimators.fusion import FusionSettings, ObstacleFusion, _FeatureRays
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import mono_forward_rig, stereo_forward_rig
 
 MODEL = Equidistant.from_deg_per_px(0.15, 1280, 1280)
+TAU = FusionSettings().measurement_correlation_s
 
 
 def _unit(v):
@@ -77,3 +82,75 @@ def test_a_stereo_fixed_static_point_at_30_and_100_hz_has_about_the_same_sigma()
     r_off = _stereo_sigma(100.0, off) / _stereo_sigma(30.0, off)
     assert 0.8 < r < 1.15, r
     assert r_off < 0.7, r_off
+
+
+def _point_sigma(fps: float, correlation_s: float, seconds: float = 1.0) -> float:
+    """Range sigma (per unit bearing sigma) of a static point 10 m ahead, 3 m to the side, from a
+    camera flying along x at 5 m/s, every ray exact, one per frame at fps, 0.5 s forgetting: the
+    first-order sigma sqrt(D2) sqrt(u^T A^-1 u) of ``_features_batch`` from the store's sums."""
+    p = np.array([10.0, 3.0, 0.0])
+    fs = _FeatureRays(capacity=2)
+    n = int(round(seconds * fps)) + 1
+    rows = None
+    for k in range(n):
+        t = k / fps
+        c = np.array([5.0 * t, 0.0, 0.0])
+        b = _unit(p - c)[None]
+        if rows is None:
+            rows = fs.rows(np.array([7]), b)
+        fs.add(rows, b, c[None], t, 0.5, unique=True, correlation_s=correlation_s)
+    A = fs.A[rows[0]]  # (the depth factor sqrt(D2) is the same at both rates: left out)
+    u = _unit(p - np.array([5.0 * (n - 1) / fps, 0.0, 0.0]))
+    return float(np.sqrt(u @ np.linalg.inv(A) @ u))
+
+
+def test_a_ray_within_tau_of_the_last_counts_as_dt_over_tau():
+    # two rays 0.01 s apart, 0.5 s forgetting: n = exp(-0.01 / 0.5) * 1 + 0.01 / tau (the first
+    # ray of a new row counts 1, whatever the time since t = 0)
+    fs = _FeatureRays(capacity=2)
+    b = np.array([[0.0, 0.0, 1.0]])
+    rows = fs.rows(np.array([3]), b)
+    fs.add(rows, b, np.zeros((1, 3)), 5.0, 0.5, unique=True, correlation_s=TAU)
+    assert fs.n[rows[0]] == 1.0
+    fs.add(rows, b, np.array([[0.1, 0.0, 0.0]]), 5.01, 0.5, unique=True, correlation_s=TAU)
+    assert fs.n[rows[0]] == pytest.approx(math.exp(-0.01 / 0.5) + 0.01 / TAU, rel=1e-12)
+    # the slide test's short-memory sums (a test of the newest rays, not a sigma) count each ray 1
+    fs = _FeatureRays(capacity=2)
+    rows = fs.rows(np.array([3]), b)
+    for t, cx in ((5.0, 0.0), (5.01, 0.1)):
+        fs.add(rows, b, np.array([[cx, 0.0, 0.0]]), t, 0.5, short_memory_s=0.1, correlation_s=TAU)
+    assert fs.S_new[rows[0], 17] == pytest.approx(math.exp(-0.01 / 0.1) + 1.0, rel=1e-12)
+    assert fs.n[rows[0]] == pytest.approx(math.exp(-0.01 / 0.5) + 0.01 / TAU, rel=1e-12)
+    # rays tau or more apart count 1 each: the sums are those without the rule
+    fs, fs0 = _FeatureRays(capacity=2), _FeatureRays(capacity=2)
+    r, r0 = fs.rows(np.array([3]), b), fs0.rows(np.array([3]), b)
+    for t, cx in ((5.0, 0.0), (5.04, 0.1), (5.07, 0.2)):
+        fs.add(r, b, np.array([[cx, 0.0, 0.0]]), t, 0.5, unique=True, correlation_s=TAU)
+        fs0.add(r0, b, np.array([[cx, 0.0, 0.0]]), t, 0.5, unique=True, correlation_s=0.0)
+    assert np.array_equal(fs.S[r], fs0.S[r0])
+
+
+def test_30_fps_rays_are_counted_as_before():
+    # tau is below the 30-fps frame interval (timestamps k / 30 rounded to 1e-9 s included): the
+    # sums are bit-identical to those without the rule
+    p = np.array([10.0, 3.0, 0.0])
+    a, b0 = _FeatureRays(capacity=2), _FeatureRays(capacity=2)
+    ra = rb = None
+    for k in range(31):
+        t = round(k / 30.0, 9)
+        c = np.array([5.0 * t, 0.0, 0.0])
+        b = _unit(p - c)[None]
+        if ra is None:
+            ra, rb = a.rows(np.array([1]), b), b0.rows(np.array([1]), b)
+        a.add(ra, b, c[None], t, 0.5, unique=True, correlation_s=TAU)
+        b0.add(rb, b, c[None], t, 0.5, unique=True, correlation_s=0.0)
+    assert np.array_equal(a.S[: a.size], b0.S[: b0.size])
+
+
+def test_a_static_point_seen_at_30_and_100_hz_has_about_the_same_sigma():
+    # without the rule 100 Hz has 3.3x the rays, so its sigma is ~1 / sqrt(3.3) = 0.55 of 30 Hz's;
+    # with it each 100-Hz ray counts 0.01 / tau = 1/3, 33 rays a second against 30: ratio ~0.95
+    s30 = _point_sigma(30.0, TAU)
+    s100 = _point_sigma(100.0, TAU)
+    assert 0.85 < s100 / s30 < 1.1
+    assert _point_sigma(100.0, 0.0) / _point_sigma(30.0, 0.0) < 0.6  # (per frame: the old count)
