@@ -193,23 +193,28 @@ class TrackerConfig(_Section):
         "levels (int), fb_max_px (px, forward-backward check), "
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
         "fb_retry (bool, a level-0 failure is checked again one level up), "
-        "min_distance_px (px), history (frames).",
+        "min_distance_px (px), history (samples per feature, 64: the grouping's windows reach at most "
+        "history - 1 frames back).",
     )
     grouping: dict[str, Any] = Field(
         default_factory=dict,
         description="dict: trackers.grouping.ObstacleGrouper keywords, e.g. link_px (px, largest "
         "distance between neighbouring features of one obstacle, at the lens's mean scale), "
         "max_radius_px (px, largest distance of a member from its track's representative point), "
-        "flow_abs_rad_s (rad/s), flow_rel, min_features (int), min_age (frames), confirm_frames (frames), "
-        "max_missed (frames), extended_sectors (int, 0-8: a new piece of features surrounded in this "
+        "flow_abs_rad_s (rad/s), flow_rel, flow_window_s (s, 1/6: the flow's time base), min_features "
+        "(int), min_age_s (s, 0.1), isolated_min_age_s (s, 0.4), confirm_s (s, 1/6), max_missed_s (s, 1/3), "
+        "extended_sectors (int, 0-8: a new piece of features surrounded in this "
         "many of 8 sectors by features moving with it is part of a large textured surface and starts no "
-        "track; 0 turns the rule off), extended_frames (frames a tentative track may be judged so before "
-        "it is dropped), split_frames (frames, 10: window over which step 3c compares members' motions), "
-        "split_min_px (px, 1.5; 0 turns the split by motion off), split_rel (0.1), split_step (3.0), "
-        "split_persist (frames, 3: a split must be found this many frames in a row), plane_min (12: step 3f, "
-        "an obstacle standing on the ground it is grouped with leaves the ground's planar flow; tracks of at "
-        "least this many members are tested, 0 turns it off), plane_z (sigmas, 6.0), plane_ratio (12.0), "
-        "plane_every (frames, 2).",
+        "track; 0 turns the rule off), extended_s (s, 0.1: how long a tentative track may be judged so "
+        "before it is dropped), split_window_s (s, 1/3: window over which step 3c compares members' "
+        "motions), split_min_px (px, 1.5; 0 turns the split by motion off), split_rel (0.1), split_step "
+        "(3.0), split_persist_s (s, 0.1: a split must be found in every frame this long), plane_min (12: "
+        "step 3f, an obstacle standing on the ground it is grouped with leaves the ground's planar flow; "
+        "tracks of at least this many members are tested, 0 turns it off), plane_z (sigmas, 6.0), "
+        "plane_ratio (12.0), plane_every_s (s, 1/15). Durations are applied as frame counts at the frame "
+        "rate seen (the median interval of the frame times; the defaults are the counts fitted at 30 fps: "
+        "3, 12, 5, 10, 3, 10, 3 and every 2nd frame); the old frame-count keys (min_age, confirm_frames, "
+        "...) are an error naming their replacement.",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,

@@ -208,8 +208,9 @@ class _Explainer:
     obstacle by casting their current rays against the scene's shapes, margin 1 px):
     ``no_features`` (none of any camera's live features is on it; split by ``rim``: its centre more
     than 90 deg off every seeing camera's axis, ``tiny``: angular radius under 4 px), ``young`` (its
-    features are all younger than the grouper's ``min_age`` + ``flow_frames``), ``ungrouped`` (old
-    enough but in no seen track), ``coasting`` (a track that covered it last frame is unseen now),
+    features are all younger than the grouper's ``min_age`` + ``flow_frames``, frame counts at the
+    rate seen), ``ungrouped`` (old enough but in no seen track), ``coasting`` (a track that covered it
+    last frame is unseen now),
     ``in_track_elsewhere`` (its features are members of a seen track whose representative bearing
     lies on another obstacle: ``merged_other``, or on none: ``rep_off``). ``merged_by_depth`` splits
     the ``merged_other`` gaps by the obstacles' ground-truth surface ranges: ``lined_up`` when the

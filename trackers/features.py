@@ -194,7 +194,9 @@ class FeatureTracker:
         reacquire_frames: lost features are remembered this many frames for re-acquisition.
         reacquire_radius_px: a new keypoint re-acquires a lost feature within this distance of its
             predicted position and with ``reacquire_max_hamming`` or fewer differing descriptor bits.
-        history: samples kept per feature (ring buffer).
+        history: samples kept per feature (ring buffer). The grouper's windows into it (the flow's
+            1/6 s, step 3c's 1/3 s) reach at most ``history - 1`` frames back: 64 covers 1/3 s up to
+            189 fps (32 did to 93 fps; at 30 fps both hold the windows whole, with the same results).
         max_residual: a track is also dropped when LK's residual (mean absolute grey difference of
             the window) exceeds this, 3x the frame's median residual and ``texture_k`` x the
             patch's own contrast (mean absolute deviation of its grey values over the window).
@@ -229,7 +231,7 @@ class FeatureTracker:
         reacquire_frames: int = 8,
         reacquire_radius_px: float = 15.0,
         reacquire_max_hamming: int = 40,
-        history: int = 32,
+        history: int = 64,
         max_residual: float = 12.0,
         texture_k: float = 0.4,
         margin_px: float = 4.0,

@@ -22,10 +22,10 @@ write their new state and over components wide enough to be cut):
    over the younger piece that lies where its members went and moves like it, so the obstacle
    keeps the id downstream filters know (the younger id is reported lost).
 3c. Two surfaces in one track (an obstacle and what lies behind or beside it, whose
-   frame-to-frame flows agree within the tolerance): the members' flows over ``split_frames``
-   frames are compared between neighbours; where they jump (a parallax step at an occluding edge,
+   frame-to-frame flows agree within the tolerance): the members' flows over ``split_window_s``
+   are compared between neighbours; where they jump (a parallax step at an occluding edge,
    or an independently moving obstacle), not merely change smoothly, and the same part is found
-   ``split_persist`` frames in a row, that part leaves: it revives a memberless track predicted
+   in every frame over ``split_persist_s``, that part leaves: it revives a memberless track predicted
    there or starts a new one (see ``_split``). Measured (2026-11-22, six presets): over 1/3 s the
    presets' mixed tracks are not separable by motion (after an affine fit the minority's leftover
    flow is 0-1.6 px/s, inside the spread); of 69 splits ~59 cut ground from ground and 2-4
@@ -40,8 +40,8 @@ write their new state and over components wide enough to be cut):
    part that is displaced one way, by more than 3c's link tolerance, ``plane_z`` sigmas of the
    fit's prediction and ``plane_ratio`` times the rest's own scatter about its plane (a part of
    one curved obstacle is off the plane by about as much as its rest is), leaves when found
-   ``split_persist`` frames in a row (see ``_plane_parts``).
-   A track is tested every ``plane_every`` frames (staggered by id), every frame once a part is
+   in every frame over ``split_persist_s`` (see ``_plane_parts``).
+   A track is tested every ``plane_every_s`` (staggered by id), every frame once a part is
    found in it. On a rig of several cameras the front end sets ``plane_confirm``: the part leaves
    only when the same obstacle's view in another camera found a part too (one camera's flow
    alone, e.g. a stereo view mixing two obstacles, does not split it).
@@ -50,12 +50,19 @@ write their new state and over components wide enough to be cut):
    outside the lens do not count against it) and the flow field they span (an affine fit in the
    tangent plane) agrees with the track's flow at the track. A bounded obstacle has a motion
    boundary or empty space around most of it; a piece of a textured surface does not. An embedded
-   piece starts no track and a tentative track embedded ``extended_frames`` frames in a row is
-   dropped (lost); their features start no new group for ``BG_FRAMES`` frames (they may still
-   join a track they move with).
-5. Life cycle: tentative -> confirmed after ``confirm_frames`` frames with members; unseen for more
-   than ``max_missed`` frames -> lost (reported once, then dropped). An unseen track coasts: its
+   piece starts no track and a tentative track embedded in every frame over ``extended_s`` is
+   dropped (lost); their features start no new group for ``BG_S`` (they may still join a track
+   they move with).
+5. Life cycle: tentative -> confirmed after ``confirm_s`` of frames with members; unseen for more
+   than ``max_missed_s`` -> lost (reported once, then dropped). An unseen track coasts: its
    bearing moves on with its last flow (and the camera's rotation when given).
+
+Durations are settings in seconds (keys ``*_s``), applied as frame counts at the frame rate seen
+(``FrameClock``: the median interval of the frame times ``t_s`` given, never a configured rate): the
+counts fitted at 30 fps (every scene of the harness) are the defaults' counts at 30 fps, and a rule
+keeps its meaning in time at another rate (at 100 fps a flow is still measured over 1/6 s, so the
+flow tolerance ``flow_abs_rad_s`` is still the same displacement). Windows reaching into a
+feature's history are capped at the tracker's ``history`` samples.
 
 The representative bearing ``b_C`` moves with the mean frame-to-frame motion of the members present
 in both frames (so members joining or leaving do not make it jump), pulled gently (gain
@@ -70,6 +77,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -177,6 +185,75 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
+class FrameClock:
+    """Durations (s) as frame counts at the frame rate seen: the median of the last ``n`` positive
+    intervals between the frame times given to :meth:`tick` (never a configured rate: a live
+    camera's rate varies, and a dropped frame is one long interval the median ignores).
+
+    ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before any
+    interval is seen, ``UNKNOWN`` (a count no track reaches: nothing is decided by time yet)."""
+
+    UNKNOWN = 2**31
+
+    def __init__(self, n: int = 15) -> None:
+        self._dt: deque[float] = deque(maxlen=n)
+        self._last: float | None = None
+        self.period_s: float | None = None
+
+    def tick(self, t_s: float) -> None:
+        """One frame at time t_s (s)."""
+        t = float(t_s)
+        if self._last is not None and t > self._last:
+            self._dt.append(t - self._last)
+            d = sorted(self._dt)
+            k = len(d)
+            self.period_s = d[k // 2] if k % 2 else 0.5 * (d[k // 2 - 1] + d[k // 2])
+        self._last = t
+
+    def frames(self, d_s: float, lo: int = 1) -> int:
+        """The frame count of a duration d_s (s) at the rate seen, at least ``lo``."""
+        if self.period_s is None:
+            return self.UNKNOWN
+        return max(lo, math.floor(d_s / self.period_s + 0.5))
+
+
+# the grouper's frame counts that are durations now: old key -> (new key, the old default in time)
+_GROUPER_RENAMED = {
+    "flow_frames": ("flow_window_s", "5 frames at 30 fps = 1/6 s"),
+    "min_age": ("min_age_s", "3 frames at 30 fps = 0.1 s"),
+    "isolated_min_age": ("isolated_min_age_s", "12 frames at 30 fps = 0.4 s"),
+    "confirm_frames": ("confirm_s", "5 frames at 30 fps = 1/6 s"),
+    "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
+    "extended_frames": ("extended_s", "3 frames at 30 fps = 0.1 s"),
+    "split_frames": ("split_window_s", "10 frames at 30 fps = 1/3 s"),
+    "split_persist": ("split_persist_s", "3 frames at 30 fps = 0.1 s"),
+    "plane_every": ("plane_every_s", "every 2nd frame at 30 fps = 1/15 s"),
+}
+
+
+def _durations(owner: str, renamed: dict[str, tuple[str, str]], old: dict, given: dict) -> dict[str, float]:
+    """Check a tracker's duration settings (s): ``given`` {key: value}, each a finite number >= 0;
+    ``old`` the keywords it does not take: a renamed frame count (``renamed``: old key -> (new key,
+    its default in frames at 30 fps)) is an error naming its replacement, anything else the usual
+    TypeError."""
+    for k in old:
+        if k in renamed:
+            new, hint = renamed[k]
+            raise ConfigError(
+                f"{owner}: '{k}' (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
+                f"{hint}); set {new} instead"
+            )
+    if old:
+        raise TypeError(f"{owner}.__init__() got an unexpected keyword argument {next(iter(old))!r}")
+    out = {}
+    for k, v in given.items():
+        real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+        if not real or not 0 <= v < math.inf:
+            raise ConfigError(f"{owner}: expected {k} a finite duration >= 0 (seconds); got {v!r}")
+        out[k] = float(v)
+    return out
+
+
 @dataclass
 class ObstacleTrack:
     """One obstacle as one camera tracks it (mutable state of the grouper).
@@ -237,28 +314,33 @@ class ObstacleGrouper:
         max_radius_px: largest distance of a member from its track's representative point (pixels,
             turned into ``max_radius_rad`` likewise).
         flow_abs_rad_s, flow_rel: flows agree when ``|f_i - f_j| < flow_abs + flow_rel * max(|f_i|, |f_j|)``.
-        flow_frames: flow measured over this many frames (less for younger features).
+        flow_window_s: flow measured over this time (s; 1/6: 5 frames at 30 fps), less for younger
+            features, at most ``history - 1`` frames back.
         min_features: features needed to start a track.
         min_features_isolated: features enough to start a track when they are isolated (no other
-            live feature within ``link_rad``) and all at least ``isolated_min_age`` frames old: a
-            small obstacle against the sky has one or two corners.
-        min_age: frames a feature must have been tracked before it can join or start a track.
-        confirm_frames: frames with members before a track is confirmed.
-        max_missed: frames a track may go unseen (occlusion, frame drops) before it is lost.
+            live feature within ``link_rad``) and all tracked for at least ``isolated_min_age_s``
+            (0.4 s: 12 frames at 30 fps): a small obstacle against the sky has one or two corners.
+        min_age_s: time (s; 0.1: 3 frames at 30 fps) a feature must have been tracked before it can
+            join or start a track.
+        confirm_s: time (s; 1/6: 5 frames at 30 fps) of frames with members before a track is
+            confirmed.
+        max_missed_s: time (s; 1/3: 10 frames at 30 fps) a track may go unseen (occlusion, frame
+            drops) before it is lost.
         coast_predict: an unseen track's bearing moves on with its last flow (and the camera's
             rotation when given), so features found where the obstacle went revive it (issue 4).
         extended_sectors: a track is on extended texture when features moving with it lie in at
             least this many of the 8 sectors around it (empty sectors outside the lens excepted,
             at least 4 occupied); 0 turns the rule off.
-        extended_frames: frames in a row a tentative track may be on extended texture before it
-            is dropped (confirmed tracks are kept).
+        extended_s: time (s; 0.1: 3 frames at 30 fps) a tentative track may be on extended texture
+            in every frame before it is dropped (confirmed tracks are kept).
         centre_gain: pull of the representative bearing towards the member mean per frame.
         sigma_floor_px: floor of sigma_rad, in pixels at the representative point.
-        split_frames: window (frames) over which step 3c compares its members' motions. 10 frames
-            (1/3 s at 30 fps): long enough that the relative motion of two surfaces whose
+        split_window_s: window (s) over which step 3c compares its members' motions. 1/3 s (10
+            frames at 30 fps): long enough that the relative motion of two surfaces whose
             frame-to-frame flows agree within the grouping tolerance (``flow_abs`` is the noise
-            floor of a ``flow_frames`` flow) adds up to a few pixels, short enough to be judged
-            while the features of a crossing obstacle live (the history keeps 32 samples).
+            floor of a ``flow_window_s`` flow) adds up to a few pixels, short enough to be judged
+            while the features of a crossing obstacle live; at most ``history - 1`` frames (the
+            feature tracker's; 63 by default: 1/3 s up to 189 fps).
         split_min_px: step 3c links two neighbouring members when their window flows differ by
             less than this many pixels over the window plus ``split_rel`` of the larger flow.
             KLT follows a corner to 0.1-0.3 px per frame, so 1.5 px over the window is several
@@ -272,8 +354,9 @@ class ObstacleGrouper:
             within the parts (median over their near pairs), and by ``split_min_px``: a step, not
             a gradient. On a smooth surface neighbouring pairs across any line differ about as
             much as pairs beside it; 3 leaves room for noise in the medians.
-        split_persist: frames in a row the same split (half its features in common) must be found
-            before the track splits: evidence over several frames, not one.
+        split_persist_s: time (s; 0.1: 3 frames at 30 fps) over which the same split (half its
+            features in common) must be found in every frame before the track splits: evidence
+            over several frames, not one.
         plane_min: step 3f (in ``_split``): tracks of at least this many members judged over the
             window (and at least 12: 8 plane parameters, a part of 3 and a rest of 8) are tested
             for a compact part off the planar flow field of the others (``_plane_parts``); default
@@ -284,13 +367,17 @@ class ObstacleGrouper:
             residual about its plane (per axis): one surface off a plane, not a part of a curved
             obstacle, whose rest is as far from planar (tuned scenes: parts of one obstacle 4-9,
             obstacles off the ground 17-84).
-        plane_every: step 3f tests a track every this many frames (staggered by track id: the
-            cost spread over frames), and every frame once it found a part in it (the split still
-            needs it found ``split_persist`` frames in a row).
+        plane_every_s: step 3f tests a track every this long (s; 1/15: every 2nd frame at 30 fps;
+            staggered by track id: the cost spread over frames), and every frame once it found a
+            part in it (the split still needs it found over ``split_persist_s``).
         label: label of the tracks (the detector's name).
+
+    Attributes: ``durations`` (the settings above in s, by key) and their frame counts at the rate
+    seen, set each frame (``_count``): flow_frames, min_age, isolated_min_age, confirm_frames,
+    max_missed, extended_frames, split_frames, split_persist, plane_every, bg_frames.
     """
 
-    BG_FRAMES = 15  # frames a feature stays marked as extended texture
+    BG_S = 0.5  # time (s) a feature stays marked as extended texture (15 frames at 30 fps)
 
     def __init__(
         self,
@@ -299,51 +386,56 @@ class ObstacleGrouper:
         max_radius_px: float = 50.0,
         flow_abs_rad_s: float = 0.03,
         flow_rel: float = 0.2,
-        flow_frames: int = 5,
+        flow_window_s: float = 5 / 30,
         min_features: int = 3,
         min_features_isolated: int = 1,
-        isolated_min_age: int = 12,
-        min_age: int = 3,
-        confirm_frames: int = 5,
-        max_missed: int = 10,
+        isolated_min_age_s: float = 0.4,
+        min_age_s: float = 0.1,
+        confirm_s: float = 5 / 30,
+        max_missed_s: float = 1 / 3,
         coast_predict: bool = True,
         extended_sectors: int = 6,
-        extended_frames: int = 3,
+        extended_s: float = 0.1,
         centre_gain: float = 0.02,
         sigma_floor_px: float = 0.5,
-        split_frames: int = 10,
+        split_window_s: float = 1 / 3,
         split_min_px: float = 1.5,
         split_rel: float = 0.1,
         split_step: float = 3.0,
-        split_persist: int = 3,
+        split_persist_s: float = 0.1,
         plane_min: int = 12,
         plane_z: float = 6.0,
-        plane_every: int = 2,
+        plane_every_s: float = 1 / 15,
         plane_ratio: float = 12.0,
         label: str = "orb",
+        **old: Any,
     ) -> None:
+        self.durations = _durations(
+            "ObstacleGrouper",
+            _GROUPER_RENAMED,
+            old,
+            {
+                "flow_window_s": flow_window_s, "isolated_min_age_s": isolated_min_age_s,
+                "min_age_s": min_age_s, "confirm_s": confirm_s, "max_missed_s": max_missed_s,
+                "extended_s": extended_s, "split_window_s": split_window_s,
+                "split_persist_s": split_persist_s, "plane_every_s": plane_every_s,
+            },
+        )
         if (
             link_px <= 0
             or max_radius_px <= 0
             or min_features < 1
-            or confirm_frames < 1
-            or max_missed < 0
             or not 0 <= extended_sectors <= 8
-            or extended_frames < 1
-            or split_frames < 2
-            or split_persist < 1
             or not 0 <= split_min_px < float("inf")  # (also NaN)
             or not 0 <= split_rel < float("inf")
             or not 1 <= split_step < float("inf")
         ):
             raise ConfigError(
                 "ObstacleGrouper: expected link_px > 0, max_radius_px > 0, min_features >= 1, "
-                "confirm_frames >= 1, max_missed >= 0, 0 <= extended_sectors <= 8, extended_frames >= 1, "
-                "split_frames >= 2, split_persist >= 1, finite split_min_px >= 0 (0: step 3c off), "
+                "0 <= extended_sectors <= 8, finite split_min_px >= 0 (0: step 3c off), "
                 "split_rel >= 0, split_step >= 1; got "
-                f"{link_px}, {max_radius_px}, {min_features}, {confirm_frames}, {max_missed}, "
-                f"{extended_sectors}, {extended_frames}, {split_frames}, {split_persist}, {split_min_px}, "
-                f"{split_rel}, {split_step}"
+                f"{link_px}, {max_radius_px}, {min_features}, "
+                f"{extended_sectors}, {split_min_px}, {split_rel}, {split_step}"
             )
         self._ids = ids
         self.link_px = float(link_px)
@@ -351,23 +443,19 @@ class ObstacleGrouper:
         self.link_rad = self.max_radius_rad = 0.0  # set from the camera's scale on each update
         self.flow_abs = float(flow_abs_rad_s)
         self.flow_rel = float(flow_rel)
-        self.flow_frames = int(flow_frames)
         self.min_features = int(min_features)
         self.min_features_isolated = int(min_features_isolated)
-        self.isolated_min_age = int(isolated_min_age)
-        self.min_age = int(min_age)
-        self.confirm_frames = int(confirm_frames)
-        self.max_missed = int(max_missed)
         self.coast_predict = bool(coast_predict)
         self.extended_sectors = int(extended_sectors)
-        self.extended_frames = int(extended_frames)
         self.centre_gain = float(centre_gain)
         self.sigma_floor_px = float(sigma_floor_px)
-        self.split_frames = int(split_frames)
         self.split_min_px = float(split_min_px)
         self.split_rel = float(split_rel)
         self.split_step = float(split_step)
-        self.split_persist = int(split_persist)
+        # the durations as frame counts at the rate seen (``_count``, each frame)
+        self.clock = FrameClock()
+        self._history_cap = 10**9  # the feature tracker's history - 1 (known at the first update)
+        self._count()
         if isinstance(plane_min, bool) or not isinstance(plane_min, (int, np.integer)) or plane_min < 0:
             raise ConfigError(
                 f"ObstacleGrouper: expected plane_min an integer >= 0 (0: step 3f off); got {plane_min!r}"
@@ -377,11 +465,6 @@ class ObstacleGrouper:
         if not isinstance(plane_z, real) or not 0 < plane_z < float("inf"):  # (also NaN)
             raise ConfigError(f"ObstacleGrouper: expected a finite plane_z > 0 (sigmas); got {plane_z!r}")
         self.plane_z = float(plane_z)
-        if isinstance(plane_every, bool) or not isinstance(plane_every, (int, np.integer)) or plane_every < 1:
-            raise ConfigError(
-                f"ObstacleGrouper: expected plane_every an integer >= 1 (frames); got {plane_every!r}"
-            )
-        self.plane_every = int(plane_every)
         if not isinstance(plane_ratio, real) or not 0 <= plane_ratio < float("inf"):  # (also NaN)
             raise ConfigError(f"ObstacleGrouper: expected a finite plane_ratio >= 0; got {plane_ratio!r}")
         self.plane_ratio = float(plane_ratio)
@@ -390,8 +473,9 @@ class ObstacleGrouper:
         # own in its latest update (``plane_recent``); a split one camera's flow alone supports is
         # not made. None (one camera): no such check.
         self.plane_confirm: Callable[[ObstacleTrack], bool] | None = None
-        # the frame-to-frame rotations, as far back as step 3c's window reaches
-        self._R1_hist: deque[np.ndarray] = deque(maxlen=self.split_frames)
+        # the frame-to-frame rotations, as far back as step 3c's window and the flow's reach (their
+        # cap, the feature history's; set at the first update)
+        self._R1_hist: deque[np.ndarray] = deque(maxlen=1)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
         self._last_t_s: float | None = None
@@ -420,6 +504,11 @@ class ObstacleGrouper:
         ids, b = ft.ids, ft.b_C
         dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
         self._last_t_s = t_s
+        if self._history_cap != ft.H - 1:  # windows into the history reach at most its length back
+            self._history_cap = ft.H - 1
+            self._R1_hist = deque(self._R1_hist, maxlen=self._history_cap)
+        self.clock.tick(t_s)
+        self._count()
         rad_px = ft.model.rad_per_px
         self.link_rad = self.link_px * rad_px
         self.max_radius_rad = self.max_radius_px * rad_px
@@ -691,9 +780,11 @@ class ObstacleGrouper:
         Args:
             t_s: frame time (s); R_C_Cprev: as in ``update``.
         Returns:
-            the tracks lost this frame (unseen for more than ``max_missed`` frames)."""
+            the tracks lost this frame (unseen for more than ``max_missed_s``)."""
         dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
         self._last_t_s = t_s
+        self.clock.tick(t_s)
+        self._count()
         R1 = R_C_Cprev.get(1) if R_C_Cprev else None
         self._remember_rotation(R1)
         lost = []
@@ -703,9 +794,24 @@ class ObstacleGrouper:
         return lost
 
     # ----------------------------------------------------------------------------- helpers
+    def _count(self) -> None:
+        """This frame's frame counts of the durations (``FrameClock.frames`` at the rate seen; the
+        windows into the feature history capped at its length, ``history - 1`` frames back)."""
+        d, f, cap = self.durations, self.clock.frames, self._history_cap
+        self.flow_frames = min(f(d["flow_window_s"]), cap)
+        self.min_age = f(d["min_age_s"])
+        self.isolated_min_age = f(d["isolated_min_age_s"])
+        self.confirm_frames = f(d["confirm_s"])
+        self.max_missed = f(d["max_missed_s"], 0)
+        self.extended_frames = f(d["extended_s"])
+        self.split_frames = min(f(d["split_window_s"], 2), cap)
+        self.split_persist = f(d["split_persist_s"])
+        self.plane_every = f(d["plane_every_s"])
+        self.bg_frames = f(self.BG_S)
+
     def _background(self, ids: np.ndarray) -> np.ndarray:
         """(N,) bool: live feature ids (N,) marked as extended texture (marks expire after
-        ``BG_FRAMES`` frames, so an obstacle taken for texture gets another chance)."""
+        ``BG_S``, so an obstacle taken for texture gets another chance)."""
         keep = self._bg_until > self._frame
         if not keep.all():
             self._bg_ids, self._bg_until = self._bg_ids[keep], self._bg_until[keep]
@@ -715,9 +821,9 @@ class ObstacleGrouper:
         return self._bg_ids[k] == ids
 
     def _mark_background(self, fids: np.ndarray) -> None:
-        """Mark feature ids (K,) as extended texture for the next ``BG_FRAMES`` frames."""
+        """Mark feature ids (K,) as extended texture for the next ``BG_S`` (``bg_frames`` frames)."""
         allid = np.concatenate([self._bg_ids, fids])
-        until = np.concatenate([self._bg_until, np.full(len(fids), self._frame + self.BG_FRAMES)])
+        until = np.concatenate([self._bg_until, np.full(len(fids), self._frame + self.bg_frames)])
         order = allid.argsort(kind="stable")
         self._bg_ids, self._bg_until = allid[order], until[order]
 
@@ -811,8 +917,8 @@ class ObstacleGrouper:
         dt_s: float,
     ) -> tuple[list[np.ndarray], list[tuple[int, int]]]:
         """Step 3c: tracks whose members form two surfaces by their motion over the last
-        ``split_frames`` frames (an obstacle and what lies behind or beside it: a parallax step
-        at the occluding edge, or one of them moving), grouped together because their
+        ``split_frames`` frames (``split_window_s``; an obstacle and what lies behind or beside it:
+        a parallax step at the occluding edge, or one of them moving), grouped together because their
         frame-to-frame flows differ less than the grouping tolerance.
 
         Per existing track (``tracks``, indices < T), each member tracked over at least half the
@@ -826,9 +932,10 @@ class ObstacleGrouper:
         larger flow (a smooth surface's flow changes little between neighbours; a depth step
         or an independently moving obstacle makes a jump). A track whose linked members fall
         into two components of 2 or more has a candidate split: the second largest component.
-        The track splits when a candidate was found ``split_persist`` frames in a row with half
-        of its features in common; the candidate's members leave: they revive a memberless track
-        predicted within ``max_radius`` of them whose flow agrees, else they start a new track.
+        The track splits when a candidate was found ``split_persist`` frames in a row
+        (``split_persist_s``) with half of its features in common; the candidate's members leave:
+        they revive a memberless track predicted within ``max_radius`` of them whose flow agrees,
+        else they start a new track.
 
         Args: ft, t_s, R as in ``update``; owner (N,) track index per live feature (not changed);
         rep (TK,3) unit bearings in C; tracks: the T existing tracks (their split state is
@@ -1242,6 +1349,7 @@ class ObstacleGrouper:
         if not n:
             return np.zeros((0, 3)), np.zeros(0, bool)
         b_then, t_then, valid = ft.bearing_ago(self.flow_frames)
+        R = self._window_rotations(R, self.flow_frames)  # (the front end's reach fewer frames back)
         if R:
             # b_then <- R_C_Cprev[k] b_then, k = frames back of each feature's sample (identity if absent)
             n_back = np.minimum(ft._h_n[ft.slot] - 1, self.flow_frames)

@@ -176,7 +176,7 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     assert len(rec["frames"]) == 30 and isinstance(rec["key"], str)  # 1 s at 30 fps, re-recorded
     msgs.clear()  # an override of a front-end key: re-recorded, naming the config part
     o2 = AccuracyOptions(mode="pipeline", scenes=("ci_small",), reuse_frontend=True,
-                         overrides=("tracker.grouping.min_age=4",))
+                         overrides=("tracker.grouping.min_age_s=0.13",))
     acc._run_pipeline(o2, out, msgs.append, names=("ci_small",))
     assert any("not replaying" in m and "frontend config" in m for m in msgs), msgs
     msgs.clear()

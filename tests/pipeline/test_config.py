@@ -194,7 +194,7 @@ def test_grouping_help_names_the_grouper_s_pixel_keys():
 
     text = describe_config()
     params = inspect.signature(ObstacleGrouper.__init__).parameters
-    for key in ("link_px", "max_radius_px", "min_features", "confirm_frames", "max_missed"):
+    for key in ("link_px", "max_radius_px", "min_features", "confirm_s", "max_missed_s"):
         assert key in params and key in text
     assert "link_rad" not in text and "max_radius_rad" not in text
 

@@ -114,7 +114,7 @@ def test_two_obstacles_side_by_side_stay_apart(model, rig, case):
 
 
 def test_life_cycle_occlusion_and_lost_once(model, rig):
-    """A disc on a blank world: tentative first, confirmed after confirm_frames; hidden for 3
+    """A disc on a blank world: tentative first, confirmed after confirm_s; hidden for 3
     frames it keeps its id; gone for good it is reported lost exactly once."""
     scene = SphereScene(model, blank_env=True)
     r = np.radians(14)
@@ -124,7 +124,7 @@ def test_life_cycle_occlusion_and_lost_once(model, rig):
     for k in range(40):
         show = k not in hidden and k < 26
         frames.append(scene.render(None, [Patch(patch_dir(d0, axis, rate, k), r, seed=8)] if show else []))
-    fe, out = run(rig, frames, grouping={"confirm_frames": 4, "max_missed": 8})
+    fe, out = run(rig, frames, grouping={"confirm_s": 4 / 30, "max_missed_s": 8 / 30})
     statuses = {}
     for k, obs in enumerate(out):
         for o in obs:
@@ -136,12 +136,12 @@ def test_life_cycle_occlusion_and_lost_once(model, rig):
     assert kinds[0] == "tentative"
     assert "confirmed" in kinds
     first_conf = next(k for k, s in seq if s == "confirmed")
-    assert first_conf - seq[0][0] >= 3  # needs confirm_frames frames with members
+    assert first_conf - seq[0][0] >= 3  # needs confirm_s (4 frames at 30 fps) with members
     frames_seen = {k for k, s in seq if s != "lost"}
     assert any(k > 16 for k in frames_seen), "the track did not survive the 3-frame occlusion"
     assert kinds.count("lost") == 1 and kinds[-1] == "lost"
     lost_at = seq[-1][0]
-    assert 26 + 8 <= lost_at <= 26 + 8 + 2  # after max_missed frames unseen
+    assert 26 + 8 <= lost_at <= 26 + 8 + 2  # after max_missed_s (8 frames) unseen
     for o in out[lost_at]:
         if o.track_id == tid:
             assert o.views == ()
@@ -205,9 +205,9 @@ def test_a_coasting_track_moves_on_with_its_flow(model):
     from trackers.grouping import ObstacleGrouper, ObstacleTrack, angle_between
 
     ft = SimpleNamespace(ids=np.zeros(0, np.int64), b_C=np.zeros((0, 3)), uv=np.zeros((0, 2)), model=model)
-    ft.age = np.zeros(0, np.int64)
+    ft.age, ft.H = np.zeros(0, np.int64), 64
     ft.previous_bearing = lambda: (np.zeros((0, 3)), np.zeros(0, bool))
-    gr = ObstacleGrouper(iter(range(100, 200)), max_missed=5)
+    gr = ObstacleGrouper(iter(range(100, 200)), max_missed_s=5 / 30)
     f = np.array([0.3, 0.0, 0.0])  # tangent at +z, rad/s
     tr = ObstacleTrack(1, "cam0", np.zeros(0, np.int64), unit([0, 0, 1]), flow_rad_s=f, status="confirmed")
     gr.tracks = {1: tr}
@@ -282,6 +282,7 @@ class PointFeatures:
         self.ids = np.zeros(0, np.int64)
         self.b_C = np.zeros((0, 3))
         self.age = np.zeros(0, np.int64)
+        self.H = 64  # history samples (the grouper caps its windows at H - 1 frames)
         self._hist: dict[int, list[tuple[np.ndarray, float]]] = {}
 
     def set(self, ids, b_C, t_s: float) -> None:
@@ -311,7 +312,7 @@ def test_an_old_piece_that_leaves_hands_its_id_to_the_younger_piece_of_the_same_
     the younger id is reported lost."""
     from trackers.grouping import ObstacleGrouper
 
-    gr = ObstacleGrouper(iter(range(1, 100)), link_px=12.0, max_radius_px=14.0, confirm_frames=3)
+    gr = ObstacleGrouper(iter(range(1, 100)), link_px=12.0, max_radius_px=14.0, confirm_s=0.1)
     ft = PointFeatures(model)
     rad_px = model.max_angle_rad / model.image_circle()[2]
     step = 6.0 * rad_px  # 6 px between neighbouring points

@@ -47,7 +47,7 @@ def test_a_representative_beyond_the_lens_field_has_no_pixel():
     None again once the track coasts with no member left."""
     model = equidistant(fov_deg=120.0)
     half = model.max_angle_rad
-    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_frames=3)
+    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_s=0.1)
     ft = PointFeatures(model)
     step = 6.0 * half / model.image_circle()[2]
     a = np.radians(50.0)
@@ -142,7 +142,7 @@ def test_an_unseen_track_has_no_pixel(how):
         seen, _ = bt.update(cam, Detections())
         assert not seen and not tr.seen and tr.uv is None
         return
-    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_frames=3)
+    gr = ObstacleGrouper(iter(range(1, 1000)), confirm_s=0.1)
     ft = PointFeatures(model)
     a = np.radians(10.0)
     c0 = np.array([np.sin(a), 0, np.cos(a)])

@@ -141,8 +141,8 @@ def test_bad_settings_named():
         ObstacleGrouper(iter(range(10)), plane_min=-1)
     with pytest.raises(ConfigError, match="plane_z"):
         ObstacleGrouper(iter(range(10)), plane_z=float("nan"))
-    with pytest.raises(ConfigError, match="plane_every"):
-        ObstacleGrouper(iter(range(10)), plane_every=0)
+    with pytest.raises(ConfigError, match="plane_every_s"):
+        ObstacleGrouper(iter(range(10)), plane_every_s=-1.0)
     with pytest.raises(ConfigError, match="plane_ratio"):
         ObstacleGrouper(iter(range(10)), plane_ratio=-1.0)
     with pytest.raises(ConfigError, match="plane_z"):  # a string from a config file: named, not a TypeError
@@ -189,7 +189,7 @@ def _still_grid(g, frames: int):
 
 
 def test_a_part_found_split_persist_frames_in_a_row_leaves():
-    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every=1)
+    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every_s=1 / 30)
     g.found_from = 12
     held = _still_grid(g, 20)
     assert held[10] == [list(range(1, 26))]  # one track before the part is found
@@ -203,14 +203,14 @@ def test_the_other_camera_must_find_a_part_too():
     """plane_confirm (set by the front end on a rig of several cameras) refuses: no split, the
     count goes on; once it agrees, the part leaves on that frame."""
     asked = []
-    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every=1)
+    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every_s=1 / 30)
     g.plane_confirm = lambda tr: asked.append(tr.plane_n) or len(asked) >= 4
     g.found_from = 12
     held = _still_grid(g, 20)
     assert asked[:4] == [3, 4, 5, 6]  # asked from the third frame in a row on, every frame
     first = next(i for i, h in enumerate(held) if len(h) == 2)
     assert first == 13 + 3
-    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every=1)
+    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every_s=1 / 30)
     g.plane_confirm = lambda tr: False
     held = _still_grid(g, 20)
     assert all(len(h) <= 1 for h in held) and held[-1] == [list(range(1, 26))]
@@ -219,11 +219,11 @@ def test_the_other_camera_must_find_a_part_too():
 
 
 def test_a_track_is_looked_at_every_plane_every_frames_until_a_part_is_found():
-    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every=3)
+    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every_s=0.1)
     g.found_from = 10**9  # never found
     _still_grid(g, 30)
     assert len(g.due_log) >= 6 and np.all(np.diff(g.due_log) == 3)
-    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every=3)
+    g = _FixedPart(iter(range(1, 1000)), plane_min=12, plane_every_s=0.1)
     g.found_from = 12
     held = _still_grid(g, 30)
     f = next(k for k in g.due_log if k >= 12)  # found on its first look from frame 12 on
