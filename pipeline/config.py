@@ -219,9 +219,10 @@ class TrackerConfig(_Section):
     boxes: dict[str, Any] = Field(
         default_factory=dict,
         description="dict: BoxTracker keywords (detectors that give boxes: navlights, torch, composites such "
-        "as orb+navlights): gate_rad (rad, 3 deg), confirm_frames (3), max_missed (10), sigma_floor_rad "
-        "(rad, 0.2 deg); with a keypoint detector beside the boxes, a box is folded into a feature track on "
-        "it: link_margin_px (px, 3), link_min_members (2), link_frames (3), link_tol_px (px, 2), link_share "
+        "as orb+navlights): gate_rad (rad, 3 deg), confirm_s (s, 0.1), max_missed_s (s, 1/3), "
+        "sigma_floor_rad (rad, 0.2 deg); durations at the frame rate seen, as the grouping's; with a "
+        "keypoint detector beside the boxes, a box is folded into a feature track on "
+        "it: link_margin_px (px, 3), link_min_members (2), link_s (s, 0.1), link_tol_px (px, 2), link_share "
         "(0.75: the share of its members on the box a new link needs; a held link keeps half), "
         "link_older_only (false; true: only to a feature track made before the box, so a drone found first "
         "by its lights keeps its own id and report).",

@@ -490,9 +490,9 @@ class FrontEnd:
                     tm["detect"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
                     # (given this frame's feature tracks: one obstacle found by both is reported once)
-                    s2, l2 = self.boxers[name].update(cam, det, s)
+                    s2, l2 = self.boxers[name].update(cam, det, s, t_s=t_s)
                 else:
-                    s2, l2 = [], self.boxers[name].coast()
+                    s2, l2 = [], self.boxers[name].coast(t_s)
                 tm["group"] += time.perf_counter() - t0
                 s += s2
                 lost += l2

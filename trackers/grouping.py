@@ -231,6 +231,14 @@ _GROUPER_RENAMED = {
 }
 
 
+# the box tracker's frame counts that are durations now
+_BOX_RENAMED = {
+    "confirm_frames": ("confirm_s", "3 frames at 30 fps = 0.1 s"),
+    "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
+    "link_frames": ("link_s", "3 frames at 30 fps = 0.1 s"),
+}
+
+
 def _durations(owner: str, renamed: dict[str, tuple[str, str]], old: dict, given: dict) -> dict[str, float]:
     """Check a tracker's duration settings (s): ``given`` {key: value}, each a finite number >= 0;
     ``old`` the keywords it does not take: a renamed frame count (``renamed``: old key -> (new key,
@@ -1573,27 +1581,35 @@ class BoxTracker:
     where another camera sees the box too the drone's reported id changes from the box's to the feature
     track's (an id switch). The drone id switches of the tuned scenes were such handovers, not links to
     the wrong track (session 9: moving_crossing, wide_angle_beyond90, noisy_1080p).
+
+    Durations in seconds, applied as frame counts at the frame rate seen (``FrameClock``, as
+    ObstacleGrouper's): ``confirm_s`` (0.1: 3 frames at 30 fps), ``max_missed_s`` (1/3: 10 frames),
+    ``link_s`` (0.1: 3 frames; ``link_tol_px`` is the displacement allowed over it); attributes
+    confirm_frames, max_missed, link_frames hold the counts in effect.
     """
 
     def __init__(
         self,
         ids: Iterator[int],
         gate_rad: float = np.radians(3.0),
-        confirm_frames: int = 3,
-        max_missed: int = 10,
+        confirm_s: float = 0.1,
+        max_missed_s: float = 1 / 3,
         sigma_floor_rad: float = np.radians(0.2),
         link_margin_px: float = 3.0,
         link_min_members: int = 2,
-        link_frames: int = 3,
+        link_s: float = 0.1,
         link_tol_px: float = 2.0,
         link_share: float = 0.75,
         link_older_only: bool = False,
+        **old: Any,
     ) -> None:
-        for nm, v in (("confirm_frames", confirm_frames), ("max_missed", max_missed),
-                      ("link_min_members", link_min_members), ("link_frames", link_frames)):
-            lo = 0 if nm == "max_missed" else 1
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ConfigError(f"BoxTracker: {nm} expected an integer >= {lo}, got {v!r}")
+        self.durations = _durations(
+            "BoxTracker", _BOX_RENAMED, old,
+            {"confirm_s": confirm_s, "max_missed_s": max_missed_s, "link_s": link_s},
+        )
+        v = link_min_members
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ConfigError(f"BoxTracker: link_min_members expected an integer >= 1, got {v!r}")
         for nm, v in (("gate_rad", gate_rad), ("sigma_floor_rad", sigma_floor_rad),
                       ("link_margin_px", link_margin_px), ("link_tol_px", link_tol_px)):
             if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) or not v >= 0:
@@ -1604,12 +1620,11 @@ class BoxTracker:
             raise ConfigError(f"BoxTracker: link_share expected a number in [0.5, 1], got {link_share!r}")
         self._ids = ids
         self.gate_rad = float(gate_rad)
-        self.confirm_frames = int(confirm_frames)
-        self.max_missed = int(max_missed)
         self.sigma_floor_rad = float(sigma_floor_rad)
         self.link_margin_px = float(link_margin_px)
         self.link_min_members = int(link_min_members)
-        self.link_frames = int(link_frames)
+        self.clock = FrameClock()
+        self._count()
         self.link_tol_px = float(link_tol_px)
         self.link_share = float(link_share)
         if not isinstance(link_older_only, bool):
@@ -1623,17 +1638,29 @@ class BoxTracker:
         self._decorated: dict[int, tuple[ObstacleTrack, tuple[str, ...]]] = {}  # keys added to others
         self._n = 0
 
-    def update(self, camera, det, others=()) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
+    def _count(self) -> None:
+        """This frame's frame counts of the durations at the rate seen (``FrameClock.frames``)."""
+        d, f = self.durations, self.clock.frames
+        self.confirm_frames = f(d["confirm_s"])
+        self.max_missed = f(d["max_missed_s"], 0)
+        self.link_frames = f(d["link_s"])
+
+    def update(
+        self, camera, det, others=(), *, t_s: float
+    ) -> tuple[list[ObstacleTrack], list[ObstacleTrack]]:
         """Match this frame's boxes (``det``: Detections) of ``camera`` (an ``estimators.rig.Camera``).
 
         Args:
             others: the camera's feature tracks seen this frame (ObstacleTrack with ``member_b_C``),
                 for the links described in the class docstring; empty: no links.
+            t_s: frame time (s).
         Returns:
             (box tracks seen this frame and not linked to a feature track, tracks lost this frame).
         """
         model = camera.model
         self._n += 1
+        self.clock.tick(t_s)
+        self._count()
         seen: list[ObstacleTrack] = []
         for tr in self.tracks.values():
             tr.seen = False
@@ -1735,9 +1762,11 @@ class BoxTracker:
                 seg = cos_m[start[ti]:start[ti + 1]]
                 k = (-seg).argsort(kind="stable")[:8]  # the members nearest the box: does it move with them
                 key = (b.id, f.id)
-                h = self._hist.setdefault(key, deque(maxlen=self.link_frames + 1))
+                h = self._hist.setdefault(key, deque())
                 near = dict(zip(f.members[k].tolist(), f.member_b_C[k], strict=True))
                 h.append((self._n, near, b.b_C.copy()))
+                while len(h) > self.link_frames + 1:  # (the count follows the rate seen)
+                    h.popleft()
                 now.add(key)
                 held = f.id == held_id  # a link holds while the pair stays so placed
                 if (held or self._moves_with(h, rad_px)) and (best is None or -cos_c[ti] < best[0]):
@@ -1778,10 +1807,12 @@ class BoxTracker:
         d_b = h[-1][2] - h[0][2]
         return float(np.linalg.norm(d_f - d_b)) <= self.link_tol_px * rad_px
 
-    def coast(self) -> list[ObstacleTrack]:
-        """A frame without a usable image: every track goes unseen; returns those lost now
-        (unseen for more than ``max_missed`` frames)."""
+    def coast(self, t_s: float) -> list[ObstacleTrack]:
+        """A frame (time t_s, s) without a usable image: every track goes unseen; returns those
+        lost now (unseen for more than ``max_missed_s``)."""
         self._n += 1
+        self.clock.tick(t_s)
+        self._count()
         lost = []
         for tid in list(self.tracks):
             tr = self.tracks[tid]

@@ -86,6 +86,9 @@ def _linked_pair(fe: FrontEnd, box_id: int, feature_id: int) -> None:
     fe.boxers["cam0"].tracks[box_id] = ObstacleTrack(box_id, "cam0", np.zeros(0, np.int64), b, label="drone")
     fe.groupers["cam0"].tracks[feature_id] = ObstacleTrack(feature_id, "cam0", np.zeros(0, np.int64), b)
     fe.boxers["cam0"].links = {box_id: feature_id}
+    for k in range(2):  # the box tracker has seen frames 1/30 s apart: link_s 0.1 s is 3 frames
+        fe.boxers["cam0"].clock.tick(k / 30)
+    fe.boxers["cam0"]._count()
 
 
 def test_a_box_that_another_camera_sees_too_lends_no_id():
@@ -110,7 +113,7 @@ def test_a_box_that_another_camera_sees_too_lends_no_id():
     fe.boxers["cam0"].links = {5: 11}
     fe._box_keeps_id(absorbed)
     assert fe._global(11) == 5 and fe._global(9) == 9  # 11 holds the box's id, 9 takes its own
-    fe.boxers["cam0"].links = {}  # seen, not linked: each its own id after link_frames (3) frames
+    fe.boxers["cam0"].links = {}  # seen, not linked: each its own id after link_s (3 frames at 30 fps)
     for _ in range(2):
         fe._box_keeps_id(absorbed)
         assert fe._global(11) == 5

@@ -35,7 +35,7 @@ def _run(per_frame: list[tuple[int, int]]):
         ids = np.array([100 + i for i in range(n_on)] + [200 + i for i in range(n_off)])
         b = mb.mean(axis=0)
         ft = ObstacleTrack(7, "cam0", ids, b / np.linalg.norm(b), member_b_C=mb)
-        bt.update(cam, det, [ft])
+        bt.update(cam, det, [ft], t_s=k / 30)
         out.append(dict(bt.links))
     return out
 

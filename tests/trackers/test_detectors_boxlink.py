@@ -32,7 +32,7 @@ def _run(feature_id: int, older_only: bool, frames: int = 6):
         det = Detections(boxes=np.array([[u0 - 4, 116.0, u0 + 4, 124.0]]), labels=("drone",),
                          attributes=({"heading": "away"},))
         on, _ = model.pixel_to_bearing(np.array([[u0 - 2, 119.0], [u0 + 2, 121.0], [u0, 120.0]]))
-        seen, _ = bt.update(cam, det, [_ft(feature_id, on)])
+        seen, _ = bt.update(cam, det, [_ft(feature_id, on)], t_s=k / 30)
         out.append(([t.id for t in seen], dict(bt.links)))
     return out
 
@@ -69,6 +69,6 @@ def test_the_lens_scale_of_the_links_is_computed_once_per_camera_model(monkeypat
     monkeypatch.setattr(cls, "image_circle", lambda self: calls.append(self) or image_circle(self))
     a, b = equidistant(), equidistant()
     bt = BoxTracker(iter(range(5, 100)))
-    for model in (a, a, a, b, b):
-        bt.update(mono_forward_rig(model).cameras[0], Detections(), [])
+    for k, model in enumerate((a, a, a, b, b)):
+        bt.update(mono_forward_rig(model).cameras[0], Detections(), [], t_s=k / 30)
     assert calls == [a, b]

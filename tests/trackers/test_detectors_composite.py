@@ -148,11 +148,11 @@ def _reports_on(obs, d_C: np.ndarray, radius_rad: float):
 
 def test_a_textured_drone_with_lights_is_reported_once_with_the_box_label():
     """A textured patch of a drone's size with lights at its wingtips (the feature track lies on the
-    box): one report, the feature track's (2 without the link: ``boxes={"link_frames": 100}``)."""
+    box): one report, the feature track's (2 without the link: ``boxes={"link_s": 100 / 30}``)."""
     model = equidistant()
     counts = {}
     for frames in (3, 100):
-        fe = FrontEnd(mono_forward_rig(model), detector="orb+navlights", boxes={"link_frames": frames})
+        fe = FrontEnd(mono_forward_rig(model), detector="orb+navlights", boxes={"link_s": frames / 30})
         counts[frames] = []
         seq = _patch_sequence(model, 14, True, radius_rad=np.radians(9), half_span_px=9.0)
         for k, (img, d) in enumerate(seq):
@@ -199,8 +199,8 @@ def test_box_tracker_links_only_a_feature_track_on_the_box_that_moves_with_it():
         below, _ = model.pixel_to_bearing(np.array([[u0 - 3, 140.0], [u0 + 3, 141.0], [u0, 139.0]]))
         still, _ = model.pixel_to_bearing(np.array([[158.0, 119.0], [162.0, 121.0], [160.0, 120.0]]))
         f_on, f_below, f_still = _ft(7, on), _ft(8, below), _ft(9, still)
-        seen, _ = bt.update(cam, det, [f_below, f_on] if k < 5 else [f_below, f_still])
-        if k < 3:  # not yet link_frames (3) frames together: the box is reported
+        seen, _ = bt.update(cam, det, [f_below, f_on] if k < 5 else [f_below, f_still], t_s=k / 30)
+        if k < 3:  # not yet link_s (3 frames at 30 fps) together: the box is reported
             assert len(seen) == 1 and "box_label" not in f_on.attributes
         elif k < 5:  # linked to the track on the box that moves with it; the ground below is not
             assert seen == [] and bt.links == {1: 7}
@@ -225,12 +225,12 @@ def test_box_tracker_does_not_link_a_track_on_the_box_that_stays_still():
                          attributes=({"heading": "away"},))
         still, _ = model.pixel_to_bearing(np.array([[162.0, 119.0], [166.0, 121.0], [164.0, 120.0]]))
         f_still = _ft(9, still)
-        seen, _ = bt.update(cam, det, [f_still])
+        seen, _ = bt.update(cam, det, [f_still], t_s=k / 30)
         assert len(seen) == 1 and bt.links == {} and "box_label" not in f_still.attributes
 
 
-@pytest.mark.parametrize("opts", [{"link_frames": 0}, {"link_tol_px": -1.0}, {"confirm_frames": 1.5},
-                                  {"link_min_members": True}])
+@pytest.mark.parametrize("opts", [{"link_s": -0.1}, {"link_tol_px": -1.0}, {"confirm_s": "0.1"},
+                                  {"max_missed_s": float("nan")}, {"link_min_members": True}])
 def test_box_tracker_bad_options_are_config_errors(opts):
     with pytest.raises(ConfigError):
         BoxTracker(iter(range(5)), **opts)

@@ -136,10 +136,10 @@ def test_an_unseen_track_has_no_pixel(how):
         u0, v0 = model.cx + 20.0, model.cy - 10.0
         box = Detections(boxes=np.array([[u0 - 4, v0 - 4, u0 + 4, v0 + 4]]), labels=("drone",),
                          attributes=({},))
-        for _ in range(3):
-            (tr,), _ = bt.update(cam, box)
+        for k in range(3):
+            (tr,), _ = bt.update(cam, box, t_s=k / 30)
         np.testing.assert_allclose(tr.uv, [u0, v0], atol=1e-9)  # the box's centre, a pixel
-        seen, _ = bt.update(cam, Detections())
+        seen, _ = bt.update(cam, Detections(), t_s=0.1)
         assert not seen and not tr.seen and tr.uv is None
         return
     gr = ObstacleGrouper(iter(range(1, 1000)), confirm_s=0.1)

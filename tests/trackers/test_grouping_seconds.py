@@ -14,7 +14,7 @@ from estimators.errors import ConfigError
 from tests.trackers.conftest import rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
 from tests.trackers.test_grouping_split import FLOW_ABS, grid
-from trackers.grouping import _GROUPER_RENAMED, FrameClock, ObstacleGrouper
+from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, FrameClock, ObstacleGrouper
 
 
 def test_the_clock_counts_a_duration_in_frames_at_the_rate_seen():
@@ -182,3 +182,40 @@ def test_the_front_end_names_the_replacement_and_bad_durations(rig):
     for bad in (-0.1, float("nan"), float("inf"), "0.1", True):
         with pytest.raises(ConfigError, match="confirm_s"):
             ObstacleGrouper(iter(range(10)), confirm_s=bad)
+
+
+def _box_times(fps: float, t_end: float = 0.5, t_total: float = 1.0):
+    """One drone box drifting 60 px/s, seen until t_end: (time first confirmed, time lost)."""
+    from estimators.rig import mono_forward_rig
+    from tests.trackers.conftest import equidistant
+    from trackers.detectors.base import Detections
+
+    cam = mono_forward_rig(equidistant()).cameras[0]
+    bt = BoxTracker(iter(range(1, 100)))
+    conf = lost = None
+    for k in range(int(round(t_total * fps))):
+        t_s = k / fps
+        u0 = 160.0 + 60.0 * t_s
+        box = np.array([[u0 - 4, 116.0, u0 + 4, 124.0]])
+        det = Detections(boxes=box, labels=("drone",), attributes=({},))
+        seen, gone = bt.update(cam, det if t_s < t_end else Detections(), t_s=t_s)
+        if conf is None and any(t.status == "confirmed" for t in seen):
+            conf = t_s
+        if gone:
+            lost = t_s
+    return conf, lost
+
+
+def test_a_box_track_is_confirmed_and_lost_after_the_same_seconds_at_30_and_100_hz():
+    """confirm_s 0.1 and max_missed_s 1/3: at 30 fps confirmed on its 3rd frame (0.067 s), lost
+    11 frames after its last (0.467 + 0.367 s); at 100 fps on its 10th (0.09 s) and 34 frames after
+    0.49 s (with counts in frames: 0.02 s and 0.60 s)."""
+    assert _box_times(30.0) == pytest.approx((2 / 30, 25 / 30))
+    assert _box_times(100.0) == pytest.approx((0.09, 0.83))
+
+
+@pytest.mark.parametrize("old", sorted(_BOX_RENAMED))
+def test_an_old_box_frame_count_key_is_an_error_naming_its_replacement(old):
+    new = _BOX_RENAMED[old][0]
+    with pytest.raises(ConfigError, match=f"BoxTracker: '{old}' \\(frames\\) was replaced by '{new}'"):
+        BoxTracker(iter(range(10)), **{old: 3})
