@@ -1071,7 +1071,7 @@ def make_plan(quick: bool, repeat: int | None = None) -> BenchPlan:
     # a smoke test (CI): every part runs once, on the fewest subprocesses (each costs ~1-2 s of imports);
     # scaling keeps only the heavy ends (50 obstacles, 2000 features)
     return BenchPlan(quick=True, resolutions=(small,), render_frames=10, measure_frames=20, live_frames=20,
-                     scaling_resolution=small, scaling_frames=8, memory_resolution=small, memory_frames=60,
+                     scaling_resolution=small, scaling_frames=30, memory_resolution=small, memory_frames=60,
                      memory_checkpoints=(20, 60), detector_frames=20, threads=(1,), base_obstacles=4,
                      obstacle_counts=(50,), feature_counts=(2000,), repeat=repeat)
 

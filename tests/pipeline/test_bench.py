@@ -3,6 +3,7 @@ pinning in a subprocess, render cache, table and JSON report. No wall-clock thre
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import statistics
@@ -15,6 +16,7 @@ import pytest
 
 from estimators.errors import ConfigError, InputError, SourceError
 from pipeline import bench
+from trackers.grouping import ObstacleGrouper
 
 
 def write_video(path: Path, values: list[int], size: tuple[int, int] = (64, 48), fps: float = 30.0) -> Path:
@@ -226,6 +228,11 @@ def test_machine_info_names_the_software():
 def test_quick_plan_is_small_and_full_plan_covers_the_issue():
     q, f = bench.make_plan(True), bench.make_plan(False)
     assert q.quick and q.memory_frames < 1000 and len(q.resolutions) == 1
+    # the quick scaling runs outlast a track's confirmation at the clip's rate (the grouping counts in
+    # seconds), so their obstacle and feature-in-obstacle rows exercise the grouping
+    grouper = inspect.signature(ObstacleGrouper.__init__).parameters
+    confirm_s = grouper["min_age_s"].default + grouper["confirm_s"].default
+    assert q.scaling_frames / bench.camera_rate_hz(q.scaling_resolution) > confirm_s
     assert f.resolutions == ((640, 480), (1280, 720), (1920, 1080))
     assert f.rigs == ("mono", "stereo") and f.threads == (1, None)
     assert f.obstacle_counts == (1, 10, 50) and f.feature_counts == (100, 500, 2000)
