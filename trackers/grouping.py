@@ -191,7 +191,8 @@ class FrameClock:
     camera's rate varies, and a dropped frame is one long interval the median ignores).
 
     ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before any
-    interval is seen, ``UNKNOWN`` (a count no track reaches: nothing is decided by time yet)."""
+    interval is seen, and for a duration of ``UNKNOWN`` frames or more, ``UNKNOWN`` (a count no
+    track reaches: nothing is decided by time yet, or ever)."""
 
     UNKNOWN = 2**31
 
@@ -214,7 +215,10 @@ class FrameClock:
         """The frame count of a duration d_s (s) at the rate seen, at least ``lo``."""
         if self.period_s is None:
             return self.UNKNOWN
-        return max(lo, math.floor(d_s / self.period_s + 0.5))
+        n = d_s / self.period_s
+        if not n < self.UNKNOWN:  # (a duration no run reaches, e.g. 1e308 s: no overflow to int)
+            return self.UNKNOWN
+        return max(lo, math.floor(n + 0.5))
 
 
 # the grouper's frame counts that are durations now: old key -> (new key, the old default in time)

@@ -219,3 +219,21 @@ def test_an_old_box_frame_count_key_is_an_error_naming_its_replacement(old):
     new = _BOX_RENAMED[old][0]
     with pytest.raises(ConfigError, match=f"BoxTracker: '{old}' \\(frames\\) was replaced by '{new}'"):
         BoxTracker(iter(range(10)), **{old: 3})
+
+
+def test_a_duration_beyond_any_run_is_no_crash():
+    """A finite but huge duration (accepted: a finite number >= 0) is a count no track reaches, not
+    an OverflowError (1e308 s over a 0.01 s frame is inf frames) once the rate is known."""
+    c = FrameClock()
+    for k in range(3):
+        c.tick(k / 100)
+    assert c.frames(1e308) == FrameClock.UNKNOWN and c.frames(1e300) == FrameClock.UNKNOWN
+    assert c.frames(0.1) == 10
+    gr = ObstacleGrouper(iter(range(10)), max_missed_s=1e308, split_window_s=1e308)
+    for k in range(3):
+        gr.coast(k / 100)
+    assert gr.max_missed == FrameClock.UNKNOWN and gr.split_frames == gr._history_cap
+    bt = BoxTracker(iter(range(10)), max_missed_s=1e308, link_s=1e308)
+    for k in range(3):
+        bt.coast(k / 100)
+    assert bt.max_missed == FrameClock.UNKNOWN == bt.link_frames
