@@ -213,8 +213,8 @@ class TrackerConfig(_Section):
         "tracks of at least this many members are tested, 0 turns it off), plane_z (sigmas, 6.0), "
         "plane_ratio (12.0), plane_every_s (s, 1/15). Durations are applied as frame counts at the frame "
         "rate seen (the median interval of the frame times; the defaults are the counts fitted at 30 fps: "
-        "3, 12, 5, 10, 3, 10, 3 and every 2nd frame); the old frame-count keys (min_age, confirm_frames, "
-        "...) are an error naming their replacement.",
+        "5, 3, 12, 5, 10, 3, 10, 3 and every 2nd frame, in the order above); the old frame-count keys "
+        "(min_age, confirm_frames, ...) are an error naming their replacement.",
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,
