@@ -34,6 +34,7 @@ import yaml
 from pydantic import (
     AfterValidator,
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
@@ -292,6 +293,14 @@ def _type_name(t: Any) -> str:
     return getattr(t, "__name__", None) or str(t).replace("typing.", "")
 
 
+def _no_bool(v: Any) -> Any:
+    """A number's value: true/false refused (FusionSettings refuses them too; pydantic's lax mode
+    would read true as 1.0 first)."""
+    if isinstance(v, bool):
+        raise ValueError(f"expected a number, not the boolean {str(v).lower()}")
+    return v
+
+
 def _make_fusion_config() -> type[BaseModel]:
     """``FusionConfig``: one key per field of ``estimators.fusion.FusionSettings``, generated from it so the
     two never drift: same names, types and defaults; each key's description is the field's entry in
@@ -304,7 +313,10 @@ def _make_fusion_config() -> type[BaseModel]:
     for f in dataclasses.fields(FusionSettings):
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
         text = docs.get(f.name, "")
-        fields[f.name] = (hints[f.name], Field(default, description=f"{_type_name(hints[f.name])}: {text}"))
+        t = hints[f.name]
+        # a number's key: true/false is no number (pydantic's lax mode would read true as 1.0)
+        typed = t if t is bool or t is str else Annotated[t, BeforeValidator(_no_bool)]
+        fields[f.name] = (typed, Field(default, description=f"{_type_name(t)}: {text}"))
     model = create_model("FusionConfig", __base__=_Section, **fields)
     model.__doc__ = (
         "Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` "

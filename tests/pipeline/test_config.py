@@ -273,3 +273,15 @@ def test_a_grey_video_is_read_grey_even_for_a_colour_detector(tmp_path):
     assert reads_grey(cfg, [g]) is True and reads_grey(cfg, [c]) is False
     assert reads_grey(load_config(None, cli={"inputs.grey": False}), [g]) is False
     assert reads_grey(load_config(None, cli={"detector.name": "orb"}), c) is True
+
+
+@pytest.mark.parametrize("key", ["measurement_correlation_s", "feature_velocity_lag_s", "max_speed_mps",
+                                 "reinit_after_gated"])
+@pytest.mark.parametrize("value", ["true", "false"])
+def test_a_boolean_for_a_fusion_number_is_refused(key, value):
+    """pydantic's lax mode read true as 1.0 and false as 0.0 (FusionSettings itself refuses booleans):
+    the key and what is expected are named; null stays allowed where the field takes None."""
+    with pytest.raises(ConfigError, match=f"fusion.{key}: expected a number, not the boolean {value}"):
+        load_config(overrides=[f"fusion.{key}={value}"])
+    assert load_config(overrides=["fusion.max_speed_mps=null"]).fusion.max_speed_mps is None
+    assert load_config(overrides=[f"fusion.{key}=2"]).fusion.settings_kwargs()[key] == 2
