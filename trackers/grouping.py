@@ -1273,8 +1273,8 @@ class ObstacleGrouper:
 
     def _remember_rotation(self, R1: np.ndarray | None) -> None:
         """Keep this frame's R_C_Cprev[1] (3,3) (the rotation from the previous frame's camera
-        frame into this one's) for step 3c's window; a frame without it breaks
-        the chain."""
+        frame into this one's) for step 3c's window and the flow's (``_window_rotations``); a
+        frame without it breaks the chain."""
         if R1 is None:
             self._R1_hist.clear()
         else:
@@ -1284,8 +1284,9 @@ class ObstacleGrouper:
         """{k: R_C_Cprev[k]} (3,3) for k = 1..frames as far as known: the given ones (the front
         end's, a few frames back), and beyond them the product of the remembered frame-to-frame
         rotations, ``R_C(t)_C(t-k) = R_C(t)_C(t-1) R_C(t-1)_C(t-2) ... R_C(t-k+1)_C(t-k)``.
-        Used by step 3c: a window sample older than the rotation known is not
-        derotated by the identity (it would read the camera's turn as the member's motion)."""
+        Used by step 3c and the flow (``_flows``: at 100 fps its 17 frames reach past the front
+        end's): a window sample older than the rotation known is not derotated by the identity (it
+        would read the camera's turn as the member's motion)."""
         if not R or not self._R1_hist:
             return {}
         out = {k: v for k, v in R.items() if 0 < k <= frames}
