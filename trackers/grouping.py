@@ -186,13 +186,14 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class FrameClock:
-    """Durations (s) as frame counts at the frame rate seen: the median of the last ``n`` positive
-    intervals between the frame times given to :meth:`tick` (never a configured rate: a live
-    camera's rate varies, and a dropped frame is one long interval the median ignores).
+    """Durations (s) as frame counts at the frame rate seen: the (lower) median of the last ``n``
+    positive intervals between the frame times given to :meth:`tick` (never a configured rate: a
+    live camera's rate varies, and a dropped frame is one long interval the median ignores).
 
-    ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before any
-    interval is seen, and for a duration of ``UNKNOWN`` frames or more, ``UNKNOWN`` (a count no
-    track reaches: nothing is decided by time yet, or ever)."""
+    ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before two
+    intervals are seen (a live camera's first is often its start-up's), and for a duration of
+    ``UNKNOWN`` frames or more, ``UNKNOWN`` (a count no track reaches: nothing is decided by time
+    yet, or ever)."""
 
     UNKNOWN = 2**31
 
@@ -206,9 +207,10 @@ class FrameClock:
         t = float(t_s)
         if self._last is not None and t > self._last:
             self._dt.append(t - self._last)
-            d = sorted(self._dt)
-            k = len(d)
-            self.period_s = d[k // 2] if k % 2 else 0.5 * (d[k // 2 - 1] + d[k // 2])
+            if len(self._dt) >= 2:  # (one interval is no rate yet: a live camera's first is
+                # often its start-up's; of an even count the lower median: a long interval then
+                # makes counts too large, deciding nothing early, never too small)
+                self.period_s = sorted(self._dt)[(len(self._dt) - 1) // 2]
         self._last = t
 
     def frames(self, d_s: float, lo: int = 1) -> int:

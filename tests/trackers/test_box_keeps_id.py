@@ -86,7 +86,7 @@ def _linked_pair(fe: FrontEnd, box_id: int, feature_id: int) -> None:
     fe.boxers["cam0"].tracks[box_id] = ObstacleTrack(box_id, "cam0", np.zeros(0, np.int64), b, label="drone")
     fe.groupers["cam0"].tracks[feature_id] = ObstacleTrack(feature_id, "cam0", np.zeros(0, np.int64), b)
     fe.boxers["cam0"].links = {box_id: feature_id}
-    for k in range(2):  # the box tracker has seen frames 1/30 s apart: link_s 0.1 s is 3 frames
+    for k in range(3):  # the box tracker has seen frames 1/30 s apart: link_s 0.1 s is 3 frames
         fe.boxers["cam0"].clock.tick(k / 30)
     fe.boxers["cam0"]._count()
 

@@ -237,3 +237,40 @@ def test_a_duration_beyond_any_run_is_no_crash():
     for k in range(3):
         bt.coast(k / 100)
     assert bt.max_missed == FrameClock.UNKNOWN == bt.link_frames
+
+
+def test_a_slow_first_interval_decides_nothing_early():
+    """A live camera's first interval is often its start-up's (here 0.5 s, then 30 fps). One interval
+    is no rate yet, and of two the shorter is taken (the lower median: a long first interval read as
+    the rate made every count 1 for two frames: a box confirmed on its 2nd frame and lost after 2
+    unseen frames); a too short one only delays decisions."""
+    c = FrameClock()
+    c.tick(0.0)
+    c.tick(0.5)
+    assert c.frames(0.1) == FrameClock.UNKNOWN  # one interval
+    c.tick(0.5 + 1 / 30)
+    assert c.frames(0.1) == 3 and c.frames(1 / 3, 0) == 10
+    for k in range(2, 6):  # then the median as before
+        c.tick(0.5 + k / 30)
+    assert c.frames(0.1) == 3
+
+    from estimators.rig import mono_forward_rig
+    from tests.trackers.conftest import equidistant
+    from trackers.detectors.base import Detections
+
+    cam = mono_forward_rig(equidistant()).cameras[0]
+    bt = BoxTracker(iter(range(1, 100)))
+    times = [0.0] + [0.5 + k / 30 for k in range(20)]
+    box = Detections(boxes=np.array([[156.0, 116.0, 164.0, 124.0]]), labels=("drone",), attributes=({},))
+    conf = lost = None
+    for i, t_s in enumerate(times):
+        seen, gone = bt.update(cam, box if i < 4 else Detections(), t_s=t_s)
+        if conf is None and any(t.status == "confirmed" for t in seen):
+            conf = i
+        if gone and lost is None:
+            lost = i
+    assert conf == 2  # its 3rd frame, as at 30 fps throughout
+    assert lost == 3 + 11  # 11 frames after its last (max_missed_s 1/3: 10 frames at 30 fps)
+    bt = BoxTracker(iter(range(1, 100)))
+    lost = [i for i, t_s in enumerate(times) if bt.update(cam, box if i == 0 else Detections(), t_s=t_s)[1]]
+    assert lost == [11]  # seen on the first frame only: lost 11 frames on (2 when 0.5 s was the rate)
