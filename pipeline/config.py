@@ -34,12 +34,12 @@ import yaml
 from pydantic import (
     AfterValidator,
     BaseModel,
-    BeforeValidator,
     ConfigDict,
     Field,
     ValidationError,
     ValidationInfo,
     create_model,
+    field_validator,
     model_validator,
 )
 
@@ -91,6 +91,19 @@ VideoRef = Annotated[str, AfterValidator(_resolve_path)]
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_a_number(cls, v: Any, info: ValidationInfo) -> Any:
+        """true/false is no number: pydantic's lax mode would read it as 1 or 0 (``ego_motion.speed_mps:
+        true`` flying at 1 m/s), so a number's key refuses it, naming the key (a key that takes a
+        bool as well, and every other value, is left to the field's own validation)."""
+        if isinstance(v, bool):
+            kinds = typing.get_args(cls.model_fields[info.field_name].annotation)
+            kinds = kinds or (cls.model_fields[info.field_name].annotation,)
+            if bool not in kinds and (int in kinds or float in kinds):
+                raise ValueError(f"expected a number, not the boolean {str(v).lower()}")
+        return v
 
 
 # ----------------------------------------------------------------------------------------------- rig
@@ -293,14 +306,6 @@ def _type_name(t: Any) -> str:
     return getattr(t, "__name__", None) or str(t).replace("typing.", "")
 
 
-def _no_bool(v: Any) -> Any:
-    """A number's value: true/false refused (FusionSettings refuses them too; pydantic's lax mode
-    would read true as 1.0 first)."""
-    if isinstance(v, bool):
-        raise ValueError(f"expected a number, not the boolean {str(v).lower()}")
-    return v
-
-
 def _make_fusion_config() -> type[BaseModel]:
     """``FusionConfig``: one key per field of ``estimators.fusion.FusionSettings``, generated from it so the
     two never drift: same names, types and defaults; each key's description is the field's entry in
@@ -313,10 +318,7 @@ def _make_fusion_config() -> type[BaseModel]:
     for f in dataclasses.fields(FusionSettings):
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
         text = docs.get(f.name, "")
-        t = hints[f.name]
-        # a number's key: true/false is no number (pydantic's lax mode would read true as 1.0)
-        typed = t if t is bool or t is str else Annotated[t, BeforeValidator(_no_bool)]
-        fields[f.name] = (typed, Field(default, description=f"{_type_name(t)}: {text}"))
+        fields[f.name] = (hints[f.name], Field(default, description=f"{_type_name(hints[f.name])}: {text}"))
     model = create_model("FusionConfig", __base__=_Section, **fields)
     model.__doc__ = (
         "Per-obstacle filter settings: the fields of ``estimators.fusion.FusionSettings`` "

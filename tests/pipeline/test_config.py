@@ -275,6 +275,16 @@ def test_a_grey_video_is_read_grey_even_for_a_colour_detector(tmp_path):
     assert reads_grey(load_config(None, cli={"detector.name": "orb"}), c) is True
 
 
+@pytest.mark.parametrize("key", ["ego_motion.speed_mps", "ego_motion.t0_s", "inputs.max_frames", "inputs.fps",
+                                 "live.duration_s", "outputs.every_n"])
+def test_a_boolean_for_a_number_of_any_section_is_refused(key):
+    """ego_motion.speed_mps: true was read as 1 m/s (pydantic's lax mode); every section's number
+    refuses a boolean, naming the key; a key that takes a boolean still does."""
+    with pytest.raises(ConfigError, match=f"{key}: expected a number, not the boolean true"):
+        load_config(overrides=[f"{key}=true"])
+    assert load_config(overrides=["outputs.plots=true", "live.paced=false"]).outputs.plots is True
+
+
 @pytest.mark.parametrize("key", ["measurement_correlation_s", "feature_velocity_lag_s", "max_speed_mps",
                                  "reinit_after_gated"])
 @pytest.mark.parametrize("value", ["true", "false"])
