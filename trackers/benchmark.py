@@ -212,7 +212,10 @@ class _Explainer:
     rate seen), ``ungrouped`` (old enough but in no seen track), ``coasting`` (a track that covered it
     last frame is unseen now),
     ``in_track_elsewhere`` (its features are members of a seen track whose representative bearing
-    lies on another obstacle: ``merged_other``, or on none: ``rep_off``). ``merged_by_depth`` splits
+    lies on another obstacle: ``merged_other``, or on none: ``rep_off``; per holding track ``rep_px``,
+    per camera: the representative's angle from its members' mean and their RMS angle about it, px;
+    ``in_track_rep_beside_members`` counts those gaps where it lies beyond that RMS in some camera:
+    a representative left where the members it was set on were). ``merged_by_depth`` splits
     the ``merged_other`` gaps by the obstacles' ground-truth surface ranges: ``lined_up`` when the
     other obstacle's range differs from this one's by ``DEPTH_RATIO`` (1.5) or more (one behind the
     other: a depth cue could part them), else ``side_by_side``; each such event has ``range_ratio``.
@@ -349,11 +352,28 @@ class _Explainer:
                             int(k): int(v)
                             for k, v in zip(*np.unique(fo[fs & (fg == g)], return_counts=True), strict=True)
                         },
+                        "rep_px": self._rep_px(g, rad_px),
                     }
                     for g in sorted(gs)
                 }
             self.events.append(ev)
         self.prev_cover = {oid: set(g) for oid, g in on.items()}
+
+    def _rep_px(self, gid: int, rad_px: dict[str, float]) -> dict[str, list[float]]:
+        """Per camera seeing track ``gid``: [the representative bearing's angle from its members'
+        normalised mean, the members' RMS angle about that mean] in px at the camera's scale (a
+        representative farther off than its members spread lies beside them: it moves with them
+        and is pulled only slowly to their mean, so it stays where the members it was set on were)."""
+        out = {}
+        for cam, tr, g in self._local_tracks():
+            if g != gid or not tr.seen or not len(tr.member_b_C):
+                continue
+            m = tr.member_b_C.sum(0)
+            m = m / np.linalg.norm(m)
+            a = np.arccos(np.clip(tr.member_b_C @ m, -1.0, 1.0))
+            d = float(np.arccos(np.clip(tr.b_C @ m, -1.0, 1.0)))
+            out[cam] = [round(d / rad_px[cam], 2), round(float(np.sqrt(np.mean(a * a))) / rad_px[cam], 2)]
+        return out
 
     def switch(self, f, oid, old, new, alive_on) -> None:
         fe = self.fe
@@ -389,6 +409,13 @@ class _Explainer:
             "gap_causes": dict(sorted(self.gaps.items(), key=lambda kv: -kv[1])),
             "gap_causes_by_obstacle": {k: self.gap_by_obstacle[k] for k in sorted(self.gap_by_obstacle)},
             "merged_by_depth": self.merged_depth,
+            # in_track_elsewhere gaps where a track holding the obstacle's features has its
+            # representative beside its members (farther from their mean than their RMS angle)
+            "in_track_rep_beside_members": sum(
+                any(d > rms for v in e["tracks"].values() for d, rms in v["rep_px"].values())
+                for e in self.events
+                if str(e.get("gap", "")).startswith("in_track")
+            ),
             "switch_causes": dict(sorted(self.switches.items(), key=lambda kv: -kv[1])),
             "events": self.events,
         }

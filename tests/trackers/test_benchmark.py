@@ -122,6 +122,12 @@ def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
     assert sum(ex["merged_by_depth"].values()) == len(merged)
     for e in merged:  # lined up: some other obstacle's range differs by DEPTH_RATIO (1.5) or more
         assert all(r > 0 for r in e["range_ratio"])
+    # every holding track says where its representative lies against its members
+    held = [e for e in ex["events"] if str(e.get("gap", "")).startswith("in_track")]
+    assert all(v["rep_px"] for e in held for v in e["tracks"].values())
+    assert ex["in_track_rep_beside_members"] == sum(
+        any(d > r for v in e["tracks"].values() for d, r in v["rep_px"].values()) for e in held
+    )
     # distinct ids on an obstacle: at least one per switch more than the first; none if never covered
     for p in res["obstacles"].values():
         if p["coverage"] > 0:
@@ -359,3 +365,24 @@ def test_the_command_reports_bad_input_without_a_traceback(ci_scene, tmp_path, c
         main([str(tmp_path)])
     assert e.value.code == 2
     assert "camchain.yaml" in capsys.readouterr().err
+
+
+def test_explain_measures_where_a_holding_track_s_representative_lies():
+    """``_Explainer._rep_px``: the representative's angle from its members' normalised mean and the
+    members' RMS angle about that mean, in px at the camera's scale. Closed form: two members
+    +-a about the z axis in the x-z plane (mean z, RMS a) and the representative at angle 3a on the
+    other axis; an unseen track and another id give nothing."""
+    from types import SimpleNamespace
+
+    from trackers.benchmark import _Explainer
+
+    a, rad_px = 0.01, 0.002
+    members = np.array([[np.sin(a), 0.0, np.cos(a)], [-np.sin(a), 0.0, np.cos(a)]])
+    rep = np.array([0.0, np.sin(3 * a), np.cos(3 * a)])
+    seen = SimpleNamespace(id=7, seen=True, member_b_C=members, b_C=rep)
+    unseen = SimpleNamespace(id=8, seen=False, member_b_C=members, b_C=rep)
+    fe = SimpleNamespace(groupers={"cam0": SimpleNamespace(tracks={7: seen, 8: unseen})}, _global=lambda i: i)
+    ex = _Explainer(fe)
+    d, rms = ex._rep_px(7, {"cam0": rad_px})["cam0"]
+    assert d == pytest.approx(3 * a / rad_px, abs=0.01) and rms == pytest.approx(a / rad_px, abs=0.01)
+    assert ex._rep_px(8, {"cam0": rad_px}) == {} and ex._rep_px(9, {"cam0": rad_px}) == {}
