@@ -12,12 +12,14 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
 from estimators.geometry import _isin
+from trackers.clock import FrameClock, check_durations
 from trackers.detectors.base import Detector
 from trackers.detectors.orb import OrbDetector, bucket
 
@@ -133,6 +135,10 @@ def klt_window_px(win_px=KLT_WIN_PX) -> int:
     return int(win_px)
 
 
+# the feature tracker's frame counts that are durations now: old key -> (new key, the old default in time)
+_FEATURES_RENAMED = {"redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s")}
+
+
 class FeatureTracker:
     """KLT + ORB feature tracker of one camera (see the module docstring).
 
@@ -159,9 +165,13 @@ class FeatureTracker:
         grid: (cols, rows) coverage grid; a cell inside the lens with fewer than ``min_per_cell``
             features triggers re-detection.
         min_per_cell: see ``grid``.
-        redetect_every: re-detect every this many frames (1 = every frame); a full tracker
-            (``max_features`` live) every twice this many: its detection can only re-acquire lost
-            features (about 0.7 per detection on the 640x480 and 1280x720 bench clips). (Never
+        redetect_s: re-detect every this long (s; default 4/30: every 4th frame at 30 fps, the count
+            it was fitted as; 0 = every frame), applied as a frame count at the frame rate seen
+            (``FrameClock``, as the grouping's durations; none before two frame intervals are seen:
+            the coverage trigger and the first frame still detect). A full tracker (``max_features``
+            live) every twice this long: its detection can only re-acquire lost features (about 0.7
+            per detection on the 640x480 and 1280x720 bench clips). (Was ``redetect_every`` 4
+            frames: at 100 fps 25 detections a second against 7.5 at 30 fps. Never
             detecting while full was an option, ``full_redetect_factor`` 0, removed after a same-base
             A/B, 0 against 2: trackers.benchmark identical on 29 of 32 scenes (9 tuned, 5 held-out,
             18 validation), stereo_flying id switches 1 -> 2, heldout_stereo_flying's worst obstacle
@@ -221,7 +231,7 @@ class FeatureTracker:
         px_per_feature: float = 700.0,
         grid: tuple[int, int] = (16, 9),
         min_per_cell: int = 1,
-        redetect_every: int = 4,
+        redetect_s: float = 4 / 30,
         win_px: int = KLT_WIN_PX,
         levels: int = 2,
         fb_max_px: float = 1.0,
@@ -235,13 +245,15 @@ class FeatureTracker:
         max_residual: float = 12.0,
         texture_k: float = 0.4,
         margin_px: float = 4.0,
+        **old: Any,
     ) -> None:
+        d = check_durations("FeatureTracker", _FEATURES_RENAMED, old, {"redetect_s": redetect_s})
+        self.redetect_s = d["redetect_s"]
         # integer options: an int (or numpy integer); a float such as 1.5 or a bool (True) is refused
         # rather than truncated by int()
         for opt, val in (
             ("max_features", max_features),
             ("min_per_cell", min_per_cell),
-            ("redetect_every", redetect_every),
             ("levels", levels),
             ("fb_levels", fb_levels),
             ("reacquire_frames", reacquire_frames),
@@ -258,15 +270,13 @@ class FeatureTracker:
             (max_features is not None and max_features < 1)
             or not px_per_feature > 0
             or history < 2
-            or redetect_every < 1
             or fb_max_px <= 0
             or fb_levels < 0
         ):
             raise ConfigError(
                 "FeatureTracker: expected max_features >= 1 (or None), px_per_feature > 0, "
-                "history >= 2, redetect_every >= 1, "
-                "fb_max_px > 0, fb_levels >= 0; got "
-                f"{max_features}, {px_per_feature}, {history}, {redetect_every}, "
+                "history >= 2, fb_max_px > 0, fb_levels >= 0; got "
+                f"{max_features}, {px_per_feature}, {history}, "
                 f"{fb_max_px}, {fb_levels}"
             )
         self.camera = camera
@@ -277,7 +287,6 @@ class FeatureTracker:
         self._ids = ids if ids is not None else itertools.count(1)
         self.grid = (int(grid[0]), int(grid[1]))
         self.min_per_cell = int(min_per_cell)
-        self.redetect_every = int(redetect_every)
         k = klt_window_px(win_px)
         self.win = (k, k)
         self.levels = int(levels)
@@ -354,7 +363,8 @@ class FeatureTracker:
         self._h_n = np.zeros(cap, np.int64)  # samples written (ring position = n % H)
         self._prev_pyr: np.ndarray | None = None  # the previous frame's roi crop
         self._t_uv = 0.0  # time (s) of the positions in self.uv
-        self._frames_since_detect = 10**9
+        self.clock = FrameClock()  # the frame rate seen, for redetect_s
+        self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
         self.n_frames = 0
         self.last_stats: dict[str, float] = {}
 
@@ -387,6 +397,7 @@ class FeatureTracker:
         self._prev_pyr = cur
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
+        self.clock.tick(t_s)
         self._frames_since_detect += 1
         if self._need_detection():
             self._detect(image if image is not None else grey, float(t_s))
@@ -776,8 +787,8 @@ class FeatureTracker:
 
     def _need_detection(self) -> bool:
         """Whether to detect this frame: coverage thins (fewer than 60 % of the budget live and a
-        live cell below ``min_per_cell``), or periodically (every ``redetect_every`` frames; a full
-        tracker every twice that)."""
+        live cell below ``min_per_cell``), or periodically (every ``redetect_s`` as a frame count at
+        the rate seen; a full tracker every twice that long)."""
         if len(self.ids) < 0.6 * self.max_features:
             counts = self._cell_counts()
             if np.any(counts[self._live_cells] < self.min_per_cell):
@@ -785,7 +796,7 @@ class FeatureTracker:
         # full (no room for new features): a detection can only re-acquire lost features (0.7 per
         # detection on the 640x480 and 1280x720 bench clips, at 6-10 ms each), so more rarely
         full = len(self.ids) >= self.max_features
-        period = self.redetect_every * (2 if full else 1)
+        period = self.clock.frames(self.redetect_s * (2 if full else 1))
         return self._frames_since_detect >= period
 
     def _detect(self, image: np.ndarray, t_s: float) -> None:

@@ -83,6 +83,7 @@ import numpy as np
 
 from estimators.errors import ConfigError
 from estimators.geometry import _cross, _norm_rows
+from trackers.clock import FrameClock, check_durations
 from trackers.features import FeatureTracker
 
 # an unseen track's members: shared, read-only
@@ -185,44 +186,6 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
 
 
-class FrameClock:
-    """Durations (s) as frame counts at the frame rate seen: the (lower) median of the last ``n``
-    positive intervals between the frame times given to :meth:`tick` (never a configured rate: a
-    live camera's rate varies, and a dropped frame is one long interval the median ignores).
-
-    ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before two
-    intervals are seen (a live camera's first is often its start-up's), and for a duration of
-    ``UNKNOWN`` frames or more, ``UNKNOWN`` (a count no track reaches: nothing is decided by time
-    yet, or ever)."""
-
-    UNKNOWN = 2**31
-
-    def __init__(self, n: int = 15) -> None:
-        self._dt: deque[float] = deque(maxlen=n)
-        self._last: float | None = None
-        self.period_s: float | None = None
-
-    def tick(self, t_s: float) -> None:
-        """One frame at time t_s (s)."""
-        t = float(t_s)
-        if self._last is not None and t > self._last:
-            self._dt.append(t - self._last)
-            if len(self._dt) >= 2:  # (one interval is no rate yet: a live camera's first is
-                # often its start-up's; of an even count the lower median: a long interval then
-                # makes counts too large, deciding nothing early, never too small)
-                self.period_s = sorted(self._dt)[(len(self._dt) - 1) // 2]
-        self._last = t
-
-    def frames(self, d_s: float, lo: int = 1) -> int:
-        """The frame count of a duration d_s (s) at the rate seen, at least ``lo``."""
-        if self.period_s is None:
-            return self.UNKNOWN
-        n = d_s / self.period_s
-        if not n < self.UNKNOWN:  # (a duration no run reaches, e.g. 1e308 s: no overflow to int)
-            return self.UNKNOWN
-        return max(lo, math.floor(n + 0.5))
-
-
 # the grouper's frame counts that are durations now: old key -> (new key, the old default in time)
 _GROUPER_RENAMED = {
     "flow_frames": ("flow_window_s", "5 frames at 30 fps = 1/6 s"),
@@ -243,29 +206,6 @@ _BOX_RENAMED = {
     "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
     "link_frames": ("link_s", "3 frames at 30 fps = 0.1 s"),
 }
-
-
-def _durations(owner: str, renamed: dict[str, tuple[str, str]], old: dict, given: dict) -> dict[str, float]:
-    """Check a tracker's duration settings (s): ``given`` {key: value}, each a finite number >= 0;
-    ``old`` the keywords it does not take: a renamed frame count (``renamed``: old key -> (new key,
-    its default in frames at 30 fps)) is an error naming its replacement, anything else the usual
-    TypeError."""
-    for k in old:
-        if k in renamed:
-            new, hint = renamed[k]
-            raise ConfigError(
-                f"{owner}: '{k}' (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
-                f"{hint}); set {new} instead"
-            )
-    if old:
-        raise TypeError(f"{owner}.__init__() got an unexpected keyword argument {next(iter(old))!r}")
-    out = {}
-    for k, v in given.items():
-        real = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-        if not real or not 0 <= v < math.inf:
-            raise ConfigError(f"{owner}: expected {k} a finite duration >= 0 (seconds); got {v!r}")
-        out[k] = float(v)
-    return out
 
 
 @dataclass
@@ -424,7 +364,7 @@ class ObstacleGrouper:
         label: str = "orb",
         **old: Any,
     ) -> None:
-        self.durations = _durations(
+        self.durations = check_durations(
             "ObstacleGrouper",
             _GROUPER_RENAMED,
             old,
@@ -1610,7 +1550,7 @@ class BoxTracker:
         link_older_only: bool = False,
         **old: Any,
     ) -> None:
-        self.durations = _durations(
+        self.durations = check_durations(
             "BoxTracker", _BOX_RENAMED, old,
             {"confirm_s": confirm_s, "max_missed_s": max_missed_s, "link_s": link_s},
         )

@@ -60,7 +60,7 @@ def test_forward_backward_check_rejects_changing_texture(model):
     must be dropped (forward-backward, LK status or residual), the static world's kept.
     (Re-acquisition is off here: this is about KLT's own checks.)"""
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=300, redetect_every=1, reacquire_frames=0)
+    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_frames=0)
     d = np.array([0.0, 0.0, 1.0])
     fb_total = 0
     rng = np.random.default_rng(3)
@@ -85,7 +85,7 @@ def test_reacquisition_after_short_occlusion(model):
     """Features hidden for two frames (flat grey disc) come back with their old ids (ORB
     descriptors near the predicted position)."""
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=300, redetect_every=1, reacquire_frames=5)
+    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_frames=5)
     d = np.array([0.3, 0.0, 1.0]) / np.linalg.norm([0.3, 0.0, 1.0])
     flat = Patch(d, np.radians(25))
     flat.texture = np.full((256, 256), 128, np.uint8)
@@ -105,7 +105,7 @@ def test_history_ring_buffer_and_memory_stay_bounded(model):
     """Constant churn (a flickering patch) for 120 frames: slots are recycled, the lost pool is
     bounded and each history holds at most ``history`` samples, oldest first."""
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=150, history=8, redetect_every=1)
+    ft = make_tracker(model, max_features=150, history=8, redetect_s=1 / 30)
     cap = ft._h_uv.shape[0]
     imgs = [
         scene.render(rot_axis([0, 1, 0], np.radians(0.2) * k), [Patch([0, 0, 1], np.radians(20), seed=k)])
@@ -130,7 +130,7 @@ def test_memory_flat_over_10000_frames(model):
     import tracemalloc
 
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=150, redetect_every=2)
+    ft = make_tracker(model, max_features=150, redetect_s=2 / 30)
     imgs = [
         scene.render(rot_axis([0, 1, 0], np.radians(0.3) * k), [Patch([0, 0, 1], np.radians(20), seed=k)])
         for k in range(50)
@@ -160,7 +160,9 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
     [
         {"max_features": 0},
         {"history": 1},
-        {"redetect_every": 0},
+        {"redetect_s": -0.1},
+        {"redetect_s": float("nan")},
+        {"redetect_s": True},
         {"fb_max_px": 0.0},
         {"fb_levels": -1},
     ],
@@ -176,7 +178,6 @@ def test_bad_tracker_options(model, kw):
         ("max_features", 1.5),
         ("max_features", True),
         ("history", 8.0),
-        ("redetect_every", True),
         ("win_px", 11.5),
         ("levels", "2"),
         ("fb_levels", False),
@@ -223,7 +224,7 @@ def test_velocity_is_per_second_so_dropped_frames_keep_tracks(model):
     scene = SphereScene(model)
     f_px = model.image_circle()[2] / model.max_angle_rad  # px per radian
     step = 3.0 / f_px
-    ft = make_tracker(model, max_features=300, levels=0, redetect_every=100)
+    ft = make_tracker(model, max_features=300, levels=0, redetect_s=100 / 30)
     for k in [*range(8), 11]:  # frames 8, 9, 10 dropped
         feats, _ = ft.track(scene.render(rot_axis([0, 1, 0], k * step)), k, k / 30)
         if k == 7:
@@ -289,43 +290,76 @@ def test_only_keepable_keypoints_are_described():
 
     det._orb = Spy()
     cam = Camera("cam0", model, forward_T_C_B())
-    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_every=1)
+    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_s=1 / 30)
     grey = SphereScene(model).render()
-    ft.track(grey, 0, 0.0)
+    for k in range(3):  # (the periodic detection needs the rate: two frame intervals)
+        ft.track(grey, k, k / 30)
     n0 = ft.n_live
     assert n0 == 160 and described == [160]
     ft._drop(np.arange(150, 160), remember=False)  # 150 left: 10 free
-    ft.track(grey, 1, 1 / 30)
+    ft.track(grey, 3, 3 / 30)
     assert described[-1] == 10 and ft.n_live == 160
 
 
-def _detection_frames(ft, grey: np.ndarray, n: int = 20) -> list[int]:
-    """The frames (at 30 fps) of n tracked copies of ``grey`` on which ``ft`` ran a detection."""
-    frames: list[int] = []
+def _detection_times(ft, grey: np.ndarray, fps: float, t_end: float) -> list[float]:
+    """The times (s) at which ``ft``, fed copies of ``grey`` at ``fps`` until ``t_end``, ran a detection."""
+    times: list[float] = []
     orig = ft._detect
 
     def counting(image, t_s):
-        frames.append(round(t_s * 30))
+        times.append(t_s)
         return orig(image, t_s)
 
     ft._detect = counting
-    for k in range(n):
-        ft.track(grey, k, k / 30)
-    return frames
+    for k in range(int(round(t_end * fps))):
+        ft.track(grey, k, k / fps)
+    return times
 
 
 def test_a_full_tracker_detects_half_as_often(model):
-    """A static scene: with room for new features the tracker detects every redetect_every (4)
-    frames; once full (max_features live) a detection could only re-acquire lost features, so it
-    runs every 8 frames (counted: frames 0, 8, 16 of 20 for a full tracker; 0, 4, ..., 16 with
-    room)."""
+    """A static scene at 30 fps: with room for new features the tracker detects every redetect_s
+    (default 4/30 s: every 4th frame, the count it was fitted as); once full (max_features live) a
+    detection could only re-acquire lost features, so it runs every 8/30 s (counted: frames 0, 8, 16
+    of 20 for a full tracker; 0, 4, ..., 16 with room)."""
     grey = SphereScene(model).render()
 
     def detect_frames(max_features: int) -> list[int]:
-        return _detection_frames(make_tracker(model, max_features=max_features, redetect_every=4), grey)
+        times = _detection_times(make_tracker(model, max_features=max_features), grey, 30.0, 20 / 30)
+        return [round(t * 30) for t in times]
 
     assert detect_frames(40) == [0, 8, 16]  # full after the first detection
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
+
+
+@pytest.mark.parametrize("max_features", [40, 5000], ids=["full", "room"])
+def test_the_redetection_cadence_is_in_seconds(model, max_features):
+    """The same static scene fed at 30 and at 100 Hz for 1 s: the tracker re-detects at the same
+    times within a frame. redetect_s 4/30 s (8/30 s once full) is 4 (8) frames at 30 fps and, at
+    the 100-Hz rate seen, 13 (27) frames: every 0.13 (0.27) s, where a count of 4 (8) frames
+    detected every 0.04 (0.08) s. Each interval between detections is within one 100-Hz frame of
+    the 30-fps one, and as many detections are made."""
+    grey = SphereScene(model).render()
+    at30 = _detection_times(make_tracker(model, max_features=max_features), grey, 30.0, 1.0)
+    at100 = _detection_times(make_tracker(model, max_features=max_features), grey, 100.0, 1.0)
+    period = (8 if max_features == 40 else 4) / 30
+    assert np.diff(at30) == pytest.approx(np.full(len(at30) - 1, period))
+    assert len(at100) == len(at30)
+    assert np.all(np.abs(np.diff(at100) - period) <= 0.01 + 1e-9), np.diff(at100)
+
+
+def test_the_old_redetect_every_key_is_an_error_naming_redetect_s(model, rig):
+    """redetect_every (frames) is now redetect_s (seconds): given to the tracker, or through the
+    front end's features options, it is a ConfigError naming the new key; a misspelt key is still
+    the usual TypeError."""
+    from trackers.frontend import FrontEnd
+
+    msg = "FeatureTracker: 'redetect_every' \\(frames\\) was replaced by 'redetect_s' \\(seconds"
+    with pytest.raises(ConfigError, match=msg):
+        make_tracker(model, redetect_every=4)
+    with pytest.raises(ConfigError, match=msg):
+        FrontEnd(rig, "orb", features={"redetect_every": 4})
+    with pytest.raises(TypeError, match="redetect_ss"):
+        make_tracker(model, redetect_ss=0.1)
 
 
 def test_a_full_tracker_describes_only_reacquisition_candidates():
@@ -351,7 +385,7 @@ def test_a_full_tracker_describes_only_reacquisition_candidates():
 
     det._orb = Spy()
     cam = Camera("cam0", model, forward_T_C_B())
-    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_every=1)
+    ft = FeatureTracker(cam, det, ids=itertools.count(1), max_features=160, redetect_s=1 / 30)
     grey = SphereScene(model).render()
     ft.track(grey, 0, 0.0)
     left = np.argsort(ft.uv[:, 0])[:10]
@@ -359,7 +393,7 @@ def test_a_full_tracker_describes_only_reacquisition_candidates():
     ft._drop(left, remember=True)
     ft.max_features = ft.n_live  # full: 150 of 150
     n_calls = len(described)
-    for k in (1, 2):  # a full tracker detects every 2 redetect_every frames: frame 2
+    for k in (1, 2):  # a full tracker detects every 2 redetect_s (1/30 s): frame 2
         feats, _ = ft.track(grey, k, k / 30)
     assert len(described) == n_calls + 1
     x0, y0 = ft.frame_box[:2]
@@ -382,7 +416,7 @@ def test_sudden_turn_survives_the_backward_check(model, opts):
     scene = SphereScene(model)
     f_px = model.image_circle()[2] / model.max_angle_rad  # px per radian
     R1 = rot_axis([0, 1, 0], 8.0 / f_px)
-    ft = make_tracker(model, max_features=300, redetect_every=100, **opts)
+    ft = make_tracker(model, max_features=300, redetect_s=100 / 30, **opts)
     for k in range(6):
         feats, _ = ft.track(scene.render(), k, k / 30)
     before = {int(i): b for i, b in zip(feats.ids, feats.b_C, strict=True)}
