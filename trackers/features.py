@@ -136,7 +136,10 @@ def klt_window_px(win_px=KLT_WIN_PX) -> int:
 
 
 # the feature tracker's frame counts that are durations now: old key -> (new key, the old default in time)
-_FEATURES_RENAMED = {"redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s")}
+_FEATURES_RENAMED = {
+    "redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s"),
+    "reacquire_frames": ("reacquire_s", "8 frames at 30 fps = 8/30 s"),
+}
 
 
 class FeatureTracker:
@@ -201,7 +204,12 @@ class FeatureTracker:
             -> 0.845: obstacles with features on them grouped with the background) and it tips
             the stereo two-view test.
         min_distance_px: new features keep this far from live ones.
-        reacquire_frames: lost features are remembered this many frames for re-acquisition.
+        reacquire_s: lost features are remembered this long (s; default 8/30: 8 frames at 30 fps, the
+            count it was fitted as; 0 = not at all) for re-acquisition, as a frame count at the rate
+            seen (``FrameClock``, with ``redetect_s``: at 100 Hz 27 frames against a cadence of 13, so
+            a lost feature meets a detection as at 30 fps; in frames, 8 at 100 Hz, most were
+            forgotten before the next detection: re-acquired 55 -> 12 a second on a 100-fps render,
+            24 with this).
         reacquire_radius_px: a new keypoint re-acquires a lost feature within this distance of its
             predicted position and with ``reacquire_max_hamming`` or fewer differing descriptor bits.
         history: samples kept per feature (ring buffer). The grouper's windows into it (the flow's
@@ -238,7 +246,7 @@ class FeatureTracker:
         fb_levels: int = 1,
         fb_retry: bool = False,
         min_distance_px: float = 10.0,
-        reacquire_frames: int = 8,
+        reacquire_s: float = 8 / 30,
         reacquire_radius_px: float = 15.0,
         reacquire_max_hamming: int = 40,
         history: int = 64,
@@ -247,8 +255,10 @@ class FeatureTracker:
         margin_px: float = 4.0,
         **old: Any,
     ) -> None:
-        d = check_durations("FeatureTracker", _FEATURES_RENAMED, old, {"redetect_s": redetect_s})
-        self.redetect_s = d["redetect_s"]
+        d = check_durations(
+            "FeatureTracker", _FEATURES_RENAMED, old, {"redetect_s": redetect_s, "reacquire_s": reacquire_s}
+        )
+        self.redetect_s, self.reacquire_s = d["redetect_s"], d["reacquire_s"]
         # integer options: an int (or numpy integer); a float such as 1.5 or a bool (True) is refused
         # rather than truncated by int()
         for opt, val in (
@@ -256,7 +266,6 @@ class FeatureTracker:
             ("min_per_cell", min_per_cell),
             ("levels", levels),
             ("fb_levels", fb_levels),
-            ("reacquire_frames", reacquire_frames),
             ("reacquire_max_hamming", reacquire_max_hamming),
             ("history", history),
         ):
@@ -296,7 +305,6 @@ class FeatureTracker:
         self.max_residual = float(max_residual)
         self.texture_k = float(texture_k)
         self.min_distance_px = float(min_distance_px)
-        self.reacquire_frames = int(reacquire_frames)
         self.reacquire_radius_px = float(reacquire_radius_px)
         self.reacquire_max_hamming = int(reacquire_max_hamming)
         self.H = int(history)
@@ -405,7 +413,7 @@ class FeatureTracker:
         t2 = time.perf_counter()
         self._bearings_and_history(frame, t_s)
         self.lost_for += 1
-        self._forget_lost(self.lost_for > self.reacquire_frames)
+        self._forget_lost(self.lost_for > self.clock.frames(self.reacquire_s, 0))
         self.n_frames += 1
         t3 = time.perf_counter()
         return self.features(), {"track": (t1 - t0) + (t3 - t2), "detect": t2 - t1}
@@ -1030,7 +1038,7 @@ class FeatureTracker:
         gone = ~keep
         # the kept and remembered rows as index arrays, found once (a boolean mask per array would
         # count its rows again for each of the eight arrays); the same rows in the same order
-        if remember and self.reacquire_frames > 0:
+        if remember and self.reacquire_s > 0:
             r = np.flatnonzero(gone & self.has_desc)
             nr = len(r)
             self.lost_ids = np.concatenate([self.lost_ids, self.ids[r]])

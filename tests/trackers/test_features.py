@@ -60,7 +60,7 @@ def test_forward_backward_check_rejects_changing_texture(model):
     must be dropped (forward-backward, LK status or residual), the static world's kept.
     (Re-acquisition is off here: this is about KLT's own checks.)"""
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_frames=0)
+    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_s=0)
     d = np.array([0.0, 0.0, 1.0])
     fb_total = 0
     rng = np.random.default_rng(3)
@@ -85,7 +85,7 @@ def test_reacquisition_after_short_occlusion(model):
     """Features hidden for two frames (flat grey disc) come back with their old ids (ORB
     descriptors near the predicted position)."""
     scene = SphereScene(model)
-    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_frames=5)
+    ft = make_tracker(model, max_features=300, redetect_s=1 / 30, reacquire_s=5 / 30)
     d = np.array([0.3, 0.0, 1.0]) / np.linalg.norm([0.3, 0.0, 1.0])
     flat = Patch(d, np.radians(25))
     flat.texture = np.full((256, 256), 128, np.uint8)
@@ -163,6 +163,8 @@ def test_lens_mask_matches_circle_and_rejects_misfit():
         {"redetect_s": -0.1},
         {"redetect_s": float("nan")},
         {"redetect_s": True},
+        {"reacquire_s": -1},
+        {"reacquire_s": float("inf")},
         {"fb_max_px": 0.0},
         {"fb_levels": -1},
     ],
@@ -182,7 +184,6 @@ def test_bad_tracker_options(model, kw):
         ("levels", "2"),
         ("fb_levels", False),
         ("min_per_cell", 1.5),
-        ("reacquire_frames", 2.5),
         ("reacquire_max_hamming", np.float64(40.0)),
         ("grid", (16.5, 9)),
         ("grid", (16, True)),
@@ -347,19 +348,48 @@ def test_the_redetection_cadence_is_in_seconds(model, max_features):
     assert np.all(np.abs(np.diff(at100) - period) <= 0.01 + 1e-9), np.diff(at100)
 
 
-def test_the_old_redetect_every_key_is_an_error_naming_redetect_s(model, rig):
-    """redetect_every (frames) is now redetect_s (seconds): given to the tracker, or through the
-    front end's features options, it is a ConfigError naming the new key; a misspelt key is still
-    the usual TypeError."""
+@pytest.mark.parametrize(
+    ("old", "new"), [("redetect_every", "redetect_s"), ("reacquire_frames", "reacquire_s")]
+)
+def test_the_old_frame_count_keys_are_errors_naming_their_replacement(model, rig, old, new):
+    """redetect_every and reacquire_frames (frames) are now redetect_s and reacquire_s (seconds):
+    given to the tracker, or through the front end's features options, each is a ConfigError naming
+    the new key; a misspelt key is still the usual TypeError."""
     from trackers.frontend import FrontEnd
 
-    msg = "FeatureTracker: 'redetect_every' \\(frames\\) was replaced by 'redetect_s' \\(seconds"
+    msg = f"FeatureTracker: '{old}' \\(frames\\) was replaced by '{new}' \\(seconds"
     with pytest.raises(ConfigError, match=msg):
-        make_tracker(model, redetect_every=4)
+        make_tracker(model, **{old: 4})
     with pytest.raises(ConfigError, match=msg):
-        FrontEnd(rig, "orb", features={"redetect_every": 4})
+        FrontEnd(rig, "orb", features={old: 4})
     with pytest.raises(TypeError, match="redetect_ss"):
         make_tracker(model, redetect_ss=0.1)
+
+
+def _remembered_for(model, fps: float) -> float:
+    """How long (s) after their loss 10 lost features are still remembered for re-acquisition: a
+    static scene at ``fps``, no periodic detection (redetect_s 100 s) and a full budget (no coverage
+    trigger), so nothing re-acquires them."""
+    ft = make_tracker(model, max_features=160, redetect_s=100.0)
+    grey = SphereScene(model).render()
+    for k in range(3):  # (the rate is known after two intervals)
+        ft.track(grey, k, k / fps)
+    ft._drop(np.arange(10), remember=True)
+    assert len(ft.lost_ids) == 10
+    last = 2 / fps
+    for k in range(3, int(fps)):
+        ft.track(grey, k, k / fps)
+        if not len(ft.lost_ids):
+            break
+        last = k / fps
+    return last - 2 / fps
+
+
+def test_lost_features_are_remembered_for_the_same_seconds_at_30_and_100_hz(model):
+    """reacquire_s 8/30 s: 8 frames at 30 fps (as reacquire_frames 8 was), 27 at 100 Hz (0.27 s;
+    in frames, 8 at 100 Hz, 0.08 s: shorter than the 0.13-s re-detection cadence there)."""
+    assert _remembered_for(model, 30.0) == pytest.approx(8 / 30)
+    assert _remembered_for(model, 100.0) == pytest.approx(0.27)
 
 
 def test_a_full_tracker_describes_only_reacquisition_candidates():
