@@ -212,7 +212,9 @@ class TrackerConfig(_Section):
         "fb_levels (int, pyramid levels of the backward pass, default 1; 0: full resolution only), "
         "fb_retry (bool, a level-0 failure is checked again one level up), "
         "min_distance_px (px), history (samples per feature, 64: the grouping's windows reach at most "
-        "history - 1 frames back).",
+        "history - 1 frames back), klt_step_s (s, 1/30: KLT tracks a feature from its position this long "
+        "back, as frames at the rate seen, so its position takes one KLT step per klt_step_s at any frame "
+        "rate; 1 frame at <= 30 fps).",
     )
     grouping: dict[str, Any] = Field(
         default_factory=dict,

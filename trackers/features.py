@@ -10,6 +10,7 @@ live features plus a pool of recently lost ones, each with a ring buffer of ``hi
 from __future__ import annotations
 
 import itertools
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Any
@@ -222,6 +223,20 @@ class FeatureTracker:
             1.4x its deviation, so 0.4 still drops it while a textured patch tracked with a small
             mismatch is kept (issue 4: fewer dying features on textured obstacles).
         margin_px: lens-circle margin (features closer to the circle's edge are dropped).
+        klt_step_s: KLT's step (s): a feature is tracked from its position this long back (frames at the
+            rate seen, the median frame interval: ``trackers.clock.FrameClock``; 1 frame before two
+            intervals are seen, at most ``history``; 0: the previous frame), in that frame's
+            image, the previous frame's position
+            plus the motion prediction its initial guess; a feature detected (or re-acquired) since, from
+            the frame it was detected (re-acquired) in. Each KLT step adds a small random error to the
+            position, so a chain of frame-to-frame steps drifts from its physical point with the number of
+            frames: at 100 fps ~3.3x faster per second than at 30 (hf22). Default 1/30 s: one frame at 30
+            fps (outputs as before), 3 at 100 fps (median squared drift of fps100_mono_straight's static
+            obstacles' features at 0.33 / 1.0 s of age 1.65 / 7.80 -> 0.46 / 2.11 px^2; 30-fps
+            mono_straight 0.54 / 2.21). Costs a pair of LK calls a frame per reference frame in use (each
+            call builds both images' pyramids): track stage +20 % on the bench's 640x480 100-Hz clip.
+            Stepping the younger features from the previous frame instead (two pairs at most) measured
+            worse: docs ARCHITECTURE "KLT steps in seconds".
 
     KLT runs on the lens circle's bounding box (``roi``, origin on a multiple of 16 px so the
     crop's pyramid levels sample the frame's own grid): the same tracks as on the full frame
@@ -253,12 +268,17 @@ class FeatureTracker:
         max_residual: float = 12.0,
         texture_k: float = 0.4,
         margin_px: float = 4.0,
+        klt_step_s: float = 1.0 / 30.0,
         **old: Any,
     ) -> None:
         d = check_durations(
-            "FeatureTracker", _FEATURES_RENAMED, old, {"redetect_s": redetect_s, "reacquire_s": reacquire_s}
+            "FeatureTracker",
+            _FEATURES_RENAMED,
+            old,
+            {"redetect_s": redetect_s, "reacquire_s": reacquire_s, "klt_step_s": klt_step_s},
         )
         self.redetect_s, self.reacquire_s = d["redetect_s"], d["reacquire_s"]
+        self.klt_step_s = d["klt_step_s"]
         # integer options: an int (or numpy integer); a float such as 1.5 or a bool (True) is refused
         # rather than truncated by int()
         for opt, val in (
@@ -288,6 +308,7 @@ class FeatureTracker:
                 f"{max_features}, {px_per_feature}, {history}, "
                 f"{fb_max_px}, {fb_levels}"
             )
+
         self.camera = camera
         self.name = camera.name
         self.model = camera.model
@@ -369,9 +390,11 @@ class FeatureTracker:
         self._h_t = np.zeros((cap, self.H))
         self._h_frame = np.zeros((cap, self.H), np.int64)
         self._h_n = np.zeros(cap, np.int64)  # samples written (ring position = n % H)
-        self._prev_pyr: np.ndarray | None = None  # the previous frame's roi crop
+        # the last frames' roi crops, oldest first, (frame index, crop): KLT's reference images, the
+        # frames up to klt_step_s back (the frame rate seen by self.clock)
+        self._refs: deque[tuple[int, np.ndarray]] = deque()
         self._t_uv = 0.0  # time (s) of the positions in self.uv
-        self.clock = FrameClock()  # the frame rate seen, for redetect_s
+        self.clock = FrameClock()  # the frame rate seen, for klt_step_s, redetect_s and reacquire_s
         self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
         self.n_frames = 0
         self.last_stats: dict[str, float] = {}
@@ -400,12 +423,17 @@ class FeatureTracker:
         # list is refused): LK builds them per call, on the lens's crop only)
         cur = self._crop(grey)
         self.last_stats = {}
-        if self._prev_pyr is not None and len(self.ids):
-            self._klt(self._prev_pyr, cur, float(t_s) - self._t_uv)
-        self._prev_pyr = cur
+        self.clock.tick(t_s)
+        if self._refs and len(self.ids):
+            self._klt(cur, float(t_s) - self._t_uv)
+        # KLT's step: klt_step_s as frames (1 before the rate is known), at most the history's
+        # reach (the reference position is a history sample)
+        n = self.clock.frames(self.klt_step_s)
+        self._refs.append((int(frame), cur))
+        while len(self._refs) > (1 if n >= self.clock.UNKNOWN else min(n, self.H)):
+            self._refs.popleft()
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
-        self.clock.tick(t_s)
         self._frames_since_detect += 1
         if self._need_detection():
             self._detect(image if image is not None else grey, float(t_s))
@@ -422,7 +450,7 @@ class FeatureTracker:
     def crop(self) -> tuple[np.ndarray | None, np.ndarray]:
         """(the last tracked frame's grey lens crop ``roi`` (h, w) uint8 or None, its origin (2,)
         float32 px in the full frame: full-frame pixel = crop pixel + origin)."""
-        return self._prev_pyr, self._off
+        return (self._refs[-1][1] if self._refs else None), self._off
 
     @property
     def frame_box(self) -> tuple[int, int, int, int]:
@@ -649,95 +677,143 @@ class FeatureTracker:
             return image
         return np.ascontiguousarray(image[y0:y1, x0:x1])
 
-    def _klt(self, prev, cur, dt_s: float) -> None:
-        """Track the live features from ``prev`` to ``cur`` (both cropped to ``roi``), ``dt_s``
-        seconds apart (a dropped frame doubles it; <= 0: no motion prediction, velocities kept)."""
+    def _klt(self, cur, dt_s: float) -> None:
+        """Track the live features into ``cur`` (cropped to ``roi``), ``dt_s`` seconds after the
+        previous frame (a dropped frame doubles it; <= 0: no motion prediction, velocities kept).
+
+        Each feature steps from the oldest reference frame (``_refs``, ``klt_step_s`` back) its history
+        has a sample in: its position there is LK's start in that frame, the previous frame's position
+        plus the constant-velocity prediction its initial guess, and the backward pass returns to that
+        frame (a feature detected or re-acquired since steps from the frame it was detected or re-acquired
+        in). A feature's position chain so takes one step per ``klt_step_s``, not per frame: each step
+        adds a small random error, and a chain of 100-fps steps drifted from its physical point ~3x faster
+        per second than a 30-fps one (docs: ARCHITECTURE "KLT steps in seconds"). At <= 1 / klt_step_s fps
+        every feature steps from the previous frame; above, one pair of LK calls a frame per reference
+        frame in use (each builds both images' pyramids).
+        """
         off = self._off
-        q0 = self.uv - off  # (N, 2) float32 crop px
-        p0 = q0.reshape(-1, 1, 2)
+        nref = len(self._refs)
+        # each feature's lag j (0: the previous frame, nref - 1: the oldest reference) and its
+        # position in the reference frame (ref_uv, full-frame px: a history sample, the same
+        # float32 numbers as uv had then)
+        lag = np.zeros(len(self.ids), np.intp)
+        ref_uv = self.uv
+        if nref > 1:
+            n = self._h_n[self.slot]
+            ref_uv = self.uv.copy()
+            for j in range(1, nref):
+                fi = self.slot * self.H + (n - 1 - j) % self.H
+                at = (n - 1 - j >= 0) & (self._h_frame.reshape(-1)[fi] == self._refs[nref - 1 - j][0])
+                lag[at] = j
+                ref_uv[at] = self._h_uv.reshape(-1, 2)[fi[at]]
         moving = bool(np.isfinite(dt_s) and dt_s > 0)
-        # constant-velocity prediction (px): v (px/s) * dt (s)
+        # constant-velocity prediction (px): v (px/s) * dt (s) from the previous frame's position;
+        # from the reference position the predicted displacement is (uv - ref_uv) + v dt
         step = (self.vel * np.float32(dt_s)) if moving else np.zeros_like(self.vel)
-        # forward, starting from the constant-velocity prediction p0 + v dt (a new float32 array:
-        # LK writes its result into it)
-        guess = (q0 + step).reshape(-1, 1, 2)
-        p1, st, err = cv2.calcOpticalFlowPyrLK(
-            prev,
-            cur,
-            p0,
-            guess,
-            winSize=self.win,
-            maxLevel=self.levels,
-            criteria=self._criteria,
-            flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-        )
-        # backward: track p1 back into the previous frame, starting from p1 - v dt (the prediction
-        # reversed, not p0 itself); a good track lands within fb_max_px of where it started.
-        # Its residuals are not used: OPTFLOW_LK_GET_MIN_EIGENVALS makes LK report the window's
-        # smallest eigenvalue (found anyway) instead of a last pass over the window for the
-        # residual (~8 % of the pass). The positions are the same; the status differs only for an
-        # end point over half a window beyond the crop's edge, which that pass marks lost and which
-        # misses its start (inside the lens) by more than fb_max_px: dropped either way (counted in
-        # last_stats as a forward-backward rejection instead of an LK loss).
-        back_flags = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
-        back_guess = (p1.reshape(-1, 2) - step).reshape(-1, 1, 2)
-        p0r, st2, _ = cv2.calcOpticalFlowPyrLK(
-            cur,
-            prev,
-            p1,
-            back_guess,
-            winSize=self.win,
-            maxLevel=min(self.fb_levels, self.levels),
-            criteria=self._criteria,
-            flags=back_flags,
-        )
-        p0r = p0r.reshape(-1, 2)
-        st2 = st2.reshape(-1)
-        # |p0r + off - uv| written out (the same float32 values as np.linalg.norm(.., axis=1), whose
-        # call costs more than the arithmetic for a few hundred rows)
-        d = p0r + off - self.uv
-        fb = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
-        if self.fb_retry and self.fb_levels < self.levels:
-            # second chance: a backward pass on the full-resolution level alone converges only
-            # within about half a window of its start, so a good track whose motion prediction was
-            # off by more (fast rotation, acceleration) fails it; those features (typically a few %)
-            # are checked again with one coarser level, as the backward pass did before fb_levels
-            again = np.flatnonzero((st.reshape(-1) == 1) & ((st2 != 1) | ~(fb <= self.fb_max_px)))
-            if len(again):
-                q, st3, _ = cv2.calcOpticalFlowPyrLK(
-                    cur,
-                    prev,
-                    p1[again],
-                    # (the first pass wrote its result into back_guess: the guess again)
-                    (p1[again].reshape(-1, 2) - step[again]).reshape(-1, 1, 2).astype(np.float32),
-                    winSize=self.win,
-                    maxLevel=min(self.fb_levels + 1, self.levels),
-                    criteria=self._criteria,
-                    flags=back_flags,
-                )
-                p0r[again] = q.reshape(-1, 2)
-                st2[again] = st3.reshape(-1)
-                fb[again] = np.linalg.norm(p0r[again] + off - self.uv[again], axis=1)
-        p1 = p1.reshape(-1, 2) + off
+        disp = (self.uv - ref_uv) + step
+        N = len(self.ids)
+        p1 = np.empty((N, 2), np.float32)
+        st = np.empty(N, np.uint8)
+        err = np.empty(N, np.float32)
+        st2 = np.empty(N, np.uint8)
+        fb = np.empty(N, np.float32)
+        groups = [(j, np.flatnonzero(lag == j)) for j in range(nref)] if nref > 1 else [(0, None)]
+        for j, g in groups:
+            if g is not None and not len(g):
+                continue
+            sel = slice(None) if g is None else g
+            prev = self._refs[nref - 1 - j][1]
+            q0 = ref_uv[sel] - off  # (n, 2) float32 crop px
+            p0 = q0.reshape(-1, 1, 2)
+            # forward, starting from the prediction (a new float32 array: LK writes its result into it)
+            guess = (q0 + disp[sel]).reshape(-1, 1, 2)
+            g1, gst, gerr = cv2.calcOpticalFlowPyrLK(
+                prev,
+                cur,
+                p0,
+                guess,
+                winSize=self.win,
+                maxLevel=self.levels,
+                criteria=self._criteria,
+                flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
+            )
+            # backward: track g1 back into the reference frame, starting from g1 minus the predicted
+            # displacement (the prediction reversed, not p0 itself); a good track lands within
+            # fb_max_px of where it started. Its residuals are not used: OPTFLOW_LK_GET_MIN_EIGENVALS
+            # makes LK report the window's smallest eigenvalue (found anyway) instead of a last pass
+            # over the window for the residual (~8 % of the pass). The positions are the same; the
+            # status differs only for an end point over half a window beyond the crop's edge, which
+            # that pass marks lost and which misses its start (inside the lens) by more than
+            # fb_max_px: dropped either way (counted in last_stats as a forward-backward rejection
+            # instead of an LK loss).
+            back_flags = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
+            back_guess = (g1.reshape(-1, 2) - disp[sel]).reshape(-1, 1, 2)
+            p0r, gst2, _ = cv2.calcOpticalFlowPyrLK(
+                cur,
+                prev,
+                g1,
+                back_guess,
+                winSize=self.win,
+                maxLevel=min(self.fb_levels, self.levels),
+                criteria=self._criteria,
+                flags=back_flags,
+            )
+            p0r = p0r.reshape(-1, 2)
+            gst2 = gst2.reshape(-1)
+            # |p0r + off - ref_uv| written out (the same float32 values as np.linalg.norm(.., axis=1),
+            # whose call costs more than the arithmetic for a few hundred rows)
+            d = p0r + off - ref_uv[sel]
+            gfb = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+            if self.fb_retry and self.fb_levels < self.levels:
+                # second chance: a backward pass on the full-resolution level alone converges only
+                # within about half a window of its start, so a good track whose motion prediction
+                # was off by more (fast rotation, acceleration) fails it; those features (typically a
+                # few %) are checked again with one coarser level, as the backward pass did before
+                # fb_levels
+                again = np.flatnonzero((gst.reshape(-1) == 1) & ((gst2 != 1) | ~(gfb <= self.fb_max_px)))
+                if len(again):
+                    q, st3, _ = cv2.calcOpticalFlowPyrLK(
+                        cur,
+                        prev,
+                        g1[again],
+                        # (the first pass wrote its result into back_guess: the guess again)
+                        (g1[again].reshape(-1, 2) - disp[sel][again]).reshape(-1, 1, 2).astype(np.float32),
+                        winSize=self.win,
+                        maxLevel=min(self.fb_levels + 1, self.levels),
+                        criteria=self._criteria,
+                        flags=back_flags,
+                    )
+                    p0r[again] = q.reshape(-1, 2)
+                    gst2[again] = st3.reshape(-1)
+                    gfb[again] = np.linalg.norm(p0r[again] + off - ref_uv[sel][again], axis=1)
+            p1[sel] = g1.reshape(-1, 2)
+            st[sel] = gst.reshape(-1)
+            err[sel] = gerr.reshape(-1)
+            st2[sel] = gst2
+            fb[sel] = gfb
+        p1 += off
         u1, v1 = p1[:, 0], p1[:, 1]
-        st1 = st.reshape(-1) == 1
+        st1 = st == 1
         lk_ok = st1 & (st2 == 1)
         fb_ok = fb <= self.fb_max_px  # (False for a NaN distance, as for an infinite one)
         ok = lk_ok & fb_ok
         n_fb = int(np.count_nonzero(ok))
         # appearance: LK's residual (mean absolute grey difference over the window) must be ordinary
         # for this frame, which tolerates global exposure changes but not a patch that changed
-        err = err.reshape(-1)
         if n_fb:
             # a textured patch has a larger residual for the same (sub-pixel, noise, shading) mismatch:
             # the bound also scales with the patch's own contrast (texture_k x its mean absolute
-            # deviation in the previous frame), so good features on textured obstacles are kept:
+            # deviation in the reference frame), so good features on textured obstacles are kept:
             # bound = max(max_residual, 3 median(err), texture_k MAD(patch)); the patch term is only
             # needed (and computed) where err exceeds the first two
             base = max(self.max_residual, 3.0 * _median(err[ok]))
             over = np.flatnonzero(ok & (err > base))
             if len(over):
-                tex = self._texture(prev, p0[over]) if self.texture_k > 0 else np.zeros(len(over))
+                tex = np.zeros(len(over), np.float32)
+                if self.texture_k > 0:
+                    for j in np.unique(lag[over]):
+                        k = lag[over] == j
+                        tex[k] = self._texture(self._refs[nref - 1 - j][1], ref_uv[over[k]] - off)
                 ok[over] = err[over] <= self.texture_k * tex
         n_res = int(np.count_nonzero(ok))
         h, w = self.shape_hw

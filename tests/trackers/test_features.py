@@ -537,3 +537,73 @@ def test_median_is_np_median_bit_for_bit():
         assert got == want or (np.isnan(got) and np.isnan(want)), (n, x.dtype, got, want)
     assert _median(np.array([1.0, 2.0], np.float32)) == 1.5
     assert _median(np.array([5.0, 1.0, 3.0])) == 3.0
+
+
+def _lk_reference_frames(monkeypatch, model, fps: float, n: int, **kw):
+    """Track n frames of a slow turn at ``fps``; for each frame, the frame indices of the images
+    the forward LK calls started from (found by content: every rendered frame differs) and how many
+    features each call carried."""
+    import cv2
+
+    scene = SphereScene(model)
+    ft = make_tracker(model, **{"max_features": 300, "redetect_s": 1e6, **kw})
+    frames: list[np.ndarray] = []
+    calls: list[tuple[np.ndarray, int]] = []
+    real = cv2.calcOpticalFlowPyrLK
+
+    def spy(prev, nxt, p0, p1, **a):
+        if not a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:  # the forward pass
+            calls.append((prev, len(p0)))
+        return real(prev, nxt, p0, p1, **a)
+
+    monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
+    out = []
+    for k in range(n):
+        grey = scene.render(rot_axis([0, 1, 0], np.radians(3.0) * k / fps))
+        frames.append(ft._crop(grey))
+        calls.clear()
+        ft.track(grey, k, k / fps)
+        refs = [[j for j, f in enumerate(frames) if np.array_equal(f, prev)] for prev, _ in calls]
+        out.append([(r[-1], m) for r, m in zip(refs, [m for _, m in calls], strict=True)])
+    return out, ft
+
+
+def test_klt_steps_from_the_frame_a_thirtieth_of_a_second_back_at_100_fps(model, monkeypatch):
+    """KLT's step is klt_step_s (1/30 s), not a frame: at 100 fps (3 frames per step once the rate
+    is known, from the third frame on) a feature is tracked from its position 3 frames back, in
+    that frame's image, so its position chain takes 33 steps a second, as at 30 fps, not 100 (each
+    step adds a small random error: docs ARCHITECTURE "KLT steps in seconds"). Features younger than
+    3 frames step from their first frame; at 30 fps every feature steps from the previous frame."""
+    out, ft = _lk_reference_frames(monkeypatch, model, 100.0, 9)
+    assert out[0] == [] and [r for r, _ in out[1]] == [0] and [r for r, _ in out[2]] == [1]
+    # frame 3: the rate is known (two intervals), the references frames 1 and 2 (the features,
+    # all detected at frame 0, have samples there); from frame 4 on, 3 frames back
+    assert [r for r, _ in out[3]] == [1]
+    for k in range(4, 9):
+        assert [r for r, _ in out[k]] == [k - 3], (k, out[k])
+        assert out[k][0][1] > 100
+    out30, _ = _lk_reference_frames(monkeypatch, model, 30.0, 6)
+    for k in range(1, 6):
+        assert [r for r, _ in out30[k]] == [k - 1], (k, out30[k])
+
+
+def test_klt_step_young_features_step_from_their_first_frame(monkeypatch):
+    """At 100 fps with detection every frame: a feature detected 1 or 2 frames ago steps from the
+    frame it was detected in (one LK call per reference frame in use), older ones from 3 frames
+    back; none is lost to the longer step on a slow turn."""
+    out, ft = _lk_reference_frames(
+        monkeypatch, equidistant(640, 480), 100.0, 12, redetect_s=0.0, max_features=2000, det_max=2000
+    )
+    young = 0
+    for k in range(6, 12):  # (after the start-up detections: none periodic before two intervals)
+        refs = dict(out[k])
+        assert set(refs) <= {k - 3, k - 2, k - 1} and refs[k - 3] > 0.9 * sum(refs.values()), (k, out[k])
+        young += sum(m for r, m in refs.items() if r > k - 3)
+    assert young > 10
+    assert ft.last_stats["klt_ok"] >= 0.95 * ft.last_stats["klt_in"]
+
+
+@pytest.mark.parametrize("bad", [-0.1, float("nan"), float("inf"), True, "1/30"])
+def test_klt_step_s_must_be_a_duration(model, bad):
+    with pytest.raises(ConfigError, match="klt_step_s"):
+        make_tracker(model, klt_step_s=bad)
