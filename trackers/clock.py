@@ -20,7 +20,8 @@ class FrameClock:
     ``frames(d)`` = ``d`` over that median interval, rounded (halves up), at least ``lo``; before two
     intervals are seen (a live camera's first is often its start-up's), and for a duration of
     ``UNKNOWN`` frames or more, ``UNKNOWN`` (a count no track reaches: nothing is decided by time
-    yet, or ever)."""
+    yet, or ever). A duration of 0 s is ``lo`` frames at every rate, so also before one is seen
+    (``redetect_s`` 0: every frame from the first)."""
 
     UNKNOWN = 2**31
 
@@ -42,6 +43,8 @@ class FrameClock:
 
     def frames(self, d_s: float, lo: int = 1) -> int:
         """The frame count of a duration d_s (s) at the rate seen, at least ``lo``."""
+        if d_s <= 0:  # (0 frames at any rate: no rate needed)
+            return lo
         if self.period_s is None:
             return self.UNKNOWN
         n = d_s / self.period_s

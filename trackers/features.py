@@ -171,10 +171,11 @@ class FeatureTracker:
         min_per_cell: see ``grid``.
         redetect_s: re-detect every this long (s; default 4/30: every 4th frame at 30 fps, the count
             it was fitted as; 0 = every frame), applied as a frame count at the frame rate seen
-            (``FrameClock``, as the grouping's durations; none before two frame intervals are seen:
-            the coverage trigger and the first frame still detect). A full tracker (``max_features``
-            live) every twice this long: its detection can only re-acquire lost features (about 0.7
-            per detection on the 640x480 and 1280x720 bench clips). (Was ``redetect_every`` 4
+            (``FrameClock``, as the grouping's durations; none before two frame intervals are seen,
+            save for 0, which needs no rate: the coverage trigger and the first frame still detect).
+            A full tracker (``max_features`` live) every twice this long: its detection can only
+            re-acquire lost features (about 0.7 per detection on the 640x480 and 1280x720 bench
+            clips). (Was ``redetect_every`` 4
             frames: at 100 fps 25 detections a second against 7.5 at 30 fps. Never
             detecting while full was an option, ``full_redetect_factor`` 0, removed after a same-base
             A/B, 0 against 2: trackers.benchmark identical on 29 of 32 scenes (9 tuned, 5 held-out,

@@ -332,6 +332,17 @@ def test_a_full_tracker_detects_half_as_often(model):
     assert detect_frames(5000) == [0, 4, 8, 12, 16]  # never full
 
 
+def test_redetect_s_0_detects_every_frame_from_the_first(model):
+    """redetect_s 0 is every frame (0 frames at any rate): also on the second frame, before the
+    clock has seen the two intervals it needs for a rate (it skipped that frame: [0, 2, 3, 4]); a
+    full tracker too (twice 0 s)."""
+    grey = SphereScene(model).render()
+    for max_features in (40, 5000):
+        ft = make_tracker(model, max_features=max_features, redetect_s=0)
+        times = _detection_times(ft, grey, 30.0, 5 / 30)
+        assert [round(t * 30) for t in times] == [0, 1, 2, 3, 4], max_features
+
+
 @pytest.mark.parametrize("max_features", [40, 5000], ids=["full", "room"])
 def test_the_redetection_cadence_is_in_seconds(model, max_features):
     """The same static scene fed at 30 and at 100 Hz for 1 s: the tracker re-detects at the same

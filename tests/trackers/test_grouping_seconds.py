@@ -20,6 +20,7 @@ from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, FrameC
 def test_the_clock_counts_a_duration_in_frames_at_the_rate_seen():
     c = FrameClock()
     assert c.frames(0.1) == FrameClock.UNKNOWN  # no interval yet: no count is reached
+    assert c.frames(0.0, 0) == 0 and c.frames(0.0) == 1  # 0 s is lo frames at any rate: no rate needed
     c.tick(0.0)
     assert c.frames(0.1) == FrameClock.UNKNOWN
     for k in range(1, 20):  # 30 fps, times as a timestamps file gives them (microseconds)
