@@ -30,9 +30,10 @@ class FrameClock:
         self._last: float | None = None
         self.period_s: float | None = None
 
-    def tick(self, t_s: float) -> None:
-        """One frame at time t_s (s)."""
+    def tick(self, t_s: float) -> float:
+        """One frame at time t_s (s); returns the time since the frame before (0.0 for the first)."""
         t = float(t_s)
+        dt = t - self._last if self._last is not None else 0.0
         if self._last is not None and t > self._last:
             self._dt.append(t - self._last)
             if len(self._dt) >= 2:  # (one interval is no rate yet: a live camera's first is
@@ -40,6 +41,7 @@ class FrameClock:
                 # makes counts too large, deciding nothing early, never too small)
                 self.period_s = sorted(self._dt)[(len(self._dt) - 1) // 2]
         self._last = t
+        return dt
 
     def frames(self, d_s: float, lo: int = 1) -> int:
         """The frame count of a duration d_s (s) at the rate seen, at least ``lo``."""

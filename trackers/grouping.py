@@ -432,7 +432,6 @@ class ObstacleGrouper:
         self._R1_hist: deque[np.ndarray] = deque(maxlen=1)
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
-        self._last_t_s: float | None = None
         # features judged to be on extended texture: ids (sorted) and the frame their mark expires
         self._bg_ids = np.zeros(0, np.int64)
         self._bg_until = np.zeros(0, np.int64)
@@ -456,12 +455,10 @@ class ObstacleGrouper:
             (tracks seen this frame, tracks lost this frame).
         """
         ids, b = ft.ids, ft.b_C
-        dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
-        self._last_t_s = t_s
+        dt_s = self.clock.tick(t_s)  # (the time since the last frame)
         if self._history_cap != ft.H - 1:  # windows into the history reach at most its length back
             self._history_cap = ft.H - 1
             self._R1_hist = deque(self._R1_hist, maxlen=self._history_cap)
-        self.clock.tick(t_s)
         self._count()
         rad_px = ft.model.rad_per_px
         self.link_rad = self.link_px * rad_px
@@ -735,9 +732,7 @@ class ObstacleGrouper:
             t_s: frame time (s); R_C_Cprev: as in ``update``.
         Returns:
             the tracks lost this frame (unseen for more than ``max_missed_s``)."""
-        dt_s = t_s - self._last_t_s if self._last_t_s is not None else 0.0
-        self._last_t_s = t_s
-        self.clock.tick(t_s)
+        dt_s = self.clock.tick(t_s)
         self._count()
         R1 = R_C_Cprev.get(1) if R_C_Cprev else None
         self._remember_rotation(R1)

@@ -21,19 +21,20 @@ def test_the_clock_counts_a_duration_in_frames_at_the_rate_seen():
     c = FrameClock()
     assert c.frames(0.1) == FrameClock.UNKNOWN  # no interval yet: no count is reached
     assert c.frames(0.0, 0) == 0 and c.frames(0.0) == 1  # 0 s is lo frames at any rate: no rate needed
-    c.tick(0.0)
+    assert c.tick(0.0) == 0.0  # tick gives the time since the frame before (none: 0)
     assert c.frames(0.1) == FrameClock.UNKNOWN
     for k in range(1, 20):  # 30 fps, times as a timestamps file gives them (microseconds)
         c.tick(round(k / 30, 6))
     assert [c.frames(d) for d in (0.1, 5 / 30, 1 / 3, 0.4, 0.5, 1 / 15)] == [3, 5, 10, 12, 15, 2]
-    c.tick(round(21 / 30, 6))  # a dropped frame: one long interval, the median keeps the rate
+    assert c.tick(round(21 / 30, 6)) == pytest.approx(2 / 30, abs=1e-6)  # a dropped frame: one long
+    # interval, the median keeps the rate
     assert c.frames(1 / 3) == 10
     c = FrameClock()
     for k in range(20):
         c.tick(k / 100)
     assert [c.frames(d) for d in (0.1, 5 / 30, 1 / 3, 0.4, 0.5, 1 / 15)] == [10, 17, 33, 40, 50, 7]
     assert c.frames(0.0, 0) == 0 and c.frames(0.0) == 1  # at least lo
-    c.tick(0.19)  # a repeated time is no interval
+    assert c.tick(0.19) == 0.0  # a repeated time is no interval (and no time since the last)
     assert c.period_s == pytest.approx(0.01)
 
 
