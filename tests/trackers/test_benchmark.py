@@ -122,12 +122,10 @@ def test_explain_gives_a_cause_for_every_gap_and_switch(ci_scene):
     assert sum(ex["merged_by_depth"].values()) == len(merged)
     for e in merged:  # lined up: some other obstacle's range differs by DEPTH_RATIO (1.5) or more
         assert all(r > 0 for r in e["range_ratio"])
-    # every holding track says where its representative lies against its members
-    held = [e for e in ex["events"] if str(e.get("gap", "")).startswith("in_track")]
-    assert all(v["rep_px"] for e in held for v in e["tracks"].values())
-    assert ex["in_track_rep_beside_members"] == sum(
-        any(d > r for v in e["tracks"].values() for d, r in v["rep_px"].values()) for e in held
-    )
+    # (ci_small under ORB has no in_track_elsewhere gap (measured: 2 no_features/tiny, 2 young), so
+    # where a holding track's representative lies is tested on its own: _rep_px and the summary's
+    # in_track_rep_beside_members below)
+    assert ex["in_track_rep_beside_members"] == 0
     # distinct ids on an obstacle: at least one per switch more than the first; none if never covered
     for p in res["obstacles"].values():
         if p["coverage"] > 0:
@@ -386,3 +384,26 @@ def test_explain_measures_where_a_holding_track_s_representative_lies():
     d, rms = ex._rep_px(7, {"cam0": rad_px})["cam0"]
     assert d == pytest.approx(3 * a / rad_px, abs=0.01) and rms == pytest.approx(a / rad_px, abs=0.01)
     assert ex._rep_px(8, {"cam0": rad_px}) == {} and ex._rep_px(9, {"cam0": rad_px}) == {}
+
+
+def test_the_summary_counts_the_gaps_whose_holding_track_lies_beside_its_members():
+    """``in_track_rep_beside_members``: the in_track_elsewhere gaps where some holding track's
+    representative lies farther from its members' mean than their RMS angle in some camera (any
+    camera, any holding track); other gaps, switches and a track seen in no camera count nothing."""
+    from types import SimpleNamespace
+
+    from trackers.benchmark import _Explainer
+
+    ex = _Explainer(SimpleNamespace(groupers={}))
+    ex.events = [
+        {"gap": "in_track_elsewhere/merged_other", "tracks": {3: {"rep_px": {"cam0": [5.0, 2.0]}}}},  # 1
+        {"gap": "in_track_elsewhere/rep_off",  # beside in cam1 only: 1
+         "tracks": {4: {"rep_px": {"cam0": [1.0, 2.0], "cam1": [3.0, 2.5]}}}},
+        {"gap": "in_track_elsewhere/merged_other",  # one of two tracks beside: 1
+         "tracks": {5: {"rep_px": {"cam0": [1.0, 2.0]}}, 6: {"rep_px": {"cam0": [4.0, 1.0]}}}},
+        {"gap": "in_track_elsewhere/rep_off", "tracks": {7: {"rep_px": {"cam0": [2.0, 2.0]}}}},  # on: 0
+        {"gap": "in_track_elsewhere/rep_off", "tracks": {8: {"rep_px": {}}}},  # unseen: 0
+        {"gap": "young"},
+        {"switch": "lost", "from": 1, "to": 2},
+    ]
+    assert ex.summary()["in_track_rep_beside_members"] == 3
