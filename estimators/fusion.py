@@ -3009,8 +3009,9 @@ class ObstacleFusion:
                     self._bearing_update(tr, v, c)
                 t_prev = h.t_s
         self._predict(tr, sg.t_s)
+        c = self._repeat_scale(t_prev, sg.t_s)  # (as this frame's update in _process would be)
         for v in sg.views[1:]:  # further cameras of this frame (the first one was triangulated)
-            self._bearing_update(tr, v)
+            self._bearing_update(tr, v, c)
         tr.sources.add("mono")
         tr.reason = None
 

@@ -166,3 +166,49 @@ def test_a_static_point_seen_at_30_and_100_hz_has_about_the_same_sigma():
     s100 = _point_sigma(100.0, TAU)
     assert 0.85 < s100 / s30 < 1.1
     assert _point_sigma(100.0, 0.0) / _point_sigma(30.0, 0.0) < 0.6  # (per frame: the old count)
+
+
+def _mono_init_scales(fps: float) -> list[float]:
+    """The scales (``_repeat_scale``) of every bearing update ``_init_mono`` makes for a track seen
+    by both cameras of a stereo rig whose stereo fixes are all refused (stereo_max_rel_sigma 1e-9),
+    so it is initialised from the mono pair; the point and flight as in ``_stereo_sigma``."""
+    rig = stereo_forward_rig(MODEL, 0.3)
+    ego = ConstantVelocity(2.0)
+    fus = ObstacleFusion(rig, ego, FusionSettings(stereo_max_rel_sigma=1e-9))
+    p = np.array([6.0, 1.0, 0.2])
+    scales: list[float] = []
+    inside = [False]
+    bearing_update, init_mono = fus._bearing_update, fus._init_mono
+
+    def spy_update(tr, v, scale=1.0):
+        if inside[0]:
+            scales.append(scale)
+        return bearing_update(tr, v, scale)
+
+    def spy_init(*a):
+        inside[0] = True
+        try:
+            return init_mono(*a)
+        finally:
+            inside[0] = False
+
+    fus._bearing_update, fus._init_mono = spy_update, spy_init
+    for k in range(int(fps) + 1):
+        t = k / fps
+        T_W_B = ego.pose_at(t)
+        views = tuple(CameraView(c.name, _unit((c.T_C_B @ T_W_B.inverse()).apply(p)), [0, 0], 2e-3)
+                      for c in rig)
+        fus.step([ObstacleObservation(5, k, t, "confirmed", views)], k, t)
+        if scales:
+            break
+    return scales
+
+
+def test_a_mono_initialisation_weighs_its_last_frames_other_camera_as_the_replay():
+    # the sightings replayed between the triangulated pair are weighed by their time since the one
+    # before; the initialising frame's other camera was fused at full weight (scale 1) though 0.01 s
+    # after the last replayed frame at 100 fps: 3x (tau / dt) as the frame's update in _process
+    at100 = _mono_init_scales(100.0)
+    assert len(at100) >= 3 and at100 == pytest.approx([TAU / 0.01] * len(at100)), at100
+    at30 = _mono_init_scales(30.0)  # (<= 1 / tau fps: every update at full weight, as before)
+    assert at30 and all(c == 1.0 for c in at30), at30
