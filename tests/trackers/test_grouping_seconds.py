@@ -14,7 +14,8 @@ from estimators.errors import ConfigError
 from tests.trackers.conftest import rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
 from tests.trackers.test_grouping_split import FLOW_ABS, grid
-from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, FrameClock, ObstacleGrouper
+from trackers.clock import FrameClock
+from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, ObstacleGrouper
 
 
 def test_the_clock_counts_a_duration_in_frames_at_the_rate_seen():
