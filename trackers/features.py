@@ -699,6 +699,9 @@ class FeatureTracker:
         # float32 numbers as uv had then)
         lag = np.zeros(len(self.ids), np.intp)
         ref_uv = self.uv
+        # each feature's time (s) since its reference frame, for its velocity: the step's own
+        # displacement over it (the previous frame's dt_s for lag 0)
+        dt_ref = np.full(len(self.ids), dt_s)
         if nref > 1:
             n = self._h_n[self.slot]
             ref_uv = self.uv.copy()
@@ -707,6 +710,7 @@ class FeatureTracker:
                 at = (n - 1 - j >= 0) & (self._h_frame.reshape(-1)[fi] == self._refs[nref - 1 - j][0])
                 lag[at] = j
                 ref_uv[at] = self._h_uv.reshape(-1, 2)[fi[at]]
+                dt_ref[at] = dt_s + (self._t_uv - self._h_t.reshape(-1)[fi[at]])
         moving = bool(np.isfinite(dt_s) and dt_s > 0)
         # constant-velocity prediction (px): v (px/s) * dt (s) from the previous frame's position;
         # from the reference position the predicted displacement is (uv - ref_uv) + v dt
@@ -842,8 +846,16 @@ class FeatureTracker:
         # the kept rows updated in place: element-wise over all rows, written where ok (the kept rows'
         # numbers without gathering them, ~60 -> ~20 us; the dropped rows keep theirs for the lost pool)
         okc = ok[:, None]
-        if moving:  # v <- (v + (p1 - p0) / dt) / 2, px/s
-            np.copyto(self.vel, 0.5 * self.vel + 0.5 * (p1 - self.uv) / np.float32(dt_s), where=okc)
+        if moving:
+            # v <- (v + (p1 - p_ref) / dt_ref) / 2, px/s: the displacement of the step taken, from
+            # the reference frame (at <= 1 / klt_step_s fps the previous one: (p1 - p0) / dt). Not
+            # p1 minus the previous frame's position: above that rate consecutive positions come
+            # from different step chains (frame k from k - N, k - 1 from k - 1 - N), whose drifts
+            # differ, and that difference over one frame's dt doubled the velocity's noise at 100
+            # fps (fps100_mono_straight, |v - the 0.2-s central difference| p90 16.6 -> 34.5 px/s)
+            # and so the lost features' predicted positions (reacquire_s ahead)
+            dtr = dt_ref.astype(np.float32)[:, None]
+            np.copyto(self.vel, 0.5 * self.vel + 0.5 * (p1 - ref_uv) / dtr, where=okc & (dtr > 0))
         np.copyto(self.uv, p1, where=okc)
         self.age += ok
         if n_ok < len(ok):

@@ -618,3 +618,38 @@ def test_klt_step_young_features_step_from_their_first_frame(monkeypatch):
 def test_klt_step_s_must_be_a_duration(model, bad):
     with pytest.raises(ConfigError, match="klt_step_s"):
         make_tracker(model, klt_step_s=bad)
+
+
+def test_klt_step_velocity_is_the_steps_own_displacement_at_100_fps(model, monkeypatch):
+    """At 100 fps (a step of 3 frames) frame k's position comes from k - 3's and k - 1's from k - 4's:
+    three interleaved chains, each with its own accumulated step error. The velocity (the KLT
+    prediction's and the lost features' predicted positions') must be a chain's own displacement
+    over its step, not the difference of two chains over one frame. A static scene (the same image
+    every frame: true velocity 0) with each forward LK result shifted by an error that depends on
+    the reference frame (frame mod 3: chains drifting 0, +0.2, -0.2 px a step): the velocity stays
+    within the step error over the step time (0.2 px / 0.03 s = 6.7 px/s); from consecutive
+    positions it grew with the chains' separation (~0.4 px more every 3 frames, / 0.01 s)."""
+    import cv2
+
+    scene = SphereScene(model)
+    grey = scene.render(np.eye(3))
+    ft = make_tracker(model, max_features=300, redetect_s=1e6)
+    shift = {0: 0.0, 1: 0.2, 2: -0.2}
+    real = cv2.calcOpticalFlowPyrLK
+
+    def biased(prev, nxt, p0, p1, **a):
+        out = real(prev, nxt, p0, p1, **a)
+        if a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:  # the backward pass: as is
+            return out
+        (frame,) = [f for f, c in ft._refs if c is prev]
+        q = out[0].copy()
+        q[..., 0] += np.float32(shift[frame % 3])
+        return (q, *out[1:])
+
+    monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", biased)
+    for k in range(40):
+        ft.track(grey, k, k / 100.0)
+    assert len(ft._refs) == 3
+    assert ft.n_live > 100
+    speed = np.linalg.norm(ft.vel, axis=1)
+    assert np.max(speed) < 7.0, np.percentile(speed, [50, 90, 100])
