@@ -391,9 +391,9 @@ class FeatureTracker:
         self._h_t = np.zeros((cap, self.H))
         self._h_frame = np.zeros((cap, self.H), np.int64)
         self._h_n = np.zeros(cap, np.int64)  # samples written (ring position = n % H)
-        # the last frames' roi crops, oldest first, (frame index, crop): KLT's reference images, the
-        # frames up to klt_step_s back (the frame rate seen by self.clock)
-        self._refs: deque[tuple[int, np.ndarray]] = deque()
+        # the last frames' roi crops, oldest first, (frame index, time (s), crop): KLT's reference
+        # images, the frames up to klt_step_s back (the frame rate seen by self.clock)
+        self._refs: deque[tuple[int, float, np.ndarray]] = deque()
         self._t_uv = 0.0  # time (s) of the positions in self.uv
         self.clock = FrameClock()  # the frame rate seen, for klt_step_s, redetect_s and reacquire_s
         self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
@@ -430,7 +430,7 @@ class FeatureTracker:
         # KLT's step: klt_step_s as frames (1 before the rate is known), at most the history's
         # reach (the reference position is a history sample)
         n = self.clock.frames(self.klt_step_s)
-        self._refs.append((int(frame), cur))
+        self._refs.append((int(frame), float(t_s), cur))
         while len(self._refs) > (1 if n >= self.clock.UNKNOWN else min(n, self.H)):
             self._refs.popleft()
         self._t_uv = float(t_s)
@@ -451,7 +451,7 @@ class FeatureTracker:
     def crop(self) -> tuple[np.ndarray | None, np.ndarray]:
         """(the last tracked frame's grey lens crop ``roi`` (h, w) uint8 or None, its origin (2,)
         float32 px in the full frame: full-frame pixel = crop pixel + origin)."""
-        return (self._refs[-1][1] if self._refs else None), self._off
+        return (self._refs[-1][2] if self._refs else None), self._off
 
     @property
     def frame_box(self) -> tuple[int, int, int, int]:
@@ -706,8 +706,14 @@ class FeatureTracker:
             n = self._h_n[self.slot]
             ref_uv = self.uv.copy()
             for j in range(1, nref):
+                # the sample j back is that reference frame's when its frame index and time are that
+                # frame's (both: a caller's frame index may repeat, e.g. a live camera's counter
+                # restarting, and a re-acquired feature's sample from before its loss must not be
+                # taken for it; then the feature has a sample in each of the last j + 1 frames)
                 fi = self.slot * self.H + (n - 1 - j) % self.H
-                at = (n - 1 - j >= 0) & (self._h_frame.reshape(-1)[fi] == self._refs[nref - 1 - j][0])
+                rf, rt, _ = self._refs[nref - 1 - j]
+                at = (n - 1 - j >= 0) & (self._h_frame.reshape(-1)[fi] == rf)
+                at &= self._h_t.reshape(-1)[fi] == rt
                 lag[at] = j
                 ref_uv[at] = self._h_uv.reshape(-1, 2)[fi[at]]
                 dt_ref[at] = dt_s + (self._t_uv - self._h_t.reshape(-1)[fi[at]])
@@ -727,7 +733,7 @@ class FeatureTracker:
             if g is not None and not len(g):
                 continue
             sel = slice(None) if g is None else g
-            prev = self._refs[nref - 1 - j][1]
+            prev = self._refs[nref - 1 - j][2]
             q0 = ref_uv[sel] - off  # (n, 2) float32 crop px
             p0 = q0.reshape(-1, 1, 2)
             # forward, starting from the prediction (a new float32 array: LK writes its result into it)
@@ -818,7 +824,7 @@ class FeatureTracker:
                 if self.texture_k > 0:
                     for j in np.unique(lag[over]):
                         k = lag[over] == j
-                        tex[k] = self._texture(self._refs[nref - 1 - j][1], ref_uv[over[k]] - off)
+                        tex[k] = self._texture(self._refs[nref - 1 - j][2], ref_uv[over[k]] - off)
                 ok[over] = err[over] <= self.texture_k * tex
         n_res = int(np.count_nonzero(ok))
         h, w = self.shape_hw

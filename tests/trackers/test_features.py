@@ -641,7 +641,7 @@ def test_klt_step_velocity_is_the_steps_own_displacement_at_100_fps(model, monke
         out = real(prev, nxt, p0, p1, **a)
         if a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:  # the backward pass: as is
             return out
-        (frame,) = [f for f, c in ft._refs if c is prev]
+        (frame,) = [r[0] for r in ft._refs if r[-1] is prev]
         q = out[0].copy()
         q[..., 0] += np.float32(shift[frame % 3])
         return (q, *out[1:])
@@ -653,3 +653,45 @@ def test_klt_step_velocity_is_the_steps_own_displacement_at_100_fps(model, monke
     assert ft.n_live > 100
     speed = np.linalg.norm(ft.vel, axis=1)
     assert np.max(speed) < 7.0, np.percentile(speed, [50, 90, 100])
+
+
+def test_klt_step_reference_position_is_the_reference_frames_with_a_repeated_frame_index(monkeypatch):
+    """At 100 fps (a step of 3 frames) each feature starts LK in a reference image from its own
+    position in that frame. The frame index a caller passes may repeat (a live camera's counter
+    restarting; here always 0): a re-acquired feature's sample from before its loss must not be taken
+    for the reference frame's position. Every forward LK call's start points are checked against the
+    features' positions after the frame whose crop the call starts in (the truth is the tracker's own
+    earlier output, frame by frame; the pairing is what is tested). Jittered times and dropped frames
+    make features lost and re-acquired within the step."""
+    import cv2
+
+    model = equidistant(640, 480)
+    scene = SphereScene(model)
+    ft = make_tracker(model, max_features=300)
+    rng = np.random.default_rng(0)
+    after: list[tuple[np.ndarray, dict[int, np.ndarray]]] = []  # (crop, {id: uv}) after each call
+    starts: list[tuple[int, np.ndarray]] = []
+    real = cv2.calcOpticalFlowPyrLK
+
+    def spy(prev, nxt, p0, p1, **a):
+        if not a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:
+            (c,) = [i for i, (crop, _) in enumerate(after) if crop is prev]
+            starts.append((c, p0.reshape(-1, 2).copy()))
+        return real(prev, nxt, p0, p1, **a)
+
+    monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
+    bad = total = 0
+    for k in range(40):
+        if k in (10, 11, 20):
+            continue
+        t = (k + rng.uniform(-0.3, 0.3)) / 100.0
+        starts.clear()
+        ft.track(scene.render(rot_axis([0, 1, 0], np.radians(20.0) * t)), 0, t)
+        for c, p in starts:
+            known = np.array(list(after[c][1].values())) - ft._off
+            total += len(p)
+            bad += sum(not np.any(np.all(known == q, axis=1)) for q in p)
+        after.append((ft._refs[-1][-1], {int(i): uv.copy() for i, uv in zip(ft.ids, ft.uv, strict=True)}))
+    assert len(ft._refs) == 3
+    assert total > 5000
+    assert bad == 0
