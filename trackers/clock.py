@@ -1,6 +1,7 @@
 """Durations (s) applied as frame counts at the frame rate seen, for the front end's per-frame rules
-(the grouping's and box tracker's life cycle, the feature tracker's re-detection cadence): one clock
-rule, ``FrameClock``, and one check of the duration settings, ``check_durations``."""
+(the grouping's and box tracker's life cycle, the feature tracker's re-detection cadence, lost-feature
+memory and KLT step): one clock rule, ``FrameClock``, and one check of the duration settings,
+``check_durations``."""
 
 from __future__ import annotations
 
