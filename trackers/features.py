@@ -235,7 +235,9 @@ class FeatureTracker:
             fps (outputs as before), 3 at 100 fps (median squared drift of fps100_mono_straight's static
             obstacles' features at 0.33 / 1.0 s of age 1.65 / 7.80 -> 0.46 / 2.11 px^2; 30-fps
             mono_straight 0.54 / 2.21). Costs a pair of LK calls a frame per reference frame in use (each
-            call builds both images' pyramids): track stage +20 % on the bench's 640x480 100-Hz clip.
+            call builds both images' pyramids): on the bench's 640x480 100-Hz clip the track stage took
+            x1.21 in kf22's A/B of this step alone, and its median 3.44 -> 4.83 ms a frame in session 22's
+            full bench (with the re-detection in seconds and rk22's fixes; 720p 60 Hz 4.41 -> 6.11 ms).
             Stepping the younger features from the previous frame instead (two pairs at most) measured
             worse: docs ARCHITECTURE "KLT steps in seconds".
 
