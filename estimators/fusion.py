@@ -59,7 +59,12 @@ Measurements
       parallax >= ``min_parallax_rad``; the filter state then starts at the earlier sighting and the
       bearings in between are replayed, so no sighting is wasted and none is used twice. After
       that every new bearing is fused directly, which accumulates the parallax of the whole flight
-      (fusing the triangulation as well would count the same bearings twice).
+      (fusing the triangulation as well would count the same bearings twice). Its range is reported
+      only while a bearing it was not triangulated from has tested it and the latest such test
+      passed the gate (``_Track.pair_tested``; the replayed bearings count): two rays meet whatever
+      their errors, their one residual dof is the miss across their epipolar plane, so an error
+      along that plane (a bearing's jump, the obstacle's own motion in it) moves the point with no
+      residual, and a gated bearing says the static point is not where the bearings are.
     * Member features (``feature_ranging``): when the front end lists a track's member features
       (KLT corners: fixed physical points, unlike its representative bearing, a smoothed centroid
       of members at different depths that slides over the object as members come and go), each
@@ -1277,6 +1282,10 @@ class _Track:
     n_members: int = 0  # member feature rays (all views) in the last frame it was seen
     t_members: float = -math.inf  # time of that frame
     member_ids: np.ndarray | None = None  # their feature ids (a view of that frame's id array)
+    # a state a mono triangulation of two representative bearings set (``_init_mono``): whether a
+    # bearing it was not triangulated from has tested it and its latest test passed (None: another
+    # state, set by feature points or stereo)
+    pair_tested: bool | None = None
 
 
 class ObstacleFusion:
@@ -1705,6 +1714,7 @@ class ObstacleFusion:
         tr.feature_stereo_anchor = False
         tr.point_fid = None
         tr.point_is_feature = False
+        tr.pair_tested = None
         tr.history.clear()
         tr.bounds = None
         tr.gated_run = 0
@@ -2901,6 +2911,7 @@ class ObstacleFusion:
         v_sigma = s.static_velocity_sigma_mps
         for k, (tr, sg) in enumerate(batch):
             tr.struct_sigma_m = 0.0  # (sig has the features' spread already)
+            tr.pair_tested = None  # (the features' chi tests it)
             tr.point_fid = tr.feature_point_fid  # (None: on the representative ray, no support rule)
             tr.point_is_feature = tr.point_fid is not None
             tr.feature_stereo_anchor = True  # (a static feature's point, not the stereo one)
@@ -2949,10 +2960,12 @@ class ObstacleFusion:
         tr.kf.P[3:, :3] = 0.0
         tr.kf.P[3:, 3:] = np.eye(3) * v_sigma**2
         tr.moving = True
+        tr.pair_tested = None
 
     def _init_stereo(self, tr: _Track, sg: _Sighting, stereo) -> None:
         p, R = stereo
         tr.kf = self._new_kf(p, R, self._velocity_prior_sigma(sg.t_s))
+        tr.pair_tested = None
         tr.feature_stereo_anchor = tr.feature_stereo is None  # (the representative rays' point)
         tr.point_fid = None  # (a stereo point: re-measured every frame both cameras see it)
         tr.point_is_feature = False
@@ -2972,6 +2985,7 @@ class ObstacleFusion:
         sigma = math.sqrt(0.5 * (va.sigma_rad**2 + vb.sigma_rad**2))
         R = _ray_covariance(tri.p - vb.c_W, tri.range_sigma_m, sigma)
         tr.kf = self._new_kf(tri.p, R, self.settings.static_velocity_sigma_mps)
+        tr.pair_tested = False  # (until a further bearing agrees with it: the replay's, a later frame's)
         tr.feature_stereo_anchor = True  # (on the representative ray)
         # its support: the member feature whose current ray passes nearest the triangulated point
         tr.point_is_feature = False
@@ -3061,7 +3075,8 @@ class ObstacleFusion:
         return True
 
     def _bearing_update(self, tr: _Track, v: _View, scale: float = 1.0) -> bool:
-        """Fuse the ray of view v (its sigma_rad; R scaled by scale >= 1: ``_repeat_scale``)."""
+        """Fuse the ray of view v (its sigma_rad; R scaled by scale >= 1: ``_repeat_scale``); a state
+        of ``_init_mono`` records whether this test of it passed (``pair_tested``)."""
         x = tr.kf.x
         c, b = v.c_W, v.b_W
         d = (float(x[0]) - float(c[0]), float(x[1]) - float(c[1]), float(x[2]) - float(c[2]))
@@ -3069,6 +3084,8 @@ class ObstacleFusion:
         if rho < 1e-6:
             tr.gated += 1
             tr.gated_run += 1
+            if tr.pair_tested is not None:
+                tr.pair_tested = False
             return False
         u = (d[0] / rho, d[1] / rho, d[2] / rho)
         bt = (float(b[0]), float(b[1]), float(b[2]))
@@ -3076,6 +3093,8 @@ class ObstacleFusion:
         if cos_ang < 0.5:  # more than 60 degrees off the predicted ray: not this obstacle
             tr.gated += 1
             tr.gated_run += 1
+            if tr.pair_tested is not None:
+                tr.pair_tested = False
             return False
         e1, e2 = _ttangent_basis(u)
         # gnomonic coordinates of the measured ray about the predicted one: y = E^T b / (u . b)
@@ -3085,7 +3104,10 @@ class ObstacleFusion:
             (e2[0] / rho, e2[1] / rho, e2[2] / rho, 0.0, 0.0, 0.0)))
         s2 = v.sigma_rad * v.sigma_rad * scale
         R = np.array(((s2, 0.0), (0.0, s2)))
-        return self._gated_update(tr, y, H, R, self._gate2)
+        ok = self._gated_update(tr, y, H, R, self._gate2)
+        if tr.pair_tested is not None:
+            tr.pair_tested = ok
+        return ok
 
     def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray, scale: float = 1.0) -> bool:
         """Fuse a point p_W (3,) W of covariance R (3, 3) scaled by scale >= 1 (``_repeat_scale``)."""
@@ -3184,6 +3206,13 @@ class ObstacleFusion:
         without: list[int] = []
         for k, (tr, _st) in enumerate(items):
             stale = tr.kf is not None and tr.moving and t_now - tr.t_ranged > hold
+            # a static state of two representative bearings (``_init_mono``) that no further bearing
+            # has tested, or whose latest test failed (gated): its range is not reported. Two rays
+            # meet somewhere whatever their errors: their one residual dof is the miss across their
+            # epipolar plane, which says nothing of the range, so an error along the plane (a
+            # bearing's jump, the obstacle's own motion in that plane) moves the point with no
+            # residual; a third bearing from another place tests it (a static point fits all three)
+            stale |= tr.kf is not None and not tr.moving and tr.pair_tested is False
             (with_kf if tr.kf is not None and not stale else without).append(k)
         R_B_W = fc.R_B_W
         if with_kf:
@@ -3276,8 +3305,11 @@ class ObstacleFusion:
             for j, (k, tr) in enumerate(zip(without, trs, strict=True)):
                 kw = self._report_common(tr, items[k][1])
                 why = tr.reason or tr.bounds_reason
-                if tr.kf is not None:
+                if tr.kf is not None and tr.moving:
                     why = f"moving obstacle seen by one camera for > {hold:g} s (range unobservable)"
+                elif tr.kf is not None:
+                    why = ("mono triangulation not yet tested by a further bearing" if tr.gated_run == 0
+                           else "its last bearing disagrees with its mono triangulation (gated)")
                 kw.update(bearing_body=b_B[j], unobservable_reason=why,
                           source="bounds" if tr.bounds is not None else "")
                 out[k] = _new_full_report(kw)
