@@ -17,7 +17,7 @@ import numpy as np
 
 # np.cross and np.linalg.norm(x, axis=1) bit for bit, without their axis handling
 from estimators.geometry import _cross, _isin, _norm_rows
-from trackers.features import KLT_WIN_PX
+from trackers.features import KLT_WIN_PX, _lk_part, _lk_whole
 
 
 def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_C0: np.ndarray) -> np.ndarray:
@@ -116,89 +116,6 @@ def match_features(
     # mutual best, and Lowe's ratio test: best <= ratio * second
     good = (i_back[j] == i) & (best <= ratio * second + 1e-9)
     return np.stack([i[good], j[good]], axis=1)
-
-
-def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1) px of an image of ``shape`` (H, W, ...) holding every point of ``pts`` (K, 2)
-    px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
-    levels sample the image's own grid), clipped to the image."""
-    lo = np.floor(pts.min(axis=0) - margin)
-    hi = np.ceil(pts.max(axis=0) + margin) + 1
-    x0 = max(int(lo[0]) // align * align, 0)
-    y0 = max(int(lo[1]) // align * align, 0)
-    return x0, y0, min(int(hi[0]), shape[1]), min(int(hi[1]), shape[0])
-
-
-def _lk_part(
-    grey_prev: np.ndarray,
-    grey_next: np.ndarray,
-    p_prev: np.ndarray,
-    p_next: np.ndarray,
-    win_px: int,
-    level: int,
-    crit: tuple,
-    reach_px: float,
-    box_prev: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """``cv2.calcOpticalFlowPyrLK`` from ``p_prev`` (K, 1, 2) float32 in grey_prev, starting at
-    ``p_next`` (K, 1, 2) float32 in grey_next, on the parts of the two images the search can read.
-
-    LK's cost per call is mostly building both images' pyramids (and the previous image's
-    derivatives), so it runs on the box of the points instead of the whole image: the previous
-    image's box holds every window at every level with the reach of the pyramid's 5-tap filter
-    (``(win_px // 2 + 6) 2^level`` px around the points), the next image's box that plus
-    ``reach_px`` around the starts (how far a point may travel); LK runs on their union in both
-    images (its two images have one size), its origin on a multiple of ``2^level`` px, so each
-    level samples the full image's own grid: inside the box every pixel LK reads equals the whole
-    image's. A point that would travel farther than ``reach_px`` may be lost (status 0).
-
-    ``box_prev``: (J, 2) float32 points (a superset of ``p_prev``, also the starts) whose boxes
-    make the parts instead of ``p_prev``'s and ``p_next``'s: each point's answer depends on the
-    parts' origin (LK works in the part's float32 pixels), so a call on fewer points keeps the
-    numbers of a call on all of them (None: the boxes of ``p_prev`` and ``p_next``).
-
-    Returns:
-        (p_next (K, 1, 2) float32 result in grey_next, status (K,) uint8).
-    """
-    import cv2
-
-    if grey_prev.shape != grey_next.shape:  # LK takes two images of one size
-        return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit)
-    m = (win_px // 2 + 6) * 2.0**level
-    al = 2**level
-    a = _lk_box((p_prev if box_prev is None else box_prev).reshape(-1, 2), m, grey_prev.shape, al)
-    b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
-    # one box for both (LK's two images have one size): the union
-    x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
-    o = np.array([x0, y0], np.float32)
-    q, st, _ = cv2.calcOpticalFlowPyrLK(
-        grey_prev[y0:y1, x0:x1],
-        grey_next[y0:y1, x0:x1],
-        p_prev - o,
-        p_next - o,
-        winSize=(win_px, win_px),
-        maxLevel=level,
-        criteria=crit,
-        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-    )
-    return q + o, st.reshape(-1)
-
-
-def _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit):
-    """``_lk_part`` on the whole images (the reference it must agree with)."""
-    import cv2
-
-    q, st, _ = cv2.calcOpticalFlowPyrLK(
-        grey_prev,
-        grey_next,
-        p_prev,
-        p_next.copy(),
-        winSize=(win_px, win_px),
-        maxLevel=level,
-        criteria=crit,
-        flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-    )
-    return q, st.reshape(-1)
 
 
 class StereoKLT(NamedTuple):
@@ -301,7 +218,7 @@ def stereo_klt(
         # within a pixel or two of its answer, a new one anywhere along its epipolar curve within
         # what the coarsest level's window covers
         reach = (win_px // 2) * 2.0 ** (lv + 1)
-        q, s_q = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit, reach) if crop else (
+        q, s_q, _ = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit, reach) if crop else (
             _lk_whole(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit)
         )
         p1[rows] = q
@@ -325,7 +242,7 @@ def stereo_klt(
         # backward: from the forward result in b, starting at the same pixel in a (in the parts of
         # the images all rows to check would read: the same numbers as a call on all of them)
         reach = (win_px // 2) * 2.0 ** (levels + 1)
-        p0r, st2 = _lk_part(
+        p0r, st2, _ = _lk_part(
             grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach, box_prev=p1[box]
         ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         good[ci] &= (st2 == 1) & (

@@ -136,6 +136,93 @@ def klt_window_px(win_px=KLT_WIN_PX) -> int:
     return int(win_px)
 
 
+def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1) px of an image of ``shape`` (H, W, ...) holding every point of ``pts`` (K, 2)
+    px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
+    levels sample the image's own grid), clipped to the image; the whole image when no point is
+    finite (a non-finite one is ignored: LK reports it lost)."""
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if not len(pts):
+        return 0, 0, shape[1], shape[0]
+    lo = np.floor(pts.min(axis=0) - margin)
+    hi = np.ceil(pts.max(axis=0) + margin) + 1
+    x0 = max(int(lo[0]) // align * align, 0)
+    y0 = max(int(lo[1]) // align * align, 0)
+    return x0, y0, min(int(hi[0]), shape[1]), min(int(hi[1]), shape[0])
+
+
+def _lk_part(
+    grey_prev: np.ndarray,
+    grey_next: np.ndarray,
+    p_prev: np.ndarray,
+    p_next: np.ndarray,
+    win_px: int,
+    level: int,
+    crit: tuple,
+    reach_px: float,
+    box_prev: np.ndarray | None = None,
+    flags: int = cv2.OPTFLOW_USE_INITIAL_FLOW,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``cv2.calcOpticalFlowPyrLK`` from ``p_prev`` (K, 1, 2) float32 in grey_prev, starting at
+    ``p_next`` (K, 1, 2) float32 in grey_next, on the parts of the two images the search can read.
+
+    LK's cost per call is mostly building both images' pyramids (and the previous image's
+    derivatives), so it runs on the box of the points instead of the whole image: the previous
+    image's box holds every window at every level with the reach of the pyramid's 5-tap filter
+    (``(win_px // 2 + 6) 2^level`` px around the points), the next image's box that plus
+    ``reach_px`` around the starts (how far a point may travel); LK runs on their union in both
+    images (its two images have one size), its origin on a multiple of ``2^level`` px, so each
+    level samples the full image's own grid: inside the box every pixel LK reads equals the whole
+    image's. A point that would travel farther than ``reach_px`` may be lost (status 0).
+
+    ``box_prev``: (J, 2) float32 points (a superset of ``p_prev``, also the starts) whose boxes
+    make the parts instead of ``p_prev``'s and ``p_next``'s: each point's answer depends on the
+    parts' origin (LK works in the part's float32 pixels), so a call on fewer points keeps the
+    numbers of a call on all of them (None: the boxes of ``p_prev`` and ``p_next``).
+    ``flags``: LK's (``cv2.OPTFLOW_USE_INITIAL_FLOW`` and optionally
+    ``cv2.OPTFLOW_LK_GET_MIN_EIGENVALS``; p_next is the start either way).
+
+    Returns:
+        (p_next (K, 1, 2) float32 result in grey_next, status (K,) uint8, err (K,) float32: LK's
+        residual, or the window's smallest eigenvalue with OPTFLOW_LK_GET_MIN_EIGENVALS).
+    """
+    if grey_prev.shape != grey_next.shape:  # LK takes two images of one size
+        return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags)
+    m = (win_px // 2 + 6) * 2.0**level
+    al = 2**level
+    a = _lk_box((p_prev if box_prev is None else box_prev).reshape(-1, 2), m, grey_prev.shape, al)
+    b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
+    # one box for both (LK's two images have one size): the union
+    x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
+    o = np.array([x0, y0], np.float32)
+    q, st, err = cv2.calcOpticalFlowPyrLK(
+        grey_prev[y0:y1, x0:x1],
+        grey_next[y0:y1, x0:x1],
+        p_prev - o,
+        p_next - o,
+        winSize=(win_px, win_px),
+        maxLevel=level,
+        criteria=crit,
+        flags=flags | cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    return q + o, st.reshape(-1), err.reshape(-1)
+
+
+def _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW):
+    """``_lk_part`` on the whole images (the reference it must agree with)."""
+    q, st, err = cv2.calcOpticalFlowPyrLK(
+        grey_prev,
+        grey_next,
+        p_prev,
+        p_next.copy(),
+        winSize=(win_px, win_px),
+        maxLevel=level,
+        criteria=crit,
+        flags=flags | cv2.OPTFLOW_USE_INITIAL_FLOW,
+    )
+    return q, st.reshape(-1), err.reshape(-1)
+
+
 # the feature tracker's frame counts that are durations now: old key -> (new key, the old default in time)
 _FEATURES_RENAMED = {
     "redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s"),
@@ -235,11 +322,19 @@ class FeatureTracker:
             fps (outputs as before), 3 at 100 fps (median squared drift of fps100_mono_straight's static
             obstacles' features at 0.33 / 1.0 s of age 1.65 / 7.80 -> 0.46 / 2.11 px^2; 30-fps
             mono_straight 0.54 / 2.21). Costs a pair of LK calls a frame per reference frame in use (each
-            call builds both images' pyramids): on the bench's 640x480 100-Hz clip the track stage took
-            x1.21 in kf22's A/B of this step alone, and its median 3.44 -> 4.83 ms a frame in session 22's
-            full bench (with the re-detection in seconds and rk22's fixes; 720p 60 Hz 4.41 -> 6.11 ms).
-            Stepping the younger features from the previous frame instead (two pairs at most) measured
-            worse: docs ARCHITECTURE "KLT steps in seconds".
+            call builds both images' pyramids: OpenCV 4.14's Python binding refuses a prebuilt one,
+            ``cv2.buildOpticalFlowPyramid``'s list, in ``calcOpticalFlowPyrLK`` and
+            ``SparsePyrLKOpticalFlow.calc`` alike): on the bench's 640x480 100-Hz clip the track stage
+            took x1.21 in kf22's A/B of this step alone, and its median 3.44 -> 4.83 ms a frame in session
+            22's full bench (with the re-detection in seconds and rk22's fixes; 720p 60 Hz 4.41 -> 6.11
+            ms). The features younger than the step (densified and re-detected: 5-40 a frame on the
+            bench clips, clustered around small obstacles) take their pairs on the parts of the crops
+            their search reads (``_lk_part``): those pairs 1.16 -> 0.46 ms a frame at 720p 60 Hz, 1.14 ->
+            0.55 at 640x480 100 Hz (the same calls timed both ways), the track stage's median 6.02 -> 5.24
+            and 4.49 -> 3.76 ms (one core, loaded machine, 3 runs each with a null perturbation: docs
+            ARCHITECTURE "The younger features' KLT on parts of the crops"). Stepping the younger
+            features from the previous frame instead (two pairs at most) measured worse: docs
+            ARCHITECTURE "KLT steps in seconds".
 
     KLT runs on the lens circle's bounding box (``roi``, origin on a multiple of 16 px so the
     crop's pyramid levels sample the frame's own grid): the same tracks as on the full frame
@@ -423,7 +518,8 @@ class FeatureTracker:
 
         t0 = time.perf_counter()
         # (OpenCV's Python binding takes images, not prebuilt pyramids (cv2.buildOpticalFlowPyramid's
-        # list is refused): LK builds them per call, on the lens's crop only)
+        # list is refused): LK builds them per call, on the lens's crop, or on the part of it a call's
+        # search reads for the features younger than the KLT step)
         cur = self._crop(grey)
         self.last_stats = {}
         self.clock.tick(t_s)
@@ -692,7 +788,10 @@ class FeatureTracker:
         adds a small random error, and a chain of 100-fps steps drifted from its physical point ~3x faster
         per second than a 30-fps one (docs: ARCHITECTURE "KLT steps in seconds"). At <= 1 / klt_step_s fps
         every feature steps from the previous frame; above, one pair of LK calls a frame per reference
-        frame in use (each builds both images' pyramids).
+        frame in use (each builds both images' pyramids): the oldest reference's (most features, about
+        the lens) on the whole crops, the younger ones' (few, clustered) on the parts of the crops their
+        search reads (``_lk_part``: the same pixels, so the same tracks to the last bits of LK's float32
+        coordinates, which are the part's).
         """
         off = self._off
         nref = len(self._refs)
@@ -738,18 +837,13 @@ class FeatureTracker:
             prev = self._refs[nref - 1 - j][2]
             q0 = ref_uv[sel] - off  # (n, 2) float32 crop px
             p0 = q0.reshape(-1, 1, 2)
-            # forward, starting from the prediction (a new float32 array: LK writes its result into it)
+            # the features younger than the step (few: densified and re-detected ones, clustered) on
+            # the parts of the two images their search reads, the others (about the lens) on the
+            # whole crops; every feature at <= 1 / klt_step_s fps
+            part = j < nref - 1
+            # forward, starting from the prediction
             guess = (q0 + disp[sel]).reshape(-1, 1, 2)
-            g1, gst, gerr = cv2.calcOpticalFlowPyrLK(
-                prev,
-                cur,
-                p0,
-                guess,
-                winSize=self.win,
-                maxLevel=self.levels,
-                criteria=self._criteria,
-                flags=cv2.OPTFLOW_USE_INITIAL_FLOW,
-            )
+            g1, gst, gerr = self._lk(prev, cur, p0, guess, self.levels, cv2.OPTFLOW_USE_INITIAL_FLOW, part)
             # backward: track g1 back into the reference frame, starting from g1 minus the predicted
             # displacement (the prediction reversed, not p0 itself); a good track lands within
             # fb_max_px of where it started. Its residuals are not used: OPTFLOW_LK_GET_MIN_EIGENVALS
@@ -761,18 +855,9 @@ class FeatureTracker:
             # instead of an LK loss).
             back_flags = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
             back_guess = (g1.reshape(-1, 2) - disp[sel]).reshape(-1, 1, 2)
-            p0r, gst2, _ = cv2.calcOpticalFlowPyrLK(
-                cur,
-                prev,
-                g1,
-                back_guess,
-                winSize=self.win,
-                maxLevel=min(self.fb_levels, self.levels),
-                criteria=self._criteria,
-                flags=back_flags,
-            )
+            back_level = min(self.fb_levels, self.levels)
+            p0r, gst2, _ = self._lk(cur, prev, g1, back_guess, back_level, back_flags, part)
             p0r = p0r.reshape(-1, 2)
-            gst2 = gst2.reshape(-1)
             # |p0r + off - ref_uv| written out (the same float32 values as np.linalg.norm(.., axis=1),
             # whose call costs more than the arithmetic for a few hundred rows)
             d = p0r + off - ref_uv[sel]
@@ -785,23 +870,21 @@ class FeatureTracker:
                 # fb_levels
                 again = np.flatnonzero((gst.reshape(-1) == 1) & ((gst2 != 1) | ~(gfb <= self.fb_max_px)))
                 if len(again):
-                    q, st3, _ = cv2.calcOpticalFlowPyrLK(
+                    q, st3, _ = self._lk(
                         cur,
                         prev,
                         g1[again],
-                        # (the first pass wrote its result into back_guess: the guess again)
                         (g1[again].reshape(-1, 2) - disp[sel][again]).reshape(-1, 1, 2).astype(np.float32),
-                        winSize=self.win,
-                        maxLevel=min(self.fb_levels + 1, self.levels),
-                        criteria=self._criteria,
-                        flags=back_flags,
+                        min(self.fb_levels + 1, self.levels),
+                        back_flags,
+                        part,
                     )
                     p0r[again] = q.reshape(-1, 2)
-                    gst2[again] = st3.reshape(-1)
+                    gst2[again] = st3
                     gfb[again] = np.linalg.norm(p0r[again] + off - ref_uv[sel][again], axis=1)
             p1[sel] = g1.reshape(-1, 2)
-            st[sel] = gst.reshape(-1)
-            err[sel] = gerr.reshape(-1)
+            st[sel] = gst
+            err[sel] = gerr
             st2[sel] = gst2
             fb[sel] = gfb
         p1 += off
@@ -868,6 +951,17 @@ class FeatureTracker:
         self.age += ok
         if n_ok < len(ok):
             self._drop(np.flatnonzero(~ok), remember=True)
+
+    def _lk(self, prev, nxt, p, start, level: int, flags: int, part: bool):
+        """One KLT call from points ``p`` (K, 1, 2) float32 crop px of ``prev`` starting at ``start``
+        in ``nxt`` (two ``roi`` crops), at most ``level`` (OpenCV's maxLevel): on the parts of the
+        crops the search reads (``_lk_part``, reach: the coarsest level's window, twice) when
+        ``part``, else on the whole crops. Returns (result (K, 1, 2), status (K,), err (K,))."""
+        k = self.win[0]
+        if part:
+            reach = (k // 2) * 2.0 ** (level + 1)
+            return _lk_part(prev, nxt, p, start, k, level, self._criteria, reach, flags=flags)
+        return _lk_whole(prev, nxt, p, start, k, level, self._criteria, flags)
 
     def _texture(self, image: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mean absolute deviation of the grey values (N,) over the KLT window centred on each of the

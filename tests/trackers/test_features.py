@@ -550,6 +550,15 @@ def test_median_is_np_median_bit_for_bit():
     assert _median(np.array([5.0, 1.0, 3.0])) == 3.0
 
 
+def _part_of(img: np.ndarray, crops) -> tuple[int, np.ndarray]:
+    """(the index in ``crops`` of the array a KLT call's image is, or is a part of (a view:
+    FeatureTracker._lk_part), the part's origin (2,) float32 px (x, y) in it)."""
+    (i,) = [i for i, c in enumerate(crops) if np.shares_memory(img, c)]
+    c = crops[i]
+    off = img.__array_interface__["data"][0] - c.__array_interface__["data"][0]
+    return i, np.array([off % c.strides[0], off // c.strides[0]], np.float32)
+
+
 def _lk_reference_frames(monkeypatch, model, fps: float, n: int, **kw):
     """Track n frames of a slow turn at ``fps``; for each frame, the frame indices of the images
     the forward LK calls started from (found by content: every rendered frame differs) and how many
@@ -560,13 +569,16 @@ def _lk_reference_frames(monkeypatch, model, fps: float, n: int, **kw):
     ft = make_tracker(model, **{"max_features": 300, "redetect_s": 1e6, **kw})
     frames: list[np.ndarray] = []
     calls: list[tuple[np.ndarray, int]] = []
-    real = cv2.calcOpticalFlowPyrLK
+    # (OpenCV's own function, not an earlier call's spy: that one would look in its own tracker)
+    real = getattr(cv2.calcOpticalFlowPyrLK, "__wrapped__", cv2.calcOpticalFlowPyrLK)
 
     def spy(prev, nxt, p0, p1, **a):
         if not a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:  # the forward pass
-            calls.append((prev, len(p0)))
+            i, _ = _part_of(prev, [r[2] for r in ft._refs])
+            calls.append((ft._refs[i][2], len(p0)))
         return real(prev, nxt, p0, p1, **a)
 
+    spy.__wrapped__ = real
     monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
     out = []
     for k in range(n):
@@ -641,7 +653,7 @@ def test_klt_step_velocity_is_the_steps_own_displacement_at_100_fps(model, monke
         out = real(prev, nxt, p0, p1, **a)
         if a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:  # the backward pass: as is
             return out
-        (frame,) = [r[0] for r in ft._refs if r[-1] is prev]
+        frame = ft._refs[_part_of(prev, [r[-1] for r in ft._refs])[0]][0]
         q = out[0].copy()
         q[..., 0] += np.float32(shift[frame % 3])
         return (q, *out[1:])
@@ -675,8 +687,8 @@ def test_klt_step_reference_position_is_the_reference_frames_with_a_repeated_fra
 
     def spy(prev, nxt, p0, p1, **a):
         if not a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:
-            (c,) = [i for i, (crop, _) in enumerate(after) if crop is prev]
-            starts.append((c, p0.reshape(-1, 2).copy()))
+            c, o = _part_of(prev, [crop for crop, _ in after])
+            starts.append((c, p0.reshape(-1, 2) + o))
         return real(prev, nxt, p0, p1, **a)
 
     monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
@@ -695,3 +707,86 @@ def test_klt_step_reference_position_is_the_reference_frames_with_a_repeated_fra
     assert len(ft._refs) == 3
     assert total > 5000
     assert bad == 0
+
+
+def _shifted_texture_run(monkeypatch, whole: bool):
+    """A 640x480 lens over a textured plane translated by a known (0.7, -0.4) px a frame at 100 fps
+    (klt_step_s 1/30 s: a 3-frame step once the rate is known), features detected at frame 0 and
+    densified around one point at frame 6 (young: they step from their own frame at frames 7 and
+    8, from 3 frames back after). Returns (the tracker; {id: (frame, uv)} of every young
+    feature's position after frames 7 and 8; the crop shapes and point counts of every forward
+    LK call at frames 7 and 8). ``whole``: every LK call on the whole crops (the calls before the
+    young features' went on parts)."""
+    import cv2
+
+    from tests.trackers.conftest import blocky_texture
+
+    model = equidistant(640, 480)
+    tex = blocky_texture(1024, 160, seed=3)
+    v = np.array([0.7, -0.4])
+
+    def frame(k: int) -> np.ndarray:
+        M = np.array([[1.0, 0.0, -150.0 + v[0] * k], [0.0, 1.0, -200.0 + v[1] * k]])
+        return cv2.warpAffine(tex, M, (640, 480), flags=cv2.INTER_LINEAR)
+
+    if whole:
+        real_lk = FeatureTracker._lk
+        monkeypatch.setattr(FeatureTracker, "_lk", lambda self, *a: real_lk(self, *a[:-1], False))
+    calls: list[tuple[tuple[int, int], int]] = []
+    real = cv2.calcOpticalFlowPyrLK
+
+    def spy(prev, nxt, p0, p1, **a):
+        if not a["flags"] & cv2.OPTFLOW_LK_GET_MIN_EIGENVALS:
+            calls.append((prev.shape, len(p0)))
+        return real(prev, nxt, p0, p1, **a)
+
+    monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
+    ft = make_tracker(model, max_features=300, redetect_s=1e6)
+    young: dict[int, list[tuple[int, np.ndarray]]] = {}
+    seen: list[tuple[tuple[int, int], int]] = []
+    for k in range(10):
+        calls.clear()
+        ft.track(frame(k), k, k / 100.0)
+        if k in (7, 8):
+            seen += calls
+            for i, uv in zip(ft.ids, ft.uv, strict=True):
+                if int(i) in young:
+                    young[int(i)].append((k, uv.astype(float)))
+        if k == 6:
+            n0 = ft.n_live
+            ft.densify(frame(k), np.array([[330.0, 250.0]]), np.array([40.0]), k, k / 100.0, per_roi=12)
+            young = {int(i): [(6, uv.astype(float))] for i, uv in zip(ft.ids[n0:], ft.uv[n0:], strict=True)}
+    return ft, young, seen
+
+
+def test_klt_step_young_features_are_tracked_on_parts_of_the_crops(monkeypatch):
+    """Features younger than the KLT step (at 100 fps: detected or densified 1 or 2 frames ago) are
+    few and clustered; their LK calls run on the parts of the two crops their search reads
+    (``_lk_part``), each call's pyramids built on that part, not on the whole lens crop (the
+    bench's 1280x720 60-Hz clip: the young call pair 1.06 -> ~0.3 ms). The older features' calls
+    still take the whole crops. Before, every call took the whole crops."""
+    ft, young, calls = _shifted_texture_run(monkeypatch, whole=False)
+    crop = ft._refs[-1][2].shape
+    assert len(young) >= 6
+    few = [(s, m) for s, m in calls if m <= len(young)]
+    many = [(s, m) for s, m in calls if m > len(young)]
+    assert len(few) == 2 and len(many) == 2  # frames 7 and 8: one young and one old group each
+    assert all(s == crop for s, _ in many)
+    for s, _ in few:
+        assert s[0] * s[1] < crop[0] * crop[1] / 3, (s, crop)  # (243x235 of 480x498)
+
+
+def test_klt_step_young_features_on_parts_track_as_on_the_whole_crops(monkeypatch):
+    """The young features' positions on the parts equal those of calls on the whole crops to 0.01
+    px (the same pixels; LK works in the part's float32 coordinates, so the last bits differ), with
+    the same ids and verdicts, and follow the plane's known shift (0.7, -0.4) px a frame to 0.1 px."""
+    _, part, _ = _shifted_texture_run(monkeypatch, whole=False)
+    monkeypatch.undo()
+    _, whole, _ = _shifted_texture_run(monkeypatch, whole=True)
+    assert len(part) >= 6 and part.keys() == whole.keys()
+    v = np.array([0.7, -0.4])
+    for i, track in part.items():
+        assert [k for k, _ in track] == [k for k, _ in whole[i]] == [6, 7, 8]
+        for (k, uv), (_, uw) in zip(track[1:], whole[i][1:], strict=True):
+            assert np.abs(uv - uw).max() < 0.01, (i, k, uv, uw)
+            np.testing.assert_allclose(uv, track[0][1] + v * (k - 6), atol=0.1)
