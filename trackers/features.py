@@ -194,6 +194,8 @@ def _lk_part(
     b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
     # one box for both (LK's two images have one size): the union
     x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
+    if x1 <= x0 or y1 <= y0:  # every point and start beyond one edge: no part (LK hangs on an empty image)
+        return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags)
     o = np.array([x0, y0], np.float32)
     q, st, err = cv2.calcOpticalFlowPyrLK(
         grey_prev[y0:y1, x0:x1],

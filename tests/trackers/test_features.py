@@ -790,3 +790,32 @@ def test_klt_step_young_features_on_parts_track_as_on_the_whole_crops(monkeypatc
         for (k, uv), (_, uw) in zip(track[1:], whole[i][1:], strict=True):
             assert np.abs(uv - uw).max() < 0.01, (i, k, uv, uw)
             np.testing.assert_allclose(uv, track[0][1] + v * (k - 6), atol=0.1)
+
+
+def test_lk_part_with_every_point_beyond_an_edge_answers_as_the_whole_images():
+    """Points and starts all beyond one edge of the images leave no part to search (the boxes'
+    union is empty); OpenCV's LK never returns on an empty image, so such a call takes the whole
+    images and reports what LK reports there. Run in a child process: before, it hung."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = """
+import cv2, numpy as np
+from trackers.features import _lk_part, _lk_whole
+cv2.setNumThreads(1)
+img = np.random.default_rng(0).integers(0, 255, (100, 120), np.uint8)
+crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
+p = np.array([[[-500.0, -400.0]], [[-450.0, -420.0]]], np.float32)
+q, st, err = _lk_part(img, img, p, p.copy(), 11, 2, crit, 40.0)
+qw, stw, errw = _lk_whole(img, img, p, p.copy(), 11, 2, crit)
+assert st.tolist() == stw.tolist() == [0, 0], (st, stw)
+assert np.array_equal(q, qw)
+print("ok")
+"""
+    root = str(Path(__file__).resolve().parents[2])  # (this checkout's trackers, not an installed one)
+    env = {**os.environ, "PYTHONPATH": root}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env,
+                       cwd=root)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", r.stderr[-2000:]
