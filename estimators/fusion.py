@@ -57,7 +57,9 @@ Measurements
       baseline within ``baseline_max_age_s`` (the thesis: a longer baseline ranges farther; the age
       limit keeps a moving obstacle from corrupting it). It initialises the filter once its
       parallax >= ``min_parallax_rad``; the filter state then starts at the earlier sighting and the
-      bearings in between are replayed, so no sighting is wasted and none is used twice. After
+      bearings in between are replayed (each sighting's views as ``_process`` fuses them: the first
+      one alone when the two cameras' are likely different points, ``_ghost_prone``), so no
+      sighting is wasted and none is used twice. After
       that every new bearing is fused directly, which accumulates the parallax of the whole flight
       (fusing the triangulation as well would count the same bearings twice). Its range is reported
       only while a bearing it was not triangulated from has tested it and the latest such test
@@ -1755,6 +1757,11 @@ class ObstacleFusion:
         m = max(1, self.settings.stereo_feature_min_count)
         return (len(fa) >= m and len(fb) >= m) or not _isin(fa, fb).any()
 
+    def _mono_views(self, tr: _Track, sg: _Sighting) -> tuple[_View, ...]:
+        """The views of sighting sg whose representative bearings a track's state takes: all, or the
+        first alone when the two are likely different points (``_ghost_prone``)."""
+        return sg.views[:1] if self._ghost_prone(tr, sg) else sg.views
+
     def _supported_update(self, tr: _Track, sg: _Sighting, scale: float = 1.0) -> None:
         """Update a state that stands for one member feature's point (``point_fid``: the median
         feature's own point when ``feature_point`` set it, or the member whose ray passed nearest a
@@ -1793,7 +1800,7 @@ class ObstacleFusion:
             for v, j in seen:
                 self._bearing_update(tr, _View(v.camera, v.c_W, v.feature_b_W[j], sig_f), scale)
         else:
-            for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
+            for v in self._mono_views(tr, sg):
                 self._bearing_update(tr, v, scale)
         tr.sources.add("mono")
 
@@ -1879,7 +1886,7 @@ class ObstacleFusion:
             elif tr.point_fid is not None:  # the state is one member feature's point (support)
                 self._supported_update(tr, sg, c)
             else:  # (only the first view's bearing when the two are different points: ghost)
-                for v in (sg.views[:1] if self._ghost_prone(tr, sg) else sg.views):
+                for v in self._mono_views(tr, sg):
                     self._bearing_update(tr, v, c)
                 tr.sources.add("mono")
             if tr.gated_run >= s.reinit_after_gated:  # diverged or re-associated: start again
@@ -3019,13 +3026,13 @@ class ObstacleFusion:
             if past.t_s < h.t_s < sg.t_s:
                 self._predict(tr, h.t_s)
                 c = self._repeat_scale(t_prev, h.t_s)
-                for v in h.views:
+                for v in self._mono_views(tr, h):
                     self._bearing_update(tr, v, c)
                 t_prev = h.t_s
         self._predict(tr, sg.t_s)
         c = self._repeat_scale(t_prev, sg.t_s)  # (as this frame's update in _process would be)
-        for v in sg.views[1:]:  # further cameras of this frame (the first one was triangulated)
-            self._bearing_update(tr, v, c)
+        for v in self._mono_views(tr, sg)[1:]:  # further cameras of this frame (the first one was
+            self._bearing_update(tr, v, c)      # triangulated)
         tr.sources.add("mono")
         tr.reason = None
 
