@@ -173,7 +173,12 @@ def _lk_part(
     ``reach_px`` around the starts (how far a point may travel); LK runs on their union in both
     images (its two images have one size), its origin on a multiple of ``2^level`` px, so each
     level samples the full image's own grid: inside the box every pixel LK reads equals the whole
-    image's. A point that would travel farther than ``reach_px`` may be lost (status 0).
+    image's. The answers still differ from the whole images' in the last bits (LK works in the part's
+    float32 pixels, whose sums round otherwise), which an ill-conditioned window can carry to ~1 px
+    (the same jump as its start moved by 1e-3 px on the whole images). A point whose search goes
+    farther than ``reach_px`` from its start reads the part's edge (OpenCV's reflected border where
+    the whole image has pixels): it may be lost (status 0), or keep status 1 and land elsewhere than
+    on the whole images.
 
     ``box_prev``: (J, 2) float32 points (a superset of ``p_prev``, also the starts) whose boxes
     make the parts instead of ``p_prev``'s and ``p_next``'s: each point's answer depends on the
@@ -792,8 +797,8 @@ class FeatureTracker:
         every feature steps from the previous frame; above, one pair of LK calls a frame per reference
         frame in use (each builds both images' pyramids): the oldest reference's (most features, about
         the lens) on the whole crops, the younger ones' (few, clustered) on the parts of the crops their
-        search reads (``_lk_part``: the same pixels, so the same tracks to the last bits of LK's float32
-        coordinates, which are the part's).
+        search reads (``_lk_part``: the same pixels, so the same tracks but for the last bits of LK's
+        float32 coordinates, which are the part's, and which an ill-conditioned window can carry to ~1 px).
         """
         off = self._off
         nref = len(self._refs)
@@ -957,8 +962,8 @@ class FeatureTracker:
     def _lk(self, prev, nxt, p, start, level: int, flags: int, part: bool):
         """One KLT call from points ``p`` (K, 1, 2) float32 crop px of ``prev`` starting at ``start``
         in ``nxt`` (two ``roi`` crops), at most ``level`` (OpenCV's maxLevel): on the parts of the
-        crops the search reads (``_lk_part``, reach: the coarsest level's window, twice) when
-        ``part``, else on the whole crops. Returns (result (K, 1, 2), status (K,), err (K,))."""
+        crops the search reads (``_lk_part``, reach: the coarsest level's window in full-resolution
+        px) when ``part``, else on the whole crops. Returns (result (K, 1, 2), status (K,), err (K,))."""
         k = self.win[0]
         if part:
             reach = (k // 2) * 2.0 ** (level + 1)
