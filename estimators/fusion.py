@@ -3082,8 +3082,15 @@ class ObstacleFusion:
         return True
 
     def _bearing_update(self, tr: _Track, v: _View, scale: float = 1.0) -> bool:
-        """Fuse the ray of view v (its sigma_rad; R scaled by scale >= 1: ``_repeat_scale``); a state
-        of ``_init_mono`` records whether this test of it passed (``pair_tested``)."""
+        """Fuse the ray of view v (``_bearing_fuse``); a state of ``_init_mono`` records whether this
+        test of it passed (``pair_tested``)."""
+        ok = self._bearing_fuse(tr, v, scale)
+        if tr.pair_tested is not None:
+            tr.pair_tested = ok
+        return ok
+
+    def _bearing_fuse(self, tr: _Track, v: _View, scale: float) -> bool:
+        """Fuse the ray of view v (its sigma_rad; R scaled by scale >= 1: ``_repeat_scale``)."""
         x = tr.kf.x
         c, b = v.c_W, v.b_W
         d = (float(x[0]) - float(c[0]), float(x[1]) - float(c[1]), float(x[2]) - float(c[2]))
@@ -3091,8 +3098,6 @@ class ObstacleFusion:
         if rho < 1e-6:
             tr.gated += 1
             tr.gated_run += 1
-            if tr.pair_tested is not None:
-                tr.pair_tested = False
             return False
         u = (d[0] / rho, d[1] / rho, d[2] / rho)
         bt = (float(b[0]), float(b[1]), float(b[2]))
@@ -3100,8 +3105,6 @@ class ObstacleFusion:
         if cos_ang < 0.5:  # more than 60 degrees off the predicted ray: not this obstacle
             tr.gated += 1
             tr.gated_run += 1
-            if tr.pair_tested is not None:
-                tr.pair_tested = False
             return False
         e1, e2 = _ttangent_basis(u)
         # gnomonic coordinates of the measured ray about the predicted one: y = E^T b / (u . b)
@@ -3111,10 +3114,7 @@ class ObstacleFusion:
             (e2[0] / rho, e2[1] / rho, e2[2] / rho, 0.0, 0.0, 0.0)))
         s2 = v.sigma_rad * v.sigma_rad * scale
         R = np.array(((s2, 0.0), (0.0, s2)))
-        ok = self._gated_update(tr, y, H, R, self._gate2)
-        if tr.pair_tested is not None:
-            tr.pair_tested = ok
-        return ok
+        return self._gated_update(tr, y, H, R, self._gate2)
 
     def _point_update(self, tr: _Track, p_W: np.ndarray, R: np.ndarray, scale: float = 1.0) -> bool:
         """Fuse a point p_W (3,) W of covariance R (3, 3) scaled by scale >= 1 (``_repeat_scale``)."""

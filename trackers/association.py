@@ -214,11 +214,10 @@ def stereo_klt(
     for rows, lv in ((np.flatnonzero(near), follow_levels), (np.flatnonzero(~near), levels)):
         if not len(rows):
             continue
-        # on the parts of the images the search reads (_lk_part); reach: a followed row starts
-        # within a pixel or two of its answer, a new one anywhere along its epipolar curve within
-        # what the coarsest level's window covers
-        reach = (win_px // 2) * 2.0 ** (lv + 1)
-        q, s_q, _ = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit, reach) if crop else (
+        # on the parts of the images the search reads (_lk_part, its reach what the coarsest
+        # level's window covers): a followed row starts within a pixel or two of its answer, a new
+        # one anywhere along its epipolar curve within that reach
+        q, s_q, _ = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit) if crop else (
             _lk_whole(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit)
         )
         p1[rows] = q
@@ -241,9 +240,8 @@ def stereo_klt(
     if len(ci):
         # backward: from the forward result in b, starting at the same pixel in a (in the parts of
         # the images all rows to check would read: the same numbers as a call on all of them)
-        reach = (win_px // 2) * 2.0 ** (levels + 1)
         p0r, st2, _ = _lk_part(
-            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, reach, box_prev=p1[box]
+            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, box_prev=p1[box]
         ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         good[ci] &= (st2 == 1) & (
             _norm_rows((p0r - p0[ci]).reshape(-1, 2)) <= fb_max_px

@@ -159,7 +159,6 @@ def _lk_part(
     win_px: int,
     level: int,
     crit: tuple,
-    reach_px: float,
     box_prev: np.ndarray | None = None,
     flags: int = cv2.OPTFLOW_USE_INITIAL_FLOW,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -169,14 +168,15 @@ def _lk_part(
     LK's cost per call is mostly building both images' pyramids (and the previous image's
     derivatives), so it runs on the box of the points instead of the whole image: the previous
     image's box holds every window at every level with the reach of the pyramid's 5-tap filter
-    (``(win_px // 2 + 6) 2^level`` px around the points), the next image's box that plus
-    ``reach_px`` around the starts (how far a point may travel); LK runs on their union in both
+    (``(win_px // 2 + 6) 2^level`` px around the points), the next image's box that plus the
+    search's reach around the starts (how far a point may travel: the coarsest level's window in
+    full-resolution px, ``(win_px // 2) 2^(level + 1)``); LK runs on their union in both
     images (its two images have one size), its origin on a multiple of ``2^level`` px, so each
     level samples the full image's own grid: inside the box every pixel LK reads equals the whole
     image's. The answers still differ from the whole images' in the last bits (LK works in the part's
     float32 pixels, whose sums round otherwise), which an ill-conditioned window can carry to ~1 px
     (the same jump as its start moved by 1e-3 px on the whole images). A point whose search goes
-    farther than ``reach_px`` from its start reads the part's edge (OpenCV's reflected border where
+    farther than that reach from its start reads the part's edge (OpenCV's reflected border where
     the whole image has pixels): it may be lost (status 0), or keep status 1 and land elsewhere than
     on the whole images.
 
@@ -194,6 +194,7 @@ def _lk_part(
     if grey_prev.shape != grey_next.shape:  # LK takes two images of one size
         return _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags)
     m = (win_px // 2 + 6) * 2.0**level
+    reach_px = (win_px // 2) * 2.0 ** (level + 1)
     al = 2**level
     a = _lk_box((p_prev if box_prev is None else box_prev).reshape(-1, 2), m, grey_prev.shape, al)
     b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
@@ -962,12 +963,11 @@ class FeatureTracker:
     def _lk(self, prev, nxt, p, start, level: int, flags: int, part: bool):
         """One KLT call from points ``p`` (K, 1, 2) float32 crop px of ``prev`` starting at ``start``
         in ``nxt`` (two ``roi`` crops), at most ``level`` (OpenCV's maxLevel): on the parts of the
-        crops the search reads (``_lk_part``, reach: the coarsest level's window in full-resolution
-        px) when ``part``, else on the whole crops. Returns (result (K, 1, 2), status (K,), err (K,))."""
+        crops the search reads (``_lk_part``) when ``part``, else on the whole crops. Returns (result
+        (K, 1, 2), status (K,), err (K,))."""
         k = self.win[0]
         if part:
-            reach = (k // 2) * 2.0 ** (level + 1)
-            return _lk_part(prev, nxt, p, start, k, level, self._criteria, reach, flags=flags)
+            return _lk_part(prev, nxt, p, start, k, level, self._criteria, flags=flags)
         return _lk_whole(prev, nxt, p, start, k, level, self._criteria, flags)
 
     def _texture(self, image: np.ndarray, p: np.ndarray) -> np.ndarray:

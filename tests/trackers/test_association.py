@@ -598,11 +598,11 @@ def test_lk_part_on_fewer_points_keeps_the_numbers_of_all_with_their_box():
     in_b, _ = model.bearing_to_pixel(ft.b_C @ R_b_a.T)
     p = in_b.reshape(-1, 1, 2).astype(np.float32)
     crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
-    q_all, st_all, _ = _lk_part(img_b, img_a, p, p, 11, 2, crit, 40.0)
+    q_all, st_all, _ = _lk_part(img_b, img_a, p, p, 11, 2, crit)
     # the rows farthest from the points' top-left corner: their own box starts elsewhere
     far = np.argsort(-in_b.sum(axis=1))[:5]
-    q_box, st_box, _ = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit, 40.0, box_prev=p)
-    q_own, _, _ = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit, 40.0)
+    q_box, st_box, _ = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit, box_prev=p)
+    q_own, _, _ = _lk_part(img_b, img_a, p[far], p[far], 11, 2, crit)
     ok = st_all[far] == 1
     assert ok.sum() >= 4
     np.testing.assert_array_equal(st_box, st_all[far])
