@@ -270,10 +270,13 @@ class TrackerConfig(_Section):
         description="int: tracks with fewer member features get extra features detected around them. "
         "Null: the front end's default (8).",
     )
-    densify_every: int | None = Field(
+    densify_s: float | None = Field(
         None,
-        ge=1,
-        description="int, frames: densify every n-th frame. Null: the front end's default (2).",
+        ge=0,
+        description="float, s: a small track is densified at most this often, applied as a frame count at "
+        "the frame rate seen, as the grouping's durations (2/30: every 2nd frame at 30 fps, the count it "
+        "was fitted as; 7 at 100 fps; 0 = every frame). Null: the front end's default (2/30). Was "
+        "densify_every (frames).",
     )
 
     def frontend_options(self) -> dict[str, Any]:
@@ -561,6 +564,8 @@ _REMOVED_KEYS: dict[tuple[str, ...], str] = {
     ("fusion", "feature_window_px"): "the fusion's window angle follows the front end's KLT window: set "
     "tracker.features.win_px (the window's side in tracked px; the fusion takes its half-width over each "
     "camera's tracked px per rad)",
+    ("tracker", "densify_every"): "densify's cadence is a duration now: set tracker.densify_s (seconds, "
+    "applied at the frame rate seen; every 2nd frame at 30 fps = 2/30)",
 }
 
 

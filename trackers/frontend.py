@@ -36,6 +36,7 @@ from trackers.association import (
     stereo_klt,
     unheld,
 )
+from trackers.clock import check_durations
 from trackers.detectors import Detector, make_detector, to_grey
 from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
@@ -49,8 +50,10 @@ _OPTION_GROUPS = (
     "association",
     "max_width",
     "densify_below",
-    "densify_every",
+    "densify_s",
 )
+_FRONTEND_RENAMED = {"densify_every": ("densify_s", "every 2nd frame at 30 fps = 2/30 s")}
+DENSIFY_S = 2 / 30  # the front end's default densify_s: every 2nd frame at 30 fps, the count it was fitted as
 
 
 MAX_WIDTH_PX = 1280  # the front end's default max_width
@@ -207,8 +210,12 @@ class FrontEnd:
             camera model scaled alike (``CameraModel.scaled``), so bearings keep their meaning;
             ``CameraView.uv`` is reported in the full frame's pixels; ``densify_below`` (int, default
             8, 0 = off): tracks with fewer members get extra features detected around them
-            (``FeatureTracker.densify``, each track at most every ``densify_every`` frames, default 2),
-            so small obstacles keep enough features.
+            (``FeatureTracker.densify``), so small obstacles keep enough features; ``densify_s`` (s,
+            default 2/30): each track at most this often, applied as a frame count at the frame rate
+            seen (the camera's feature tracker's ``FrameClock``, as the grouping's durations): every
+            2nd frame at 30 fps, the count it was fitted as (``densify_every`` 2 before; the old key is
+            an error naming this one), every 7th at 100 fps, where every 2nd ran densify 3.3x as often
+            a second as at 30 fps (docs/ARCHITECTURE.md "... densify's cadence in seconds").
 
     Attributes:
         timings: seconds of the last frame per stage (resize: frames wider than max_width shrunk,
@@ -217,6 +224,10 @@ class FrontEnd:
     """
 
     def __init__(self, rig, detector: str | Detector = "orb", **options: Any) -> None:
+        old = {k: options[k] for k in _FRONTEND_RENAMED if k in options}
+        self.densify_s = check_durations(
+            "FrontEnd", _FRONTEND_RENAMED, old, {"densify_s": options.get("densify_s", DENSIFY_S)}
+        )["densify_s"]
         unknown = sorted(set(options) - set(_OPTION_GROUPS))
         if unknown:
             raise ConfigError(f"FrontEnd: unknown options {unknown}; expected any of {list(_OPTION_GROUPS)}")
@@ -279,7 +290,6 @@ class FrontEnd:
         # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
         self.scale = tracked_scale(rig, options.get("max_width", MAX_WIDTH_PX))
         self.densify_below = int(options.get("densify_below", 8))
-        self.densify_every = int(options.get("densify_every", 2))
         self._densified: dict[int, int] = {}  # track id -> frame of its last densify
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
         self.cams = {
@@ -452,12 +462,15 @@ class FrontEnd:
                     s1, l1 = gr.update(ft, t_s, R_C)
                     tm["group"] += time.perf_counter() - t0
                     t0 = time.perf_counter()
-                    # tracks with few members, each at most every densify_every frames, 8 per frame
+                    # tracks with few members, each at most every densify_s (as frames at the rate seen:
+                    # none before the feature tracker's clock knows the rate, as no track exists then),
+                    # 8 per frame
+                    every = ft.clock.frames(self.densify_s)
                     small = [
                         t
                         for t in s1
                         if len(t.members) < self.densify_below
-                        and frame - self._densified.get(t.id, -(10**9)) >= self.densify_every
+                        and frame - self._densified.get(t.id, -(10**9)) >= every
                     ]
                     small = sorted(small, key=lambda t: len(t.members))[:8]
                     for t in small:
@@ -465,7 +478,7 @@ class FrontEnd:
                     if len(self._densified) > 4096:  # forget long-gone tracks
                         self._densified = {k: v for k, v in self._densified.items() if frame - v < 300}
                     # one whose representative has no pixel (beyond the lens's field, uv None) is not
-                    # searched, but keeps its turn among the 8 and its densify_every wait (handing the
+                    # searched, but keeps its turn among the 8 and its densify_s wait (handing the
                     # turn to another track was measured worse: docs/ARCHITECTURE.md, "no pixel")
                     small = [t for t in small if t.uv is not None]
                     if small:

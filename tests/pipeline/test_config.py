@@ -216,11 +216,14 @@ def test_front_end_scalar_options_reach_the_front_end():
     from pipeline.config import load_config
     from pipeline.run import build_frontend
 
-    cfg = load_config(None, ["tracker.max_width=640", "tracker.densify_every=3"])
-    assert cfg.tracker.frontend_options() == {"max_width": 640, "densify_every": 3}
+    cfg = load_config(None, ["tracker.max_width=640", "tracker.densify_s=0.1"])
+    assert cfg.tracker.frontend_options() == {"max_width": 640, "densify_s": 0.1}
     fe = build_frontend(cfg, mono_rig())
-    assert fe.densify_every == 3 and fe.densify_below == 8  # the front end's own default kept
+    assert fe.densify_s == 0.1 and fe.densify_below == 8  # the front end's own default kept
     assert load_config(None).tracker.frontend_options() == {}
+    # the old frame count names its replacement
+    with pytest.raises(ConfigError, match=r"tracker\.densify_every' was removed.*tracker\.densify_s"):
+        load_config(None, ["tracker.densify_every=2"])
 
 
 def test_shipped_presets_are_package_data_and_found_by_name(tmp_path, monkeypatch):
