@@ -73,6 +73,199 @@ KLT_WIN_PX = 11
 POPCOUNT8 = np.array([bin(i).count("1") for i in range(256)], np.int64)  # bits set per byte value
 
 
+@dataclass(frozen=True)
+class _DetectJob:
+    """What a detection reads of a FeatureTracker's state (``FeatureTracker._detect_job``), copied at
+    the detection's frame: the room for new features (``free``), the live features' pixels uv (N, 2)
+    (the mask new keypoints keep away from), the lost features' predicted pixels at the frame's time
+    pred (L, 2), ids lost_ids (L,) and descriptors lost_desc (L, 32)."""
+
+    free: int
+    uv: np.ndarray
+    pred: np.ndarray
+    lost_ids: np.ndarray
+    lost_desc: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Found:
+    """A detection's result (``FeatureTracker._find``): keypoints uv (K, 2) float32 frame px, their
+    descriptors (K, 32) uint8 or None, and lost_id (K,) the id of the lost feature each re-acquires
+    (-1: a new feature)."""
+
+    uv: np.ndarray
+    desc: np.ndarray | None
+    lost_id: np.ndarray
+
+    @staticmethod
+    def empty() -> _Found:
+        return _Found(np.zeros((0, 2), np.float32), None, np.zeros(0, np.int64))
+
+
+@dataclass(frozen=True)
+class _Finder:
+    """A FeatureTracker's detection proper (``find``), apart from the tracker's state so that it may run
+    in a worker (thread or process: picklable, with the detector) on a ``_DetectJob``: the tracker's
+    detector, lens mask, the box the detector reads (``FeatureTracker.frame_box``), frame (H, W), grid,
+    spacing and re-acquisition settings."""
+
+    detector: Detector
+    mask: np.ndarray
+    box: tuple[int, int, int, int]
+    shape_hw: tuple[int, int]
+    grid: tuple[int, int]
+    min_distance_px: float
+    reacquire_radius_px: float
+    reacquire_max_hamming: int
+
+    def find(self, job: _DetectJob, image: np.ndarray) -> _Found:
+        """The detection proper, on ``image`` against the state copied in ``job``: the keypoints to add
+        (frame px, descriptors) and the lost feature each re-acquires (its id, -1 for a new feature).
+        Reads only ``job``, ``image`` and these settings, so it may run in another thread or process."""
+        free = job.free
+        # ORB runs on the lens's bounding box (``_det_box``: roi + 32 px, so that its coarse
+        # levels see real pixels past the rim, not a reflected crop border), and describes only the
+        # keypoints that can be kept; other detectors get the whole frame
+        orb = isinstance(self.detector, OrbDetector)
+        x0, y0, x1, y1 = self.box
+        m = self.mask[y0:y1, x0:x1].copy()
+        r = max(1, int(round(self.min_distance_px)))
+        # keep new keypoints away from live features (int32 truncates as int() does; a list of
+        # Python ints: the loop over numpy rows cost as much again as cv2.circle itself)
+        for u, v in (job.uv.astype(np.int32) - np.array([x0, y0], np.int32)).tolist():
+            cv2.circle(m, (u, v), r, 0, -1)
+        if orb:
+            det = self.detector.detect(
+                image[y0:y1, x0:x1],
+                m,
+                origin=(x0, y0),
+                frame_hw=self.shape_hw,
+                select=lambda uv, _sc: self._worth_describing(uv, free, job),
+            )
+            if len(det):
+                det = replace(det, keypoints=det.keypoints + np.array([x0, y0], np.float32))
+        else:
+            det = self.detector.detect(image, m)
+        if not len(det):
+            return _Found.empty()
+        uv = det.keypoints
+        ui = np.clip(np.round(uv[:, 0]).astype(np.intp) - x0, 0, x1 - x0 - 1)
+        vi = np.clip(np.round(uv[:, 1]).astype(np.intp) - y0, 0, y1 - y0 - 1)
+        inside = m[vi, ui] > 0
+        det = det.select(inside)
+        uv = uv[inside]
+        if not len(uv):
+            return _Found.empty()
+        desc_all = (
+            det.descriptors
+            if det.descriptors is not None
+            and det.descriptors.shape[1] == 32
+            and det.descriptors.dtype == np.uint8
+            else None
+        )
+        # a full tracker's ORB described only the keypoints near a lost feature (_worth_describing:
+        # ORB's compute keeps their positions), so all of them are re-acquisition candidates and no
+        # new feature is kept: neither the search for candidates nor the spacing of new ones again
+        only_reacq = orb and free <= 0
+        # re-acquisition first: lost features come back whatever the free capacity (their slots
+        # are still held), so live features may briefly exceed max_features by the lost pool
+        reacq_all = np.full(len(uv), -1, np.intp)
+        if desc_all is not None and len(job.lost_ids):
+            cand = np.arange(len(uv)) if only_reacq else self._near_lost(uv, job.pred)
+            reacq_all = self._match_lost(uv, desc_all, cand, job.pred, job.lost_desc)
+        re = np.flatnonzero(reacq_all >= 0)
+        if only_reacq:
+            keep = re
+        else:
+            # prefer keypoints in thin cells: round-robin over the grid, strongest first
+            order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
+            # spacing among the new ones: at most one per min_distance_px cell of a coarse grid
+            # (the first in ``order`` wins), none in a cell of a re-acquired feature
+            cell = max(1.0, self.min_distance_px)
+            gw = int(self.shape_hw[1] // cell) + 2
+            key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+            cand = order[reacq_all[order] < 0]
+            cand = cand[~_isin(key[cand], key[re])]
+            _, first = np.unique(key[cand], return_index=True)
+            new_idx = cand[np.sort(first)][: max(free, 0)]
+            keep = np.asarray(list(re) + list(new_idx), np.intp)
+        reacq = reacq_all[keep]
+        lost_id = np.where(reacq >= 0, job.lost_ids[np.maximum(reacq, 0)] if len(job.lost_ids) else -1, -1)
+        return _Found(uv[keep], None if desc_all is None else desc_all[keep], lost_id)
+
+    def _worth_describing(self, uv: np.ndarray, free: int, job: _DetectJob) -> np.ndarray:
+        """Indices of the keypoints uv (K, 2) frame px (the detector's round-robin order) that
+        ``_find`` may keep: those that may re-acquire a lost feature (of ``job``'s lost pool), and the
+        first ``free`` (plus as many again as there are re-acquisition candidates, whose cells new ones
+        avoid) of one per min_distance_px cell. Only these get ORB descriptors (at 720p ~600 -> ~100 per
+        detection). With no room (``free`` <= 0) no new feature is kept, so only the re-acquisition
+        candidates."""
+        near = np.zeros(0, np.intp)
+        if len(job.lost_ids):
+            near = self._near_lost(uv, job.pred)
+        if free <= 0:
+            return near
+        cell = max(1.0, self.min_distance_px)
+        gw = int(self.shape_hw[1] // cell) + 2
+        key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+        _, first = np.unique(key, return_index=True)
+        new = np.sort(first)[: max(free, 0) + len(near)]
+        return np.union1d(near, new)
+
+    def _near_lost(self, uv: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        """Indices of the keypoints uv (N, 2) px that may re-acquire a lost feature: in a grid cell
+        of the search radius next to a lost feature's predicted position, pred (L, 2) px
+        (``_lost_predictions``)."""
+        if not len(pred) or not len(uv):
+            return np.zeros(0, np.intp)
+        r = self.reacquire_radius_px
+        gw = int(self.shape_hw[1] // r) + 3
+        kc = (uv // r).astype(np.int64)
+        pc = (pred // r).astype(np.int64)
+        # the 3x3 cells around each prediction, (L, 3, 3) keys (y + dy) gw + (x + dx), in numpy (a
+        # Python set of them took ~2 ms per detection with a few hundred lost features)
+        d = np.arange(-1, 2, dtype=np.int64)
+        near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
+            pc[:, 0, None, None] + d[None, None, :]
+        )
+        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel()))
+
+    def _match_lost(
+        self, uv: np.ndarray, desc: np.ndarray, cand: np.ndarray, pred: np.ndarray, lost_desc: np.ndarray
+    ) -> np.ndarray:
+        """For each new keypoint uv (N, 2) px with descriptor desc (N, 32), the index of the lost
+        feature it re-acquires, or -1; only the candidates ``cand`` (indices, ``_near_lost``) are
+        matched against the lost features' predicted positions pred (L, 2) px and descriptors
+        lost_desc (L, 32)."""
+        out = np.full(len(uv), -1, np.intp)
+        r = self.reacquire_radius_px
+        if not len(cand):
+            return out
+        du = uv[cand, 0, None] - pred[None, :, 0]  # (c, L) squared px (as in _neighbour_velocity)
+        dv = uv[cand, 1, None] - pred[None, :, 1]
+        d2 = du * du + dv * dv
+        near = d2 <= r**2
+        if not near.any():
+            return out
+        # Hamming distances of 32-byte descriptors (popcount of XOR), for the near pairs only
+        ii, jj = np.nonzero(near)
+        ham = np.full(near.shape, 10**6, np.int64)
+        xor = np.bitwise_xor(desc.take(cand[ii], 0), lost_desc.take(jj, 0))
+        ham[ii, jj] = POPCOUNT8[xor].sum(axis=1)
+        taken: set[int] = set()
+        srt = np.sort(ham, axis=1)
+        second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
+        best = np.argmin(ham, axis=1)
+        ok = (srt[:, 0] <= self.reacquire_max_hamming) & (srt[:, 0] < 0.8 * second)
+        for i in np.flatnonzero(ok)[np.argsort(srt[ok, 0], kind="stable")]:
+            j = int(best[i])
+            # distinctive (Lowe's ratio 0.8 against the second-best lost feature) and close enough
+            if ham[i, j] <= self.reacquire_max_hamming and ham[i, j] < 0.8 * second[i] and j not in taken:
+                out[cand[i]] = j
+                taken.add(j)
+        return out
+
+
 def lens_mask(model, margin_px: float = 3.0) -> np.ndarray:
     """(H, W) uint8 mask, 255 inside the lens's image circle shrunk by ``margin_px``, else 0.
 
@@ -469,6 +662,16 @@ class FeatureTracker:
         cell_frac = cv2.resize((self.mask > 0).astype(np.float32), (gx, gy), interpolation=cv2.INTER_AREA)
         self._live_cells = (cell_frac > 0.5).reshape(-1)
         self._criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 10, 0.03)
+        self._finder = _Finder(
+            detector,
+            self.mask,
+            self.frame_box,
+            self.shape_hw,
+            self.grid,
+            self.min_distance_px,
+            self.reacquire_radius_px,
+            self.reacquire_max_hamming,
+        )
         # live features
         self.ids = np.zeros(0, np.int64)
         self.uv = np.zeros((0, 2), np.float32)
@@ -1006,99 +1209,48 @@ class FeatureTracker:
         return self._frames_since_detect >= period
 
     def _detect(self, image: np.ndarray, t_s: float) -> None:
-        """Detect new features (and re-acquire lost ones) in the lens."""
+        """Detect new features (and re-acquire lost ones) in the lens, now (the synchronous schedule:
+        ``_find`` on this frame's state, then ``_merge``)."""
+        job = self._detect_job(t_s)
+        if job is not None:
+            self._merge(self._find(job, image))
+
+    def _detect_job(self, t_s: float) -> _DetectJob | None:
+        """What a detection at time ``t_s`` reads of the tracker's state, copied (so ``_find`` may run
+        while the tracker moves on): None when there is nothing to detect for (full, no lost feature)."""
         free = self.max_features - len(self.ids)
         if free <= 0 and not len(self.lost_ids):
-            return
-        # ORB runs on the lens's bounding box (``_det_box``: roi + 32 px, so that its coarse
-        # levels see real pixels past the rim, not a reflected crop border), and describes only the
-        # keypoints that can be kept; other detectors get the whole frame
-        orb = isinstance(self.detector, OrbDetector)
-        x0, y0, x1, y1 = self.frame_box
-        m = self.mask[y0:y1, x0:x1].copy()
-        r = max(1, int(round(self.min_distance_px)))
-        # keep new keypoints away from live features (int32 truncates as int() does; a list of
-        # Python ints: the loop over numpy rows cost as much again as cv2.circle itself)
-        for u, v in (self.uv.astype(np.int32) - np.array([x0, y0], np.int32)).tolist():
-            cv2.circle(m, (u, v), r, 0, -1)
-        if orb:
-            det = self.detector.detect(
-                image[y0:y1, x0:x1],
-                m,
-                origin=(x0, y0),
-                frame_hw=self.shape_hw,
-                select=lambda uv, _sc: self._worth_describing(uv, free, t_s),
-            )
-            if len(det):
-                det = replace(det, keypoints=det.keypoints + np.array([x0, y0], np.float32))
-        else:
-            det = self.detector.detect(image, m)
-        if not len(det):
-            return
-        uv = det.keypoints
-        ui = np.clip(np.round(uv[:, 0]).astype(np.intp) - x0, 0, x1 - x0 - 1)
-        vi = np.clip(np.round(uv[:, 1]).astype(np.intp) - y0, 0, y1 - y0 - 1)
-        inside = m[vi, ui] > 0
-        det = det.select(inside)
-        uv = uv[inside]
-        if not len(uv):
-            return
-        desc_all = (
-            det.descriptors
-            if det.descriptors is not None
-            and det.descriptors.shape[1] == 32
-            and det.descriptors.dtype == np.uint8
-            else None
-        )
-        # a full tracker's ORB described only the keypoints near a lost feature (_worth_describing:
-        # ORB's compute keeps their positions), so all of them are re-acquisition candidates and no
-        # new feature is kept: neither the search for candidates nor the spacing of new ones again
-        only_reacq = orb and free <= 0
-        # re-acquisition first: lost features come back whatever the free capacity (their slots
-        # are still held), so live features may briefly exceed max_features by the lost pool
-        reacq_all = np.full(len(uv), -1, np.intp)
-        if desc_all is not None and len(self.lost_ids):
-            pred = self._lost_predictions(t_s)
-            cand = np.arange(len(uv)) if only_reacq else self._near_lost(uv, pred)
-            reacq_all = self._match_lost(uv, desc_all, cand, pred)
-        re = np.flatnonzero(reacq_all >= 0)
-        if only_reacq:
-            keep = re
-        else:
-            # prefer keypoints in thin cells: round-robin over the grid, strongest first
-            order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
-            # spacing among the new ones: at most one per min_distance_px cell of a coarse grid
-            # (the first in ``order`` wins), none in a cell of a re-acquired feature
-            cell = max(1.0, self.min_distance_px)
-            gw = int(self.shape_hw[1] // cell) + 2
-            key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
-            cand = order[reacq_all[order] < 0]
-            cand = cand[~_isin(key[cand], key[re])]
-            _, first = np.unique(key[cand], return_index=True)
-            new_idx = cand[np.sort(first)][: max(free, 0)]
-            keep = np.asarray(list(re) + list(new_idx), np.intp)
-        uv = uv[keep]
-        desc = None if desc_all is None else desc_all[keep]
-        reacq = reacq_all[keep]
-        self._append(uv, desc, reacq)
+            return None
+        return _DetectJob(free, self.uv.copy(), self._lost_predictions(t_s), self.lost_ids, self.lost_desc)
 
-    def _worth_describing(self, uv: np.ndarray, free: int, t_s: float) -> np.ndarray:
-        """Indices of the keypoints uv (K, 2) frame px (the detector's round-robin order) that
-        ``_detect`` may keep: those that may re-acquire a lost feature, and the first ``free`` (plus
-        as many again as there are re-acquisition candidates, whose cells new ones avoid) of one per
-        min_distance_px cell. Only these get ORB descriptors (at 720p ~600 -> ~100 per detection).
-        With no room (``free`` <= 0) no new feature is kept, so only the re-acquisition candidates."""
-        near = np.zeros(0, np.intp)
-        if len(self.lost_ids):
-            near = self._near_lost(uv, self._lost_predictions(t_s))
-        if free <= 0:
-            return near
-        cell = max(1.0, self.min_distance_px)
-        gw = int(self.shape_hw[1] // cell) + 2
-        key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
-        _, first = np.unique(key, return_index=True)
-        new = np.sort(first)[: max(free, 0) + len(near)]
-        return np.union1d(near, new)
+    def _find(self, job: _DetectJob, image: np.ndarray) -> _Found:
+        """The detection proper on ``image`` against ``job`` (``_Finder.find``)."""
+        return self._finder.find(job, image)
+
+    def _merge(self, found: _Found) -> np.ndarray:
+        """Add a detection's keypoints as live features (``_find``'s result; the re-acquired ones by
+        their lost feature's id); returns the rows added. Run later than the state ``_find`` read (the
+        deferred schedule), a keypoint whose lost feature has been forgotten since is dropped, and new
+        features take only the room left now (the first ones in ``_find``'s order)."""
+        n0 = len(self.ids)
+        if not len(found.uv):
+            return np.zeros(0, np.intp)
+        reacq = np.full(len(found.uv), -1, np.intp)
+        keep = np.ones(len(found.uv), bool)
+        back = np.flatnonzero(found.lost_id >= 0)
+        if len(back):
+            row = {int(i): k for k, i in enumerate(self.lost_ids.tolist())}
+            for k in back.tolist():
+                reacq[k] = row.get(int(found.lost_id[k]), -1)
+                keep[k] = reacq[k] >= 0
+        fresh = np.flatnonzero(found.lost_id < 0)
+        keep[fresh[max(self.max_features - n0, 0) :]] = False
+        if keep.all():
+            self._append(found.uv, found.desc, reacq)
+        else:
+            desc = None if found.desc is None else found.desc[keep]
+            self._append(found.uv[keep], desc, reacq[keep])
+        return np.arange(n0, len(self.ids))
 
     def _append(self, uv: np.ndarray, desc: np.ndarray | None, reacq: np.ndarray) -> int:
         """Add keypoints uv (n,2) as live features (re-acquired ones, ``reacq >= 0``, keep the lost
@@ -1176,56 +1328,6 @@ class FeatureTracker:
         time since (s)."""
         dt = np.maximum(float(t_s) - self.lost_t, 0.0).astype(np.float32)
         return self.lost_uv + self.lost_vel * dt[:, None]
-
-    def _near_lost(self, uv: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        """Indices of the keypoints uv (N, 2) px that may re-acquire a lost feature: in a grid cell
-        of the search radius next to a lost feature's predicted position, pred (L, 2) px
-        (``_lost_predictions``)."""
-        if not len(pred) or not len(uv):
-            return np.zeros(0, np.intp)
-        r = self.reacquire_radius_px
-        gw = int(self.shape_hw[1] // r) + 3
-        kc = (uv // r).astype(np.int64)
-        pc = (pred // r).astype(np.int64)
-        # the 3x3 cells around each prediction, (L, 3, 3) keys (y + dy) gw + (x + dx), in numpy (a
-        # Python set of them took ~2 ms per detection with a few hundred lost features)
-        d = np.arange(-1, 2, dtype=np.int64)
-        near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
-            pc[:, 0, None, None] + d[None, None, :]
-        )
-        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel()))
-
-    def _match_lost(self, uv: np.ndarray, desc: np.ndarray, cand: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        """For each new keypoint uv (N, 2) px with descriptor desc (N, 32), the index of the lost
-        feature it re-acquires, or -1; only the candidates ``cand`` (indices, ``_near_lost``) are
-        matched against the lost features' predicted positions pred (L, 2) px."""
-        out = np.full(len(uv), -1, np.intp)
-        r = self.reacquire_radius_px
-        if not len(cand):
-            return out
-        du = uv[cand, 0, None] - pred[None, :, 0]  # (c, L) squared px (as in _neighbour_velocity)
-        dv = uv[cand, 1, None] - pred[None, :, 1]
-        d2 = du * du + dv * dv
-        near = d2 <= r**2
-        if not near.any():
-            return out
-        # Hamming distances of 32-byte descriptors (popcount of XOR), for the near pairs only
-        ii, jj = np.nonzero(near)
-        ham = np.full(near.shape, 10**6, np.int64)
-        xor = np.bitwise_xor(desc.take(cand[ii], 0), self.lost_desc.take(jj, 0))
-        ham[ii, jj] = POPCOUNT8[xor].sum(axis=1)
-        taken: set[int] = set()
-        srt = np.sort(ham, axis=1)
-        second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
-        best = np.argmin(ham, axis=1)
-        ok = (srt[:, 0] <= self.reacquire_max_hamming) & (srt[:, 0] < 0.8 * second)
-        for i in np.flatnonzero(ok)[np.argsort(srt[ok, 0], kind="stable")]:
-            j = int(best[i])
-            # distinctive (Lowe's ratio 0.8 against the second-best lost feature) and close enough
-            if ham[i, j] <= self.reacquire_max_hamming and ham[i, j] < 0.8 * second[i] and j not in taken:
-                out[cand[i]] = j
-                taken.add(j)
-        return out
 
     def _drop(self, idx: np.ndarray, remember: bool) -> None:
         """Remove live features ``idx``; remember those with descriptors for re-acquisition."""
