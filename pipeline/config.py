@@ -448,6 +448,20 @@ class LiveConfig(_Section):
         "the same core. Below the process's own value it needs CAP_SYS_NICE; without it the threads keep "
         "the process's value (summary.json says which applied). null: leave them as they are.",
     )
+    deferred_detection: bool = Field(
+        True,
+        description="bool: the feature trackers' periodic ORB re-detection runs in a worker thread at "
+        "``detection_nice``, off the frame's path: a frame's reports do not wait for its detection, whose "
+        "features join at the first frame after it is done (tracked from the detection's frame). false: "
+        "each detection in its own frame, as `run` does (the offline modes always do).",
+    )
+    detection_nice: int | None = Field(
+        10,
+        ge=-20,
+        le=19,
+        description="int: Linux nice value of the deferred detection's thread (higher = later: it runs in "
+        "the loop's idle time, and gets a share of a busy core by its weight). null: the process's own.",
+    )
 
 
 # ------------------------------------------------------------------------------------------- outputs

@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import gc
 import http.server
+import multiprocessing
 import sys
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -93,6 +95,59 @@ DECODE_LEAD_SLACK_S = 0.002
 #: What a reader's ``read()`` returns as the image of a frame it grabbed but did not decode (see
 #: :attr:`CaptureReader.wanted`): counted as grabbed and stale, never published.
 SKIPPED = object()
+
+
+def set_thread_nice(nice: int | None) -> int | None:
+    """Give the calling thread the nice value ``nice`` (None: leave it) when the OS allows it (Linux:
+    per thread); returns the thread's nice value as it runs, None when it cannot be read."""
+    import os
+
+    if not hasattr(os, "setpriority") or not hasattr(threading, "get_native_id"):
+        return None
+    tid = threading.get_native_id()
+    if nice is not None:
+        try:
+            os.setpriority(os.PRIO_PROCESS, tid, int(nice))
+        except OSError:  # below the process's value without CAP_SYS_NICE: the thread keeps its own
+            pass
+    try:
+        return os.getpriority(os.PRIO_PROCESS, tid)
+    except OSError:
+        return None
+
+
+def _detection_worker_init(nice: int | None) -> None:
+    import cv2
+
+    import trackers.features  # noqa: F401  (the jobs' code, imported before the first job)
+
+    cv2.setNumThreads(1)  # one thread, on the cores the run was given
+    set_thread_nice(nice)
+
+
+def _worker_nice() -> int | None:
+    return set_thread_nice(None)
+
+
+def detection_worker(nice: int | None) -> ProcessPoolExecutor:
+    """The deferred re-detection's executor (``FrontEnd.defer_detection``): one child process (spawned:
+    no fork of a process with camera threads) at ``nice``, so that a detection runs in the loop's idle
+    time and a busy core gives it only its weight's share. A process, not a thread: a low-priority thread
+    holding the GIL (ORB's Python around its C++ calls) when it is preempted stops the loop until it
+    runs again (measured: the loop thread's off-CPU time per frame p99 4-9 -> 34-46 ms). Started, and
+    its imports done, before it returns."""
+    ex = ProcessPoolExecutor(
+        max_workers=1,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_detection_worker_init,
+        initargs=(nice,),
+    )
+    try:
+        ex.nice = ex.submit(_worker_nice).result()  # (the value it runs at, for summary.json)
+    except BaseException:
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    return ex
 
 
 @dataclass(frozen=True)
@@ -371,25 +426,8 @@ class Grabber:
             self.stale += 1
             self.skipped += 1
 
-    def _set_nice(self) -> None:
-        """Give this (the grabber's) thread the nice value asked for, when the OS allows it."""
-        import os
-
-        if not hasattr(os, "setpriority") or not hasattr(threading, "get_native_id"):
-            return
-        tid = threading.get_native_id()
-        if self.nice_wanted is not None:
-            try:
-                os.setpriority(os.PRIO_PROCESS, tid, int(self.nice_wanted))  # Linux: per thread
-            except OSError:  # no CAP_SYS_NICE: the thread keeps the process's value
-                pass
-        try:
-            self.nice = os.getpriority(os.PRIO_PROCESS, tid)
-        except OSError:
-            self.nice = None
-
     def _loop(self) -> None:
-        self._set_nice()
+        self.nice = set_thread_nice(self.nice_wanted)
         backoff = self.backoff0
         reader = self._reader
         while not self._stop.is_set():
@@ -812,6 +850,8 @@ def run_live(
         egomotion = FramePoseCache(egomotion)
     frontend = frontend if frontend is not None else build_frontend(cfg, rig)
     fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
+    # the periodic re-detection off the frame's path (a worker process), started before the cameras
+    defer = lv.deferred_detection and hasattr(frontend, "defer_detection")
     if readers is None:
         if len(lv.cameras) != len(names):
             raise SourceError(
@@ -844,6 +884,17 @@ def run_live(
         if log is not None:
             log.close()
         raise
+    worker = None
+    if defer:
+        try:
+            worker = detection_worker(lv.detection_nice)
+        except BaseException:
+            for r in opened:
+                r.close()
+            if log is not None:
+                log.close()
+            raise
+        frontend.defer_detection(worker)
     # Replayed files of one rig share one schedule start, set once all are open: a camera that took
     # longer to open does not run behind the others (pairing is by the videos' own t_s).
     start_replays = time.monotonic()
@@ -869,6 +920,9 @@ def run_live(
             r.close()
         if log is not None:
             log.close()
+        if worker is not None:
+            frontend.defer_detection(None)
+            worker.shutdown(wait=True, cancel_futures=True)
         raise
 
     writer = TracksWriter(out / TRACKS_NAME)
@@ -1003,6 +1057,16 @@ def run_live(
         sys.setswitchinterval(switch_interval)
         for g in grabbers:
             g.stop()
+        deferred = None
+        if worker is not None:  # the detection under way (if any) is dropped; the process ends with the run
+            frontend.defer_detection(None)
+            worker.shutdown(wait=True, cancel_futures=True)
+            per_cam = getattr(frontend, "deferred", {})
+            deferred = {
+                "worker_nice": getattr(worker, "nice", None),
+                "joined": {n: d["joined"] for n, d in per_cam.items()},
+                "frames_late": {n: d["frames_late"] for n, d in per_cam.items()},
+            }
         writer.close()
         if log is not None:
             log.close()
@@ -1033,6 +1097,10 @@ def run_live(
             "frames_not_decoded": {g.name: g.skipped for g in grabbers},
             "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
             "grabber_nice": {g.name: g.nice for g in grabbers},
+            # the re-detections run off the frame's path (live.deferred_detection): the worker process's
+            # nice value; per feature tracker, detections joined and the frames processed in all between
+            # each detection's frame and its join
+            "deferred_detection": deferred,
             "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
             "frames_without_pose": no_pose,
             "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},

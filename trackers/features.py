@@ -705,6 +705,16 @@ class FeatureTracker:
         self._t_uv = 0.0  # time (s) of the positions in self.uv
         self.clock = FrameClock()  # the frame rate seen, for klt_step_s, redetect_s and reacquire_s
         self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
+        # the deferred schedule (``defer_detection``): the executor that runs ``_find``, and the
+        # detection under way (its future, frame index, time) or None; _n_step: how many of _refs
+        # are the KLT step's (the others are kept for that detection's frame)
+        self._executor: Any = None
+        self._pending: tuple[Any, int, float, int] | None = None  # (+ n_frames when submitted)
+        self.deferred: dict[str, int] = {"joined": 0, "frames_late": 0}  # joined, frames after their own
+        self._n_step = 0
+        # the detection that joined this frame: (its frame, t_s, the ids of its features, their (K, 2) px
+        # at that frame), for the coming KLT step
+        self._joined: tuple[int, float, np.ndarray, np.ndarray] | None = None
         self.n_frames = 0
         self.last_stats: dict[str, float] = {}
 
@@ -712,6 +722,21 @@ class FeatureTracker:
     @property
     def n_live(self) -> int:
         return len(self.ids)
+
+    def defer_detection(self, executor: Any) -> None:
+        """Run the re-detections off the frame's path (live mode): a frame's detection (``_Finder.find``
+        on the frame and the state copied then, ``_detect_job``) is submitted to ``executor``
+        (``submit(fn, *args)`` -> a ``concurrent.futures.Future``; live mode's is
+        ``pipeline.live.detection_worker``, a process at a lower priority) and the frame goes on without
+        it; its features join the tracker at the first frame that finds it done (``_merge``), tracked
+        from their positions in the detection's frame into that one like any feature stepping from an
+        older reference (the frame's crop is kept until then); their history starts there, age 1, as for
+        a feature detected in that frame. One detection at a time; one still under way when ``history``
+        reference frames are kept is waited for; its error is raised there (RuntimeError naming the
+        frame). None: the synchronous schedule (the default: each detection in its own frame). A
+        detection under way when the schedule is set is dropped (the end of a live run)."""
+        self._executor = executor
+        self._pending = None
 
     def track(
         self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None
@@ -734,19 +759,36 @@ class FeatureTracker:
         cur = self._crop(grey)
         self.last_stats = {}
         self.clock.tick(t_s)
+        merged = 0.0
+        if self._pending is not None:  # a deferred detection: its features join when it is done
+            if self._pending[0].done() or len(self._refs) >= self.H:
+                tm = time.perf_counter()
+                self._merge_pending()
+                merged = time.perf_counter() - tm
         if self._refs and len(self.ids):
             self._klt(cur, float(t_s) - self._t_uv)
         # KLT's step: klt_step_s as frames (1 before the rate is known), at most the history's
-        # reach (the reference position is a history sample)
+        # reach (the reference position is a history sample); a deferred detection's frame is kept
+        # until its features have joined
         n = self.clock.frames(self.klt_step_s)
         self._refs.append((int(frame), float(t_s), cur))
-        while len(self._refs) > (1 if n >= self.clock.UNKNOWN else min(n, self.H)):
+        keep = 1 if n >= self.clock.UNKNOWN else min(n, self.H)
+        t_det = np.inf if self._pending is None else self._pending[2]
+        while len(self._refs) > keep and not self._refs[0][1] >= t_det:
             self._refs.popleft()
+        self._n_step = min(len(self._refs), keep)
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
         self._frames_since_detect += 1
-        if self._need_detection():
-            self._detect(image if image is not None else grey, float(t_s))
+        if self._pending is None and self._need_detection():
+            img = image if image is not None else grey
+            if self._executor is None:
+                self._detect(img, float(t_s))
+            else:
+                job = self._detect_job(float(t_s))
+                if job is not None:
+                    fut = self._executor.submit(self._finder.find, job, img)
+                    self._pending = (fut, int(frame), float(t_s), self.n_frames)
             self._frames_since_detect = 0
         t2 = time.perf_counter()
         self._bearings_and_history(frame, t_s)
@@ -754,7 +796,30 @@ class FeatureTracker:
         self._forget_lost(self.lost_for > self.clock.frames(self.reacquire_s, 0))
         self.n_frames += 1
         t3 = time.perf_counter()
-        return self.features(), {"track": (t1 - t0) + (t3 - t2), "detect": t2 - t1}
+        return self.features(), {"track": (t1 - t0) + (t3 - t2) - merged, "detect": t2 - t1 + merged}
+
+    def _merge_pending(self) -> None:
+        """The deferred detection's features join (``defer_detection``): waited for when still under
+        way; the coming KLT steps them from their positions at the detection's frame (``_joined``), the
+        previous frame's position extrapolated from there (their velocity: the neighbours' or the lost
+        feature's). Their first history sample is this frame's, as for a feature detected in it
+        (``age`` counts the samples: the grouper reads a feature's samples as one per frame)."""
+        fut, f_det, t_det, n_det = self._pending
+        self._pending = None
+        self.deferred["joined"] += 1
+        self.deferred["frames_late"] += self.n_frames - n_det
+        try:
+            found = fut.result()
+        except Exception as e:
+            raise RuntimeError(
+                f"FeatureTracker {self.name!r}: the deferred detection of frame {f_det} (t_s {t_det!r}) "
+                f"failed: {type(e).__name__}: {e}"
+            ) from e
+        rows = self._merge(found)
+        if len(rows):
+            self._joined = (int(f_det), float(t_det), self.ids[rows].copy(), self.uv[rows].copy())
+            self.uv[rows] += self.vel[rows] * np.float32(max(self._t_uv - t_det, 0.0))
+            self.age[rows] = 0  # (1 once tracked into this frame)
 
     @property
     def crop(self) -> tuple[np.ndarray | None, np.ndarray]:
@@ -1006,6 +1071,9 @@ class FeatureTracker:
         """
         off = self._off
         nref = len(self._refs)
+        # the step's references (the newest nstep); older ones are kept for a deferred detection's
+        # frame (``defer_detection``)
+        nstep = min(nref, self._n_step)
         # each feature's lag j (0: the previous frame, nref - 1: the oldest reference) and its
         # position in the reference frame (ref_uv, full-frame px: a history sample, the same
         # float32 numbers as uv had then)
@@ -1017,7 +1085,7 @@ class FeatureTracker:
         if nref > 1:
             n = self._h_n[self.slot]
             ref_uv = self.uv.copy()
-            for j in range(1, nref):
+            for j in range(1, nstep):
                 # the sample j back is that reference frame's when its frame index and time are that
                 # frame's (both: a caller's frame index may repeat, e.g. a live camera's counter
                 # restarting, and a re-acquired feature's sample from before its loss must not be
@@ -1029,6 +1097,18 @@ class FeatureTracker:
                 lag[at] = j
                 ref_uv[at] = self._h_uv.reshape(-1, 2)[fi[at]]
                 dt_ref[at] = dt_s + (self._t_uv - self._h_t.reshape(-1)[fi[at]])
+        # a deferred detection's features, joined this frame (``_merge_pending``): they step from their
+        # positions in the detection's frame (kept in _refs for them)
+        if self._joined is not None:
+            f_det, t_det, jids, juv = self._joined
+            self._joined = None
+            j = next(j for j in range(nref) if self._refs[nref - 1 - j][:2] == (f_det, t_det))
+            at = np.flatnonzero(_isin(self.ids, jids))
+            k = np.searchsorted(jids, self.ids[at], sorter=np.argsort(jids))
+            lag[at] = j
+            ref_uv = ref_uv.copy() if ref_uv is self.uv else ref_uv
+            ref_uv[at] = juv[np.argsort(jids)[k]]
+            dt_ref[at] = dt_s + (self._t_uv - t_det)
         moving = bool(np.isfinite(dt_s) and dt_s > 0)
         # constant-velocity prediction (px): v (px/s) * dt (s) from the previous frame's position;
         # from the reference position the predicted displacement is (uv - ref_uv) + v dt
@@ -1051,7 +1131,7 @@ class FeatureTracker:
             # the features younger than the step (few: densified and re-detected ones, clustered) on
             # the parts of the two images their search reads, the others (about the lens) on the
             # whole crops; every feature at <= 1 / klt_step_s fps
-            part = j < nref - 1
+            part = j < nstep - 1
             # forward, starting from the prediction
             guess = (q0 + disp[sel]).reshape(-1, 1, 2)
             g1, gst, gerr = self._lk(prev, cur, p0, guess, self.levels, cv2.OPTFLOW_USE_INITIAL_FLOW, part)

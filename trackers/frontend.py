@@ -534,6 +534,18 @@ class FrontEnd:
         self.timings = tm
         return out
 
+    def defer_detection(self, executor: Any) -> None:
+        """The feature trackers' re-detections run on ``executor`` off the frame's path (live mode:
+        ``FeatureTracker.defer_detection``); None: in their frames (the default)."""
+        for ft in self.trackers.values():
+            ft.defer_detection(executor)
+
+    @property
+    def deferred(self) -> dict[str, dict[str, int]]:
+        """Per feature tracker: deferred detections joined and the frames between their own and their
+        joins, in all (``FeatureTracker.deferred``)."""
+        return {name: dict(ft.deferred) for name, ft in self.trackers.items()}
+
     # ------------------------------------------------------------------------------ helpers
     @staticmethod
     def _has_texture(grey: np.ndarray, mask: np.ndarray, sample: np.ndarray | None = None) -> bool:

@@ -725,3 +725,97 @@ def test_a_paced_replay_decodes_each_frame_just_before_it_is_due_not_right_after
     assert lead == pytest.approx(0.017)
     assert starts[:2] == pytest.approx([100.0, 100.05])  # no interval known yet: at once
     assert starts[2:] == pytest.approx([d - 0.017 for d in due[2:]])
+
+
+class DeferringFrontEnd(FakeFrontEnd):
+    """Takes the live run's detection worker and runs a job on it: ``job`` submitted at the first frame,
+    its result taken at the third (a job that raises stops the run there)."""
+
+    def __init__(self, rig, job=(abs, -3)):
+        super().__init__(rig)
+        self.executors: list = []
+        self.job = job
+        self.result = None
+
+    def defer_detection(self, executor):
+        self.executors.append(executor)
+
+    def process(self, images, frame, t_s, T_W_B=None):
+        if len(self.calls) == 0:
+            self.fut = self.executors[-1].submit(*self.job)
+        if len(self.calls) == 2:
+            self.result = self.fut.result()
+        return super().process(images, frame, t_s)
+
+
+def _no_worker_left():
+    import multiprocessing
+
+    return not multiprocessing.active_children()
+
+
+def test_the_live_run_detects_in_a_worker_process_at_its_nice_that_ends_with_the_run(tmp_path):
+    """live.deferred_detection (default): the front end gets a worker process (spawned and started before
+    the cameras, at live.detection_nice), which runs jobs beside the frames and is gone when the run ends;
+    the front end is set back to detecting in its frames. Off: no worker."""
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    front = DeferringFrontEnd(mono_rig())
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
+    assert r.frames >= 3 and front.result == 3
+    worker, reset = front.executors
+    assert reset is None and _no_worker_left()
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["deferred_detection"]["worker_nice"] == worker.nice >= 10
+    front = FakeFrontEnd(mono_rig())
+    front.defer_detection = lambda ex: pytest.fail("no worker with live.deferred_detection=false")
+    _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front,
+          cfg=_cfg("live.deferred_detection=false"))
+
+
+def test_a_failing_detection_job_stops_the_live_run_with_its_error_and_no_worker_left(tmp_path):
+    """The worker's error reaches the loop (the frame that takes the job's result) and ends the run with
+    it, outputs written and the worker process gone, not a hang."""
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    front = DeferringFrontEnd(mono_rig(), job=(int, "not a number"))
+    with pytest.raises(ValueError, match="not a number"):
+        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
+    assert _no_worker_left() and front.executors[-1] is None
+    assert (tmp_path / "out" / "summary.json").is_file()
+
+
+def test_a_feature_tracker_detects_through_the_worker_process_as_in_its_frame():
+    """The worker process (the detector and the tracker's settings pickled to it) finds what the tracker
+    finds in its own frame: on a still scene the features that join equal, in number and place, those of
+    the synchronous schedule's first frame (ORB is deterministic; KLT on a still scene moves them by far
+    less than a pixel)."""
+    import itertools
+
+    from estimators.rig import Camera, forward_T_C_B
+    from pipeline.live import detection_worker
+    from tests.trackers.conftest import SphereScene, equidistant
+    from trackers.detectors import make_detector
+    from trackers.features import FeatureTracker
+
+    model = equidistant()
+    grey = SphereScene(model).render()
+
+    def tracker():
+        cam = Camera("cam0", model, forward_T_C_B())
+        return FeatureTracker(cam, make_detector("orb", max_features=400), ids=itertools.count(1))
+
+    sync = tracker().track(grey, 0, 0.0)[0]
+    ft = tracker()
+    ex = detection_worker(None)
+    try:
+        ft.defer_detection(ex)
+        k = 0
+        while not len(ft.features()) and k < 400:
+            ft.track(grey, k, k / 30)
+            k += 1
+            time.sleep(0.01)
+    finally:
+        ft.defer_detection(None)
+        ex.shutdown()
+    got = ft.features()
+    assert len(got) == len(sync) > 100
+    np.testing.assert_allclose(got.uv, sync.uv, atol=0.05)

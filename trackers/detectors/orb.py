@@ -94,6 +94,26 @@ class OrbDetector(Detector):
             fastThreshold=int(fast_threshold),
         )
 
+    def __getstate__(self) -> dict:
+        """Picklable (a live run's detection worker process gets the detector): cv2.ORB is not, so its
+        settings travel and it is made again."""
+        o = self._orb
+        state = {k: v for k, v in self.__dict__.items() if k != "_orb"}
+        state["_orb_args"] = {
+            "nfeatures": o.getMaxFeatures(),
+            "scaleFactor": o.getScaleFactor(),
+            "nlevels": o.getNLevels(),
+            "edgeThreshold": o.getEdgeThreshold(),
+            "patchSize": o.getPatchSize(),
+            "fastThreshold": o.getFastThreshold(),
+        }
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        state = dict(state)
+        self._orb = cv2.ORB_create(**state.pop("_orb_args"))
+        self.__dict__.update(state)
+
     def detect(
         self,
         image: np.ndarray,

@@ -1,0 +1,205 @@
+"""FeatureTracker's deferred re-detection (live mode, ``defer_detection``): a frame's detection runs off its
+path and its features join at a later frame, tracked from the detection's frame; executors stand in for
+the worker thread so each schedule is deterministic."""
+
+from __future__ import annotations
+
+import itertools
+from concurrent.futures import Future
+
+import numpy as np
+import pytest
+
+from estimators.errors import InputError
+from estimators.rig import Camera, forward_T_C_B
+from tests.trackers.conftest import SphereScene, rot_axis
+from trackers.detectors import make_detector
+from trackers.features import FeatureTracker
+
+
+class NowExecutor:
+    """Runs each job when it is submitted (a synchronous stand-in for the worker thread)."""
+
+    def __init__(self) -> None:
+        self.jobs = 0
+
+    def submit(self, fn, *args):
+        self.jobs += 1
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args))
+        except Exception as e:  # the worker's error travels in the future, as in a thread pool
+            fut.set_exception(e)
+        return fut
+
+
+class HeldExecutor:
+    """Holds each job until ``release()`` runs it (a detection that takes several frames)."""
+
+    def __init__(self) -> None:
+        self.held: list[tuple[Future, object, tuple]] = []
+
+    def submit(self, fn, *args):
+        fut: Future = Future()
+        self.held.append((fut, fn, args))
+        return fut
+
+    def release(self) -> None:
+        for fut, fn, args in self.held:
+            fut.set_result(fn(*args))
+        self.held = []
+
+
+def make_tracker(model, **kw) -> FeatureTracker:
+    cam = Camera("cam0", model, forward_T_C_B())
+    return FeatureTracker(cam, make_detector("orb", max_features=400), ids=itertools.count(1), **kw)
+
+
+def _turning(model, n: int, step_deg: float = 1.0):
+    scene = SphereScene(model)
+    return [scene.render(rot_axis([0, 1, 0], k * np.radians(step_deg))) for k in range(n)]
+
+
+def test_a_deferred_detection_joins_at_the_next_frame_as_the_synchronous_one_tracked():
+    """With the detection done by the next frame, its features join there, tracked from the detection's
+    frame: frame 0 publishes no feature (its detection is under way), frame 1 the same features, ids and
+    float32 positions as the synchronous schedule's frame 1 (the same ORB result, the same KLT step from
+    frame 0), as features first seen in frame 1: one history sample, age 1 (the grouper reads a
+    feature's samples as one per frame)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    frames = _turning(model, 6)
+    sync, dfr = make_tracker(model, max_features=300), make_tracker(model, max_features=300)
+    ex = NowExecutor()
+    dfr.defer_detection(ex)
+    out_s, out_d = [], []
+    for k, img in enumerate(frames):
+        out_s.append(sync.track(img, k, k / 30)[0])
+        out_d.append(dfr.track(img, k, k / 30)[0])
+    assert len(out_s[0]) > 100 and len(out_d[0]) == 0
+    assert ex.jobs >= 1
+    np.testing.assert_array_equal(out_d[1].ids, out_s[1].ids)
+    np.testing.assert_array_equal(out_d[1].uv, out_s[1].uv)
+    assert np.all(out_d[1].age == 1) and np.all(out_s[1].age == 2)
+    assert dfr.deferred == {"joined": ex.jobs, "frames_late": ex.jobs}  # each joined one frame after its own
+    i = int(out_d[1].ids[0])
+    assert dfr.history(i).frame.tolist()[:1] == [1] and sync.history(i).frame.tolist()[:2] == [0, 1]
+
+
+def test_a_detection_that_joins_frames_later_steps_from_its_own_frame(monkeypatch):
+    """A detection of frame 2 done only after frame 4: its features are not published in frames 2-4, join
+    at frame 5 (their history from there), and KLT takes them from their positions in frame 2's image
+    (kept for them) into frame 5's; their bearings follow the camera's rotation from frame 2 to 5 (b_5 =
+    R(3 steps)^T b_2 for a static world at infinity), within the KLT's error (a step from another frame's
+    image at the frame-2 position would be off by 1 deg, 1.1 px, per frame)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    step = np.radians(1.0)
+    frames = _turning(model, 8)
+    ft = make_tracker(model, max_features=300, redetect_s=2 / 30)
+    ex = HeldExecutor()
+    ft.defer_detection(ex)
+    calls = []
+    orig = ft._lk
+
+    def spy(prev, nxt, p, start, level, flags, part):
+        calls.append((prev, len(p)))
+        return orig(prev, nxt, p, start, level, flags, part)
+
+    monkeypatch.setattr(ft, "_lk", spy)
+    merged = []  # (ids given, the detection's keypoints) per join
+    orig_merge = ft._merge
+
+    def merge_spy(found):
+        rows = orig_merge(found)
+        merged.append((ft.ids[rows].copy(), found))
+        return rows
+
+    monkeypatch.setattr(ft, "_merge", merge_spy)
+    ids_at: dict[int, set[int]] = {}
+    for k in range(8):
+        if k in (1, 5):  # frame 0's detection joins at frame 1; frame 2's at frame 5
+            ex.release()
+        calls.clear()
+        feats, _ = ft.track(frames[k], k, k / 30)
+        ids_at[k] = set(feats.ids.tolist())
+        if k == 2:
+            assert len(ex.held) == 1  # frame 2's detection is under way
+            crop2 = ft._refs[-1][2]
+        if k == 5:
+            first5 = [c for c in calls if c[0] is crop2]
+            assert len(ft._refs) == 1  # frame 2's crop released once its features joined
+            feats5 = feats
+    new = ids_at[5] - ids_at[4]
+    assert len(new) >= 10, f"{len(new)} features joined at frame 5"
+    assert first5 and sum(n for _, n in first5) >= len(new)  # stepped from frame 2's crop
+    R = rot_axis([0, 1, 0], 3 * step).T  # b_C5 = R_W_C5^T R_W_C2 b_C2 for a static world at infinity
+    rad_px = model.max_angle_rad / model.image_circle()[2]
+    errs = []
+    ids_j, found = merged[-1]  # frame 2's detection, joined at frame 5: its kept rows in order
+    assert np.all(found.lost_id == -1) and new <= set(ids_j.tolist())
+    b2 = model.pixel_to_bearing(found.uv[: len(ids_j)].astype(np.float64))[0]
+    first = dict(zip(ids_j.tolist(), b2, strict=True))
+    for i in new:
+        assert ft.history(i).frame.tolist()[:1] == [5]  # first seen at the join
+        b5 = feats5.b_C[feats5.ids == i][0]
+        errs.append(np.arccos(np.clip((R @ first[i]) @ b5, -1, 1)) / rad_px)
+    assert np.median(errs) < 0.3, f"median {np.median(errs):.2f} px from the rotation"
+    assert ft.deferred["joined"] >= 2
+
+
+def test_a_detection_joins_into_the_room_left_and_drops_forgotten_reacquisitions():
+    """The merge after the state moved on: new features take only the room left now (the first ones of
+    the detection's order), and a keypoint that re-acquired a lost feature forgotten since is dropped."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    ft = make_tracker(model, max_features=50)
+    job = ft._detect_job(0.0)
+    found = ft._find(job, SphereScene(model).render())
+    assert len(found.uv) == 50 and np.all(found.lost_id == -1)
+    ft._append(np.array([[160.0, 120.0]] * 45, np.float32), None, np.full(45, -1, np.intp))
+    rows = ft._merge(found)
+    assert len(rows) == 5
+    np.testing.assert_array_equal(ft.uv[rows], found.uv[:5])
+    # a re-acquisition of a lost feature the tracker no longer remembers
+    gone = type(found)(found.uv[:1], found.desc[:1], np.array([10**6], np.int64))
+    assert len(ft._merge(gone)) == 0
+
+
+def test_a_failing_deferred_detection_is_a_clear_error_at_its_join():
+    """The worker's error reaches the frame that would take the detection's features: a RuntimeError
+    naming the camera, the detection's frame and the cause (not a silent loss of re-detection)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    ft = make_tracker(model)
+    ft.defer_detection(NowExecutor())
+    grey = SphereScene(model).render()
+
+    def bad(*a, **k):
+        raise InputError("orb: the frame is not an image")
+
+    ft.detector.detect = bad
+    ft.track(grey, 7, 0.0)  # submitted: the frame goes on
+    with pytest.raises(RuntimeError, match=r"'cam0'.*frame 7.*InputError: orb: the frame is not an image"):
+        ft.track(grey, 8, 1 / 30)
+
+
+def test_setting_the_synchronous_schedule_drops_a_detection_under_way():
+    """defer_detection(None) (the end of a live run) drops the detection under way: the tracker keeps no
+    crop for it and detects in its frames again."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    grey = SphereScene(model).render()
+    ft = make_tracker(model, max_features=200)
+    ex = HeldExecutor()
+    ft.defer_detection(ex)
+    assert len(ft.track(grey, 0, 0.0)[0]) == 0 and ft._pending is not None
+    ft.defer_detection(None)
+    assert ft._pending is None
+    assert len(ft.track(grey, 1, 1 / 30)[0]) > 50  # the coverage trigger, in its own frame
+    assert len(ft._refs) == 1
