@@ -118,6 +118,10 @@ class _Finder:
     reacquire_radius_px: float
     reacquire_max_hamming: int
 
+    def ready(self) -> bool:
+        """True (a worker that runs it has this finder, the detector's code loaded: ``defer_detection``)."""
+        return True
+
     def find(self, job: _DetectJob, image: np.ndarray) -> _Found:
         """The detection proper, on ``image`` against the state copied in ``job``: the keypoints to add
         (frame px, descriptors) and the lost feature each re-acquires (its id, -1 for a new feature).
@@ -734,9 +738,22 @@ class FeatureTracker:
         a feature detected in that frame. One detection at a time; one still under way when ``history``
         reference frames are kept is waited for; its error is raised there (RuntimeError naming the
         frame). None: the synchronous schedule (the default: each detection in its own frame). A
-        detection under way when the schedule is set is dropped (the end of a live run)."""
-        self._executor = executor
+        detection under way when the schedule is set is dropped (the end of a live run). The executor
+        is first given the finder and waited for (``_Finder.ready``): a worker that cannot take it (a
+        detector that does not pickle) fails here, and a worker process's first detection does not
+        wait for the detector's imports (kornia's torch: 64 frames at 100 Hz otherwise)."""
         self._pending = None
+        self._executor = None
+        if executor is not None:
+            try:
+                executor.submit(self._finder.ready).result()
+            except Exception as e:
+                raise RuntimeError(
+                    f"FeatureTracker {self.name!r}: the detection worker cannot take this tracker's "
+                    f"detector {type(self.detector).__name__} ({type(e).__name__}: {e}); detect in the "
+                    "frames instead (live: live.deferred_detection false)"
+                ) from e
+        self._executor = executor
 
     def track(
         self, grey: np.ndarray, frame: int, t_s: float, image: np.ndarray | None = None

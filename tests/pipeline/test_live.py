@@ -758,9 +758,9 @@ def test_the_live_run_detects_in_a_worker_process_at_its_nice_that_ends_with_the
     """live.deferred_detection (default): the front end gets a worker process (spawned and started before
     the cameras, at live.detection_nice), which runs jobs beside the frames and is gone when the run ends;
     the front end is set back to detecting in its frames. Off: no worker."""
-    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
     front = DeferringFrontEnd(mono_rig())
-    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front)
     assert r.frames >= 3 and front.result == 3
     worker, reset = front.executors
     assert reset is None and _no_worker_left()
@@ -775,10 +775,10 @@ def test_the_live_run_detects_in_a_worker_process_at_its_nice_that_ends_with_the
 def test_a_failing_detection_job_stops_the_live_run_with_its_error_and_no_worker_left(tmp_path):
     """The worker's error reaches the loop (the frame that takes the job's result) and ends the run with
     it, outputs written and the worker process gone, not a hang."""
-    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 30 for k in range(6)])
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
     front = DeferringFrontEnd(mono_rig(), job=(int, "not a number"))
     with pytest.raises(ValueError, match="not a number"):
-        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
+        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front)
     assert _no_worker_left() and front.executors[-1] is None
     assert (tmp_path / "out" / "summary.json").is_file()
 

@@ -24,7 +24,7 @@ class NowExecutor:
         self.jobs = 0
 
     def submit(self, fn, *args):
-        self.jobs += 1
+        self.jobs += fn.__name__ != "ready"  # detections (not the set-up's check)
         fut: Future = Future()
         try:
             fut.set_result(fn(*args))
@@ -34,14 +34,17 @@ class NowExecutor:
 
 
 class HeldExecutor:
-    """Holds each job until ``release()`` runs it (a detection that takes several frames)."""
+    """Holds each detection until ``release()`` runs it (a detection that takes several frames)."""
 
     def __init__(self) -> None:
         self.held: list[tuple[Future, object, tuple]] = []
 
     def submit(self, fn, *args):
         fut: Future = Future()
-        self.held.append((fut, fn, args))
+        if fn.__name__ == "ready":  # (the set-up's check, answered at once)
+            fut.set_result(fn(*args))
+        else:
+            self.held.append((fut, fn, args))
         return fut
 
     def release(self) -> None:
@@ -203,3 +206,24 @@ def test_setting_the_synchronous_schedule_drops_a_detection_under_way():
     assert ft._pending is None
     assert len(ft.track(grey, 1, 1 / 30)[0]) > 50  # the coverage trigger, in its own frame
     assert len(ft._refs) == 1
+
+
+def test_a_worker_that_cannot_take_the_detector_fails_when_the_schedule_is_set():
+    """The executor is given the tracker's finder (detector included) when the deferred schedule is set:
+    one that cannot take it (here: it cannot pickle the detector) fails there, naming the detector and
+    the way out, not at the first detection's join mid-run; the tracker stays synchronous."""
+    import pickle
+
+    from tests.trackers.conftest import equidistant
+
+    class PicklingExecutor(NowExecutor):
+        def submit(self, fn, *args):
+            return super().submit(lambda: pickle.loads(pickle.dumps(fn))(*args))
+
+    model = equidistant()
+    ft = make_tracker(model)
+    ft.detector.unpicklable = lambda: None  # an attribute pickle refuses
+    with pytest.raises(RuntimeError, match=r"'cam0'.*cannot take.*OrbDetector.*deferred_detection false"):
+        ft.defer_detection(PicklingExecutor())
+    assert ft._executor is None
+    assert len(ft.track(SphereScene(model).render(), 0, 0.0)[0]) > 50

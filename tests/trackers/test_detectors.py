@@ -221,6 +221,26 @@ def test_kornia_responses_run_on_cpu():
         make_detector("kornia", response="sift9000")
 
 
+@pytest.mark.parametrize("name", ["orb", "kornia"])
+def test_keypoint_detectors_pickle_for_the_live_detection_worker(name):
+    """A live run's detection worker process gets the feature tracker's detector pickled: the copy finds
+    the same keypoints (ORB: the same descriptors too; cv2.ORB and the torch modules are made again)."""
+    import pickle
+
+    if name == "kornia":
+        pytest.importorskip("torch")
+        pytest.importorskip("kornia")
+    model = equidistant()
+    img = SphereScene(model).render()
+    opts = {"device": "cpu"} if name == "kornia" else {}
+    d = make_detector(name, max_features=200, **opts)
+    a, b = d.detect(img, lens_mask(model)), pickle.loads(pickle.dumps(d)).detect(img, lens_mask(model))
+    assert len(a) > 50
+    np.testing.assert_array_equal(a.keypoints, b.keypoints)
+    if a.descriptors is not None:
+        np.testing.assert_array_equal(a.descriptors, b.descriptors)
+
+
 def test_navlights_through_the_front_end_gives_a_drone_track_with_heading():
     """Box detectors run through the FrontEnd's BoxTracker: one confirmed track that follows the
     lights, labelled ``drone``, with the heading in its attributes; lost once after they vanish."""

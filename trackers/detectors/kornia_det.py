@@ -65,6 +65,15 @@ class KorniaDetector(Detector):
         self.min_response = float(min_response)
         self.grid = (int(grid[0]), int(grid[1]))
 
+    def __getstate__(self) -> dict:
+        """Picklable (a live run's detection worker process gets the detector): the torch and kornia
+        modules are imported again, not pickled."""
+        return {k: v for k, v in self.__dict__.items() if k not in ("torch", "kornia")}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.torch, self.kornia = _import_torch()
+
     def detect(self, image: np.ndarray, mask: np.ndarray | None = None) -> Detections:
         """See Detector.detect; keypoints without descriptors."""
         torch, kornia = self.torch, self.kornia
