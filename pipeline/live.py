@@ -117,12 +117,29 @@ def set_thread_nice(nice: int | None) -> int | None:
 
 
 def _detection_worker_init(nice: int | None) -> None:
+    import multiprocessing
+    import os
+    import signal
+
     import cv2
 
     import trackers.features  # noqa: F401  (the jobs' code, imported before the first job)
 
     cv2.setNumThreads(1)  # one thread, on the cores the run was given
     set_thread_nice(nice)
+    # Ctrl-C reaches the whole process group: the run ends the worker itself (its shutdown), so the
+    # worker ignores it (otherwise each Ctrl-C printed the worker's KeyboardInterrupt traceback); and
+    # it ends when the run's process is gone without a shutdown (SIGKILL, an unhandled SIGTERM):
+    # otherwise it stayed, an orphan waiting for jobs, for good
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+
+        def orphaned() -> None:
+            parent.join()  # (its sentinel: readable once the parent process has ended)
+            os._exit(1)
+
+        threading.Thread(target=orphaned, name="parent-watch", daemon=True).start()
 
 
 def _worker_nice() -> int | None:
@@ -850,7 +867,6 @@ def run_live(
         egomotion = FramePoseCache(egomotion)
     frontend = frontend if frontend is not None else build_frontend(cfg, rig)
     fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
-    # the periodic re-detection off the frame's path (a worker process), started before the cameras
     defer = lv.deferred_detection and hasattr(frontend, "defer_detection")
     if readers is None:
         if len(lv.cameras) != len(names):
@@ -875,33 +891,22 @@ def run_live(
                   + ",".join(f"{k}_s" for k in log_stages) + "\n")
     grabbers: list[Grabber] = []
     opened: list[Any] = []
+    worker = writer = server = video = None
+    # everything the set-up starts is stopped again when a later step fails (a camera that does not
+    # open, a detector the worker cannot take, a preview port in use): no worker process, grabber
+    # thread or open file outlives the error
     try:
         for factory in readers:
             opened.append(factory())  # open errors (no such camera) surface here, before the run
-    except BaseException:
-        for r in opened:
-            r.close()
-        if log is not None:
-            log.close()
-        raise
-    worker = None
-    if defer:
-        try:
+        if defer:  # the periodic re-detection off the frame's path (a worker process), before the grabbers
             worker = detection_worker(lv.detection_nice)
-        except BaseException:
-            for r in opened:
-                r.close()
-            if log is not None:
-                log.close()
-            raise
-        frontend.defer_detection(worker)
-    # Replayed files of one rig share one schedule start, set once all are open: a camera that took
-    # longer to open does not run behind the others (pairing is by the videos' own t_s).
-    start_replays = time.monotonic()
-    for r in opened:
-        if hasattr(r, "set_start"):
-            r.set_start(start_replays)
-    try:
+            frontend.defer_detection(worker)
+        # Replayed files of one rig share one schedule start, set once all are open: a camera that took
+        # longer to open does not run behind the others (pairing is by the videos' own t_s).
+        start_replays = time.monotonic()
+        for r in opened:
+            if hasattr(r, "set_start"):
+                r.set_start(start_replays)
         for name, factory, first in zip(names, readers, opened, strict=True):
             g = Grabber(
                 factory,
@@ -913,22 +918,22 @@ def run_live(
                 skip_unwanted=not grabbers,  # the lead camera: frames the loop will not take stay undecoded
             )
             grabbers.append(g.start(first))
+        writer = TracksWriter(out / TRACKS_NAME)
+        server = MjpegServer(lv.preview_port) if lv.preview == "mjpeg" else None
+        video = VideoWriter(out / "preview.mp4", 30.0) if lv.preview == "file" else None
     except BaseException:
         for g in grabbers:
             g.stop()
         for r in opened[len(grabbers) :]:
             r.close()
-        if log is not None:
-            log.close()
         if worker is not None:
             frontend.defer_detection(None)
             worker.shutdown(wait=True, cancel_futures=True)
+        for sink in (writer, server, video, log):
+            if sink is not None:
+                sink.close()
         raise
-
-    writer = TracksWriter(out / TRACKS_NAME)
     annotator = Annotator(rig, egomotion) if lv.preview != "none" else None
-    server = MjpegServer(lv.preview_port) if lv.preview == "mjpeg" else None
-    video = VideoWriter(out / "preview.mp4", 30.0) if lv.preview == "file" else None
     if on_event is not None:
         if server is not None:
             on_event(f"preview: http://127.0.0.1:{server.port}/ (MJPEG stream {server.url})")

@@ -819,3 +819,92 @@ def test_a_feature_tracker_detects_through_the_worker_process_as_in_its_frame():
     got = ft.features()
     assert len(got) == len(sync) > 100
     np.testing.assert_allclose(got.uv, sync.uv, atol=0.05)
+
+
+class RefusingFrontEnd(FakeFrontEnd):
+    """A front end whose trackers cannot take the worker (``FeatureTracker.defer_detection``'s set-up error:
+    a detector that does not pickle)."""
+
+    def defer_detection(self, executor):
+        if executor is not None:
+            raise RuntimeError("FeatureTracker 'cam0': the detection worker cannot take its detector")
+
+
+def _grabbing_threads():
+    return [t for t in threading.enumerate() if t.name.startswith("grab-") and t.is_alive()]
+
+
+def test_a_set_up_error_after_the_worker_started_leaves_no_worker_camera_or_thread(tmp_path):
+    """A step of the set-up that fails once the worker process runs (a detector the worker cannot take; a
+    preview port in use, after the grabbers started) ends the run with its error and stops what the set-up
+    had started: no worker process, no camera reader open, no grabber thread."""
+    import socket
+
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
+    closed = []
+
+    def factory():
+        r = make_reader_factory(str(v), "cam0", paced=True)()
+        close = r.close
+        r.close = lambda: (closed.append(1), close())[1]
+        return r
+
+    with pytest.raises(RuntimeError, match="cannot take"):
+        _live(tmp_path, [factory], front=RefusingFrontEnd(mono_rig()),
+              cfg=_cfg("live.deferred_detection=true"))
+    assert _no_worker_left() and closed == [1]
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(OSError):
+            _live(tmp_path, [factory], front=DeferringFrontEnd(mono_rig()),
+                  cfg=_cfg("live.deferred_detection=true", "live.preview=mjpeg", f"live.preview_port={port}"))
+    assert _no_worker_left() and not _grabbing_threads() and len(closed) == 2
+
+
+def test_the_detection_worker_ignores_ctrl_c_and_ends_with_its_run_process():
+    """Ctrl-C reaches the whole process group: the worker ignores it (the run ends it with its shutdown;
+    it printed its own KeyboardInterrupt traceback on every Ctrl-C before), and a worker whose run process
+    is gone without a shutdown (SIGKILL) ends too instead of waiting for jobs for good."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pipeline
+    from pipeline.live import detection_worker
+
+    ex = detection_worker(None)
+    try:
+        pid = ex.submit(os.getpid).result()
+        os.kill(pid, signal.SIGINT)
+        time.sleep(0.3)
+        assert ex.submit(abs, -2).result(timeout=30) == 2
+    finally:
+        ex.shutdown()
+    code = (
+        "import os\nfrom pipeline.live import detection_worker\n"
+        "ex = detection_worker(None)\nprint(ex.submit(os.getpid).result(), flush=True)\nos._exit(0)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}  # (this checkout's code)
+    with subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env) as run:
+        pid = int(run.stdout.readline())  # (not read to its end: an orphan worker would hold the pipe)
+        run.wait(timeout=60)
+
+    def alive() -> bool:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().split(") ")[-1][:1] != "Z"  # (a zombie has ended)
+        except FileNotFoundError:
+            return False
+
+    try:
+        t_end = time.monotonic() + 20
+        while alive() and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert not alive(), "the worker outlived its run's process"
+    finally:
+        if alive():
+            os.kill(pid, signal.SIGKILL)
