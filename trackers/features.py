@@ -10,6 +10,7 @@ live features plus a pool of recently lost ones, each with a ring buffer of ``hi
 from __future__ import annotations
 
 import itertools
+import pickle
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -118,8 +119,13 @@ class _Finder:
     reacquire_radius_px: float
     reacquire_max_hamming: int
 
-    def ready(self) -> bool:
-        """True (a worker that runs it has this finder, the detector's code loaded: ``defer_detection``)."""
+    @staticmethod
+    def ready(blob: bytes) -> bool:
+        """True once the finder pickled in ``blob`` loads where this runs (``defer_detection``'s check of
+        its worker: the detector's code imported there). Unpickled here, in the job, so that a detector
+        the worker cannot load is this job's error, with its cause, not a worker process dying while it
+        reads the job (``BrokenProcessPool``, the cause only in the worker's traceback)."""
+        pickle.loads(blob)
         return True
 
     def find(self, job: _DetectJob, image: np.ndarray) -> _Found:
@@ -740,13 +746,14 @@ class FeatureTracker:
         frame). None: the synchronous schedule (the default: each detection in its own frame). A
         detection under way when the schedule is set is dropped (the end of a live run). The executor
         is first given the finder and waited for (``_Finder.ready``): a worker that cannot take it (a
-        detector that does not pickle) fails here, and a worker process's first detection does not
-        wait for the detector's imports (kornia's torch: 64 frames at 100 Hz otherwise)."""
+        detector that does not pickle, or does not load there) fails here, and a worker process's first
+        detection does not wait for the detector's imports (kornia's torch: 64 frames at 100 Hz
+        otherwise)."""
         self._pending = None
         self._executor = None
         if executor is not None:
             try:
-                executor.submit(self._finder.ready).result()
+                executor.submit(_Finder.ready, pickle.dumps(self._finder)).result()
             except Exception as e:
                 raise RuntimeError(
                     f"FeatureTracker {self.name!r}: the detection worker cannot take this tracker's "

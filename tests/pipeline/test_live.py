@@ -908,3 +908,40 @@ def test_the_detection_worker_ignores_ctrl_c_and_ends_with_its_run_process():
     finally:
         if alive():
             os.kill(pid, signal.SIGKILL)
+
+
+class _UnloadableOrb:
+    """Stands for a detector that pickles but does not load in the worker process (a plug-in whose
+    ``__setstate__`` needs what that process lacks)."""
+
+    def __init__(self):
+        self.device = "a device only this process has"
+
+    def __setstate__(self, state):
+        raise ImportError("this detector's device is not in the worker")
+
+
+def test_a_detector_the_worker_process_cannot_load_is_a_clear_error_naming_its_cause():
+    """The set-up's check sends the tracker's finder to the real worker process: a detector that pickles
+    but fails to load there is a RuntimeError naming the camera, the detector and the cause (not the
+    worker process dying as it reads the job: BrokenProcessPool, the cause only in its traceback on
+    stderr), and the worker process still runs."""
+    import itertools
+
+    from estimators.rig import Camera, forward_T_C_B
+    from pipeline.live import detection_worker
+    from tests.trackers.conftest import equidistant
+    from trackers.detectors import make_detector
+    from trackers.features import FeatureTracker
+
+    model = equidistant()
+    ft = FeatureTracker(Camera("cam0", model, forward_T_C_B()), make_detector("orb"), ids=itertools.count(1))
+    ft.detector.part = _UnloadableOrb()
+    ex = detection_worker(None)
+    try:
+        with pytest.raises(RuntimeError, match=r"'cam0'.*OrbDetector.*ImportError: this detector's device"):
+            ft.defer_detection(ex)
+        assert ft._executor is None
+        assert ex.submit(abs, -2).result(timeout=30) == 2
+    finally:
+        ex.shutdown()
