@@ -449,18 +449,22 @@ class LiveConfig(_Section):
         "the process's value (summary.json says which applied). null: leave them as they are.",
     )
     deferred_detection: bool = Field(
-        True,
-        description="bool: the feature trackers' periodic ORB re-detection runs in a worker thread at "
-        "``detection_nice``, off the frame's path: a frame's reports do not wait for its detection, whose "
-        "features join at the first frame after it is done (tracked from the detection's frame). false: "
+        False,
+        description="bool: opt-in: the feature trackers' periodic ORB re-detection runs in a worker process "
+        "at ``detection_nice``, off the frame's path: a frame's reports do not wait for its detection, whose "
+        "features join at the first frame after it is done (tracked from the detection's frame). A measured "
+        "trade: a lower latency p99 where the loop has idle time (1080p at 30 Hz), for fewer features and a "
+        "lower obstacle coverage (a detection's features join frames late; more so on a loop with no idle "
+        "time): docs/ARCHITECTURE.md 'The re-detection off the frame's path in live mode'. false (default): "
         "each detection in its own frame, as `run` does (the offline modes always do).",
     )
     detection_nice: int | None = Field(
         10,
         ge=-20,
         le=19,
-        description="int: Linux nice value of the deferred detection's thread (higher = later: it runs in "
-        "the loop's idle time, and gets a share of a busy core by its weight). null: the process's own.",
+        description="int: with deferred_detection, Linux nice value of the detection's worker process "
+        "(higher = later: it runs in the loop's idle time, and gets a share of a busy core by its weight). "
+        "null: the run's own.",
     )
 
 

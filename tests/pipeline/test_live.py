@@ -755,21 +755,22 @@ def _no_worker_left():
 
 
 def test_the_live_run_detects_in_a_worker_process_at_its_nice_that_ends_with_the_run(tmp_path):
-    """live.deferred_detection (default): the front end gets a worker process (spawned and started before
-    the cameras, at live.detection_nice), which runs jobs beside the frames and is gone when the run ends;
-    the front end is set back to detecting in its frames. Off: no worker."""
+    """live.deferred_detection true (opt-in): the front end gets a worker process (spawned and started
+    before the grabbers, at live.detection_nice), which runs jobs beside the frames and is gone when the run
+    ends; the front end is set back to detecting in its frames. Off (the default): no worker."""
     v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
     front = DeferringFrontEnd(mono_rig())
-    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front)
+    r = _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front,
+              cfg=_cfg("live.deferred_detection=true"))
     assert r.frames >= 3 and front.result == 3
     worker, reset = front.executors
     assert reset is None and _no_worker_left()
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["deferred_detection"]["worker_nice"] == worker.nice >= 10
     front = FakeFrontEnd(mono_rig())
-    front.defer_detection = lambda ex: pytest.fail("no worker with live.deferred_detection=false")
-    _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front,
-          cfg=_cfg("live.deferred_detection=false"))
+    front.defer_detection = lambda ex: pytest.fail("no worker by default (live.deferred_detection false)")
+    _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["deferred_detection"] is None
 
 
 def test_a_failing_detection_job_stops_the_live_run_with_its_error_and_no_worker_left(tmp_path):
@@ -778,7 +779,8 @@ def test_a_failing_detection_job_stops_the_live_run_with_its_error_and_no_worker
     v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
     front = DeferringFrontEnd(mono_rig(), job=(int, "not a number"))
     with pytest.raises(ValueError, match="not a number"):
-        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front)
+        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front,
+              cfg=_cfg("live.deferred_detection=true"))
     assert _no_worker_left() and front.executors[-1] is None
     assert (tmp_path / "out" / "summary.json").is_file()
 

@@ -1,6 +1,6 @@
 """FeatureTracker's deferred re-detection (live mode, ``defer_detection``): a frame's detection runs off its
 path and its features join at a later frame, tracked from the detection's frame; executors stand in for
-the worker thread so each schedule is deterministic."""
+the worker process so each schedule is deterministic."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from trackers.features import FeatureTracker
 
 
 class NowExecutor:
-    """Runs each job when it is submitted (a synchronous stand-in for the worker thread)."""
+    """Runs each job when it is submitted (a synchronous stand-in for the worker process)."""
 
     def __init__(self) -> None:
         self.jobs = 0
