@@ -90,7 +90,7 @@ class _DetectJob:
 
 @dataclass(frozen=True)
 class _Found:
-    """A detection's result (``FeatureTracker._find``): keypoints uv (K, 2) float32 frame px, their
+    """A detection's result (``_Finder.find``): keypoints uv (K, 2) float32 frame px, their
     descriptors (K, 32) uint8 or None, and lost_id (K,) the id of the lost feature each re-acquires
     (-1: a new feature)."""
 
@@ -205,7 +205,7 @@ class _Finder:
 
     def _worth_describing(self, uv: np.ndarray, free: int, job: _DetectJob) -> np.ndarray:
         """Indices of the keypoints uv (K, 2) frame px (the detector's round-robin order) that
-        ``_find`` may keep: those that may re-acquire a lost feature (of ``job``'s lost pool), and the
+        ``_Finder.find`` may keep: those that may re-acquire a lost feature (of ``job``'s lost pool), and the
         first ``free`` (plus as many again as there are re-acquisition candidates, whose cells new ones
         avoid) of one per min_distance_px cell. Only these get ORB descriptors (at 720p ~600 -> ~100 per
         detection). With no room (``free`` <= 0) no new feature is kept, so only the re-acquisition
@@ -715,7 +715,7 @@ class FeatureTracker:
         self._t_uv = 0.0  # time (s) of the positions in self.uv
         self.clock = FrameClock()  # the frame rate seen, for klt_step_s, redetect_s and reacquire_s
         self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
-        # the deferred schedule (``defer_detection``): the executor that runs ``_find``, and the
+        # the deferred schedule (``defer_detection``): the executor that runs ``_Finder.find``, and the
         # detection under way (its future, frame index, time) or None; _n_step: how many of _refs
         # are the KLT step's (the others are kept for that detection's frame)
         self._executor: Any = None
@@ -1314,28 +1314,26 @@ class FeatureTracker:
 
     def _detect(self, image: np.ndarray, t_s: float) -> None:
         """Detect new features (and re-acquire lost ones) in the lens, now (the synchronous schedule:
-        ``_find`` on this frame's state, then ``_merge``)."""
+        ``_Finder.find`` on this frame's state, then ``_merge``)."""
         job = self._detect_job(t_s)
         if job is not None:
-            self._merge(self._find(job, image))
+            self._merge(self._finder.find(job, image))
 
     def _detect_job(self, t_s: float) -> _DetectJob | None:
-        """What a detection at time ``t_s`` reads of the tracker's state, copied (so ``_find`` may run
+        """What a detection at time ``t_s`` reads of the tracker's state, copied (so ``_Finder.find`` may run
         while the tracker moves on): None when there is nothing to detect for (full, no lost feature)."""
         free = self.max_features - len(self.ids)
         if free <= 0 and not len(self.lost_ids):
             return None
-        return _DetectJob(free, self.uv.copy(), self._lost_predictions(t_s), self.lost_ids, self.lost_desc)
-
-    def _find(self, job: _DetectJob, image: np.ndarray) -> _Found:
-        """The detection proper on ``image`` against ``job`` (``_Finder.find``)."""
-        return self._finder.find(job, image)
+        return _DetectJob(
+            free, self.uv.copy(), self._lost_predictions(t_s), self.lost_ids.copy(), self.lost_desc.copy()
+        )
 
     def _merge(self, found: _Found) -> np.ndarray:
-        """Add a detection's keypoints as live features (``_find``'s result; the re-acquired ones by
-        their lost feature's id); returns the rows added. Run later than the state ``_find`` read (the
+        """Add a detection's keypoints as live features (``_Finder.find``'s result; the re-acquired ones by
+        their lost feature's id); returns the rows added. Run later than the state ``_Finder.find`` read (the
         deferred schedule), a keypoint whose lost feature has been forgotten since is dropped, and new
-        features take only the room left now (the first ones in ``_find``'s order)."""
+        features take only the room left now (the first ones in ``_Finder.find``'s order)."""
         n0 = len(self.ids)
         if not len(found.uv):
             return np.zeros(0, np.intp)

@@ -161,7 +161,7 @@ def test_a_detection_joins_into_the_room_left_and_drops_forgotten_reacquisitions
     model = equidistant()
     ft = make_tracker(model, max_features=50)
     job = ft._detect_job(0.0)
-    found = ft._find(job, SphereScene(model).render())
+    found = ft._finder.find(job, SphereScene(model).render())
     assert len(found.uv) == 50 and np.all(found.lost_id == -1)
     ft._append(np.array([[160.0, 120.0]] * 45, np.float32), None, np.full(45, -1, np.intp))
     rows = ft._merge(found)
