@@ -1437,6 +1437,16 @@ class ObstacleFusion:
         self._stereo_pairs = None
         todo: list[tuple[_Track, ObstacleObservation]] = []
         t_end = 0.0  # time spent reporting tracks ended in this loop (fuse)
+        for new, tr in self._continued(observations):
+            te = perf()
+            old = tr.id
+            reports.append(self._end(tr, t_s, fc))  # the absorbed id reported lost once, as before
+            t_end += perf() - te
+            tr.id = new  # ... and its filter goes on under the id that took its members
+            self._tracks[new] = tr
+            if self._prev_members is not None:
+                pid, ptr = self._prev_members
+                self._prev_members = (pid, np.where(ptr == old, new, ptr))
         for obs in observations:
             self._check_obs(obs, frame, t_s, seen)
             tr = self._tracks.get(obs.track_id)
@@ -1898,6 +1908,29 @@ class ObstacleFusion:
         tr.last_views = sg.views
         tr.cameras = (sg.views[0].camera,) if len(sg.views) == 1 else tuple([v.camera for v in sg.views])
         return t1 - t0
+
+    def _continued(self, observations: list[ObstacleObservation]) -> list[tuple[int, _Track]]:
+        """Filters that go on under another id: a track reported lost this frame as merged into
+        another id (``attributes["merged_into"]``, the front end's ``_merge_gids``) whose filter has a
+        state (``kf``) ranged more recently than that id's track (``t_ranged``; or that track has no
+        state) is continued under that id: the merge keeps the better-informed filter, not the one
+        the kept id happened to key (the front end keeps the id seen longer, ``_survivor``, or the
+        box's). The lost id is still reported lost once. Returns (that id, the lost track) pairs, at
+        most one per id."""
+        here = {o.track_id for o in observations if o.status != "lost" and o.views}
+        out: list[tuple[int, _Track]] = []
+        used: set[int] = set()
+        for o in observations:
+            into = o.attributes.get("merged_into") if o.status == "lost" else None
+            tr = self._tracks.get(o.track_id)
+            if into is None or into not in here or into in used or tr is None or tr.kf is None:
+                continue
+            r = self._tracks.get(into)
+            if r is not None and r.kf is not None and r.t_ranged >= tr.t_ranged:
+                continue
+            used.add(into)
+            out.append((into, tr))
+        return out
 
     def _end(self, tr: _Track, t_s: float, fc: _FrameContext) -> TrackReport:
         """Report a track once as lost (predicted to t_s) and drop its filter."""

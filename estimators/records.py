@@ -127,7 +127,9 @@ class ObstacleObservation:
         status: ``tentative`` | ``confirmed`` | ``lost`` (a lost track is reported once, then dropped).
         views: one CameraView per camera that sees the obstacle in this frame (empty when lost).
         label: what found it (``"orb"``, ``"navlights"``, a plug-in's name).
-        attributes: detector-specific extras, JSON-serialisable (e.g. navlights' ``heading``).
+        attributes: detector-specific extras, JSON-serialisable (e.g. navlights' ``heading``); a
+            ``lost`` observation of an id the front end merged into another has ``merged_into``
+            (that id: the fusion may continue the lost id's filter there).
     """
 
     track_id: int

@@ -368,6 +368,10 @@ class FrontEnd:
         # (_box_keeps_id), so that it gives them back when the link ends: the box's camera and the
         # frames in a row it was seen and not linked
         self._box_lent: dict[int, tuple[str, int]] = {}
+        # global ids of box tracks handed to a feature track that lay on the box while the box coasts
+        # (_box_hands_id): per id, its local feature track ids -> the global id each had before
+        self._box_handed: dict[int, dict[int, int]] = {}
+        self._merged_into: dict[int, int] = {}  # this frame's merges: dropped global id -> kept one
         # _merge_gids' count (a merge re-maps global ids) and this frame's _unviewed_in_ref lists
         # per (camera, that count), reset each frame by _prefetch_stereo
         self._gid_version = 0
@@ -513,8 +517,10 @@ class FrontEnd:
         self.last_tracks = seen
         t0 = time.perf_counter()
         absorbed: list[int] = []
+        self._merged_into = {}
         if self.boxers and self.groupers:
             self._box_keeps_id(absorbed)
+            self._box_hands_id(absorbed)
         assoc_now = len(self.cams) > 1 and self._n % self.assoc_every == 0
         if len(self.cams) > 1:
             self._prefetch_stereo(seen, greys, assoc_now)
@@ -882,6 +888,66 @@ class FrontEnd:
             if off:
                 self._gid_version += 1
 
+    def _box_hands_id(self, absorbed: list[int]) -> None:
+        """A box track's id carried on by the feature track that lay on the box (issue 4: id switches).
+
+        A box track and a feature track of its camera on the same obstacle that never linked
+        (``BoxTracker.links``: the nearest members did not move with the box centre, or another
+        camera sees the box too, so it lends no id) are two reports, each under its own id. When
+        no track under the box's global id is seen this frame (every box track of it coasting, a
+        feature track it lent its id to unseen too), the feature track that lay on the box as a new
+        link needs (bearing and ``link_share`` of its members within the box) in the box's last
+        ``link_frames`` updates seen in a row (``BoxTracker.placed``; the most such updates, then the
+        smaller id) and is seen now takes the box's id, with every local track under its global id
+        (``_merge_gids``: its own id is reported lost once), if the box's id is the one seen longer
+        (``_survivor``) and no box track is under the feature track's id. The obstacle's report then
+        keeps the id it had while the box, the track that carried it, coasts and after it ends
+        (stereo_flying's near drone, noisy_1080p's drone: the box went unseen for good in the drone's
+        last frames in view, the ORB tracks on it since 13 and 3 frames carried on under their own
+        ids). When a box track of that id is seen again, the handed tracks take back the ids they had.
+        The feature track's id is reported lost with ``merged_into`` the box's id: the fusion continues
+        the feature track's filter under the box's id when it was ranged more recently than the box's
+        (``ObstacleFusion._continued``; stereo_flying's drone: the box's filter bounds only since
+        frame 39, the feature track's ranged to the last frame), else the box's filter goes on with
+        the feature track's views and the feature track's filter ends.
+
+        Args: absorbed: global ids absorbed this frame (to be reported lost once), appended to."""
+        gid = self._global
+        boxes: dict[int, list[tuple[str, ObstacleTrack]]] = {}
+        for name, bx in self.boxers.items():
+            for t in bx.tracks.values():
+                boxes.setdefault(gid(t.id), []).append((name, t))
+        for g, prev in list(self._box_handed.items()):
+            if g in boxes and not any(t.seen for _n, t in boxes[g]):
+                continue  # the box coasts: the id stays handed
+            if g in boxes:  # a box of that id seen again: the handed tracks take back their ids
+                linked = {self.boxers[n].links.get(t.id) for n, t in boxes[g]}  # (not one it links to)
+                for lid, f in prev.items():
+                    if gid(lid) == g and lid not in linked:
+                        self._gid[lid] = f
+                self._gid_version += 1
+            del self._box_handed[g]
+        seen = {gid(t.id) for gr in self.groupers.values() for t in gr.tracks.values() if t.seen}
+        for g, bs in sorted(boxes.items()):
+            if g in seen or g in self._box_handed or any(t.seen for _n, t in bs):
+                continue
+            runs: dict[int, int] = {}
+            for name, t in bs:
+                need = self.boxers[name].link_frames
+                for fid, n in self.boxers[name].placed.get(t.id, {}).items():
+                    f = gid(fid)
+                    if n >= need and f != g and f in seen and f not in boxes:
+                        runs[f] = max(runs.get(f, 0), n)
+            if not runs:
+                continue
+            f = min(runs, key=lambda k: (-runs[k], k))
+            if self._survivor(g, f)[0] != g:
+                continue
+            lids = [lid for gr in self.groupers.values() for lid in gr.tracks if gid(lid) == f]
+            self._box_handed[g] = dict.fromkeys(lids, f)
+            self._merge_gids(g, f, tuple(lids), absorbed)
+            seen.add(g)
+
     def _box_fold(self, seen, a: tuple, b: tuple) -> bool:
         """Whether one side of a linked box pair is a box linked to a feature track
         (``BoxTracker.links``) and the other a visible box whose camera already has a track of that
@@ -991,8 +1057,10 @@ class FrontEnd:
 
     def _merge_gids(self, keep: int, drop: int, lids: tuple, absorbed: list[int]) -> None:
         """One obstacle from two: every local track id mapped to global id ``drop`` and the pair's
-        local ids ``lids`` map to ``keep``; ``drop`` goes to ``absorbed`` when it was reported."""
+        local ids ``lids`` map to ``keep``; ``drop`` goes to ``absorbed`` when it was reported (its
+        lost report names ``keep`` as ``merged_into``, this frame's ``_merged_into``)."""
         self._gid_version += 1
+        self._merged_into[drop] = keep
         for lid, g in list(self._gid.items()):
             if g == drop:
                 self._gid[lid] = keep
@@ -1452,6 +1520,10 @@ class FrontEnd:
                 continue
             if gid in self._reported:
                 lbl = gone[gid].label if gid in gone else self.label
-                out.append(ObstacleObservation(gid, frame, t_s, "lost", (), label=lbl))
+                into = gid
+                while into in self._merged_into:
+                    into = self._merged_into[into]
+                extra = {"merged_into": into} if gid in absorbed and into != gid else {}
+                out.append(ObstacleObservation(gid, frame, t_s, "lost", (), label=lbl, attributes=extra))
                 self._reported.discard(gid)
         return out

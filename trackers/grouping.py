@@ -1578,6 +1578,10 @@ class BoxTracker:
         # (box id, feature track id) -> recent (update count, near members' mean bearing, box bearing)
         self._hist: dict[tuple[int, int], deque] = {}
         self._decorated: dict[int, tuple[ObstacleTrack, tuple[str, ...]]] = {}  # keys added to others
+        # box track id -> {feature track id: updates in a row it lay on the box as a new link needs
+        # (bearing and link_share of its members; half for the held link), at most link_frames + 1},
+        # as of the box's last update seen; kept while the box coasts (FrontEnd._box_hands_id)
+        self.placed: dict[int, dict[int, int]] = {}
         self._n = 0
 
     def _count(self) -> None:
@@ -1717,6 +1721,10 @@ class BoxTracker:
                 links[b.id] = best[1]
         for key in [k for k in self._hist if k not in now]:
             del self._hist[key]  # the pair was not seen so placed this update: its history restarts
+        for b in seen:
+            self.placed[b.id] = {}
+        for (bid, fid), h in self._hist.items():
+            self.placed[bid][fid] = len(h)
         # one box per feature track (the lowest box id kept)
         taken: dict[int, int] = {}
         for bid, fid in sorted(links.items()):
@@ -1734,6 +1742,8 @@ class BoxTracker:
             self._decorated[fid] = (f, tuple(add))
         for tid in [t for t in self._half if t not in self.tracks]:
             del self._half[tid]
+        for tid in [t for t in self.placed if t not in self.tracks]:
+            del self.placed[tid]
         return set(self.links)
 
     def _moves_with(self, h: deque, rad_px: float) -> bool:
