@@ -290,7 +290,10 @@ class FrontEnd:
         # bearings are unchanged); pixel outputs (CameraView.uv) are given in the full frame
         self.scale = tracked_scale(rig, options.get("max_width", MAX_WIDTH_PX))
         self.densify_below = int(options.get("densify_below", 8))
-        self._densified: dict[int, int] = {}  # track id -> frame of its last densify
+        # track id -> its camera's feature tracker's frame count (FeatureTracker.n_frames) at its last
+        # densify: frames processed, the unit of the clock's counts (a caller's frame index counts a live
+        # camera's dropped frames too)
+        self._densified: dict[int, int] = {}
         self.calib_size = {c.name: (c.model.width, c.model.height) for c in rig.cameras}
         self.cams = {
             c.name: c
@@ -469,18 +472,18 @@ class FrontEnd:
                     # tracks with few members, each at most every densify_s (as frames at the rate seen:
                     # none before the feature tracker's clock knows the rate, as no track exists then),
                     # 8 per frame
-                    every = ft.clock.frames(self.densify_s)
+                    every, n = ft.clock.frames(self.densify_s), ft.n_frames
                     small = [
                         t
                         for t in s1
                         if len(t.members) < self.densify_below
-                        and frame - self._densified.get(t.id, -(10**9)) >= every
+                        and n - self._densified.get(t.id, -(10**9)) >= every
                     ]
                     small = sorted(small, key=lambda t: len(t.members))[:8]
                     for t in small:
-                        self._densified[t.id] = frame
+                        self._densified[t.id] = n
                     if len(self._densified) > 4096:  # forget long-gone tracks
-                        self._densified = {k: v for k, v in self._densified.items() if frame - v < 300}
+                        self._densified = {k: v for k, v in self._densified.items() if n - v < 300}
                     # one whose representative has no pixel (beyond the lens's field, uv None) is not
                     # searched, but keeps its turn among the 8 and its densify_s wait (handing the
                     # turn to another track was measured worse: docs/ARCHITECTURE.md, "no pixel")

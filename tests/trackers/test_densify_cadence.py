@@ -15,9 +15,10 @@ from tests.trackers.conftest import Patch, SphereScene, equidistant
 from trackers.frontend import FrontEnd
 
 
-def densify_frames(fps: float, n: int, **options) -> list[int]:
+def densify_frames(fps: float, n: int, stride: int = 1, **options) -> list[int]:
     """Frames at which the front end asked densify for the one small track of a textured 10-deg disc
-    ahead of a 320 x 240 lens on a blank environment, over n frames at fps."""
+    ahead of a 320 x 240 lens on a blank environment, over n frames processed of a camera at fps:
+    every ``stride``-th of its frames (frame index k, t_s k / fps)."""
     model = equidistant()
     scene = SphereScene(model, blank_env=True)
     fe = FrontEnd(mono_forward_rig(model), **options)
@@ -31,7 +32,7 @@ def densify_frames(fps: float, n: int, **options) -> list[int]:
 
     ft.densify = spy
     disc = Patch(np.array([0.2, 0.0, 1.0]) / np.hypot(0.2, 1.0), np.radians(10.0), seed=3)
-    for k in range(n):
+    for k in range(0, n * stride, stride):
         fe.process({"cam0": scene.render(None, [disc])}, k, k / fps)
     return asked
 
@@ -53,3 +54,14 @@ def test_densify_s_zero_is_every_frame_and_the_old_key_names_its_replacement():
         FrontEnd(mono_forward_rig(equidistant()), densify_every=2)
     with pytest.raises(ConfigError, match="densify_s"):
         FrontEnd(mono_forward_rig(equidistant()), densify_s=-1.0)
+
+
+
+def test_densify_waits_in_frames_processed_when_the_caller_skips_frame_indices():
+    """A live camera's frame index counts the frames the loop dropped too (``LiveFrame.seq``): a
+    100-Hz camera of which every 2nd frame is processed is seen at 50 Hz, so 2/30 s is 3 processed
+    frames (3.33 rounded), 6 of the camera's indices; the wait counted in the caller's indices was
+    met after 3 of them, every 2nd processed frame: 0.04 s, not 2/30 (fails at a451afe: gap 4)."""
+    asked = densify_frames(100.0, 60, stride=2)
+    assert len(asked) >= 3, asked
+    assert np.diff(asked).min() == 6, asked
