@@ -32,8 +32,8 @@ OFFSETS = 0.1 * np.array([[0, 0.6, 0.5], [0, -0.6, 0.5], [0.3, 0, -0.6], [-0.3, 
 CENTRE = np.array([4.0, 0.8, 0.2])
 
 
-def _merge_frame(merged_into: bool):
-    """The reports of frame 15 (the merge) of the scene above."""
+def _merge_frame(merged_into: bool, corners=(5,)):
+    """The reports of frame 15 (the merge) of the scene above (id 5 with ``corners`` of 9's members)."""
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(2.0)
     fus = ObstacleFusion(rig, ego, FusionSettings())
@@ -49,9 +49,9 @@ def _merge_frame(merged_into: bool):
             obs = [ObstacleObservation(9, k, t, "confirmed", views)]
         else:
             c = rig["cam0"]
-            b5 = np.array([exact_bearing(c, T_W_B, pts[5])])
+            b5 = np.array([exact_bearing(c, T_W_B, pts[i]) for i in corners])
             view = CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3,
-                              feature_ids=np.array([5]), feature_b_C=b5)
+                              feature_ids=np.array(corners), feature_b_C=b5)
             into = {"merged_into": 5} if merged_into else {}
             obs = [ObstacleObservation(5, k, t, "confirmed", (view,)),
                    ObstacleObservation(9, k, t, "lost", (), attributes=into)]
@@ -70,3 +70,13 @@ def test_the_merged_ids_filter_goes_on_under_the_kept_id():
     assert abs(r5.range_m - r_true) < 0.05 * r_true
     reps, _ = _merge_frame(False)
     assert reps[9].status == "lost" and reps[5].range_m is None
+
+
+def test_the_continued_filter_keeps_its_members_and_is_not_restarted():
+    """Id 5 reported with two of 9's member corners (4 and 5): the continued filter's members are the
+    same features, now under 5 (the previous frame's members re-owned), so the member-replacement
+    check (``_member_resets``: 2 or more member rays now and then) does not restart it: still ranged,
+    as above (fails without the re-owning: all its members counted new, the filter restarted)."""
+    reps, r_true = _merge_frame(True, corners=(4, 5))
+    r5 = reps[5]
+    assert r5.range_m is not None and abs(r5.range_m - r_true) < 0.05 * r_true

@@ -154,3 +154,36 @@ def test_a_merged_id_is_reported_lost_with_the_id_it_was_merged_into(monkeypatch
     obs = fe.process({"cam0": img}, 0, 0.0)
     assert [(o.track_id, o.status, o.attributes) for o in obs] == [
         (5, "lost", {"merged_into": 3}), (9, "lost", {"merged_into": 3})]
+
+
+def test_an_id_is_handed_once_and_given_back_only_to_the_tracks_the_box_does_not_link():
+    """The box pair's id 10 handed to global 20 (cam1 20, cam0 21). While it is handed and 20's tracks
+    go unseen, another track on the box (cam0 30, placed long enough, seen) does not take 10 too (it
+    would overwrite what 20's tracks are to take back); a box track under the feature track's global
+    id (cam1 box 12 under 20) stops a hand-over; when the box is seen again linked to cam0's 21, 21
+    stays under 10 (``_box_keeps_id``'s link) and only cam1's 20 takes back 20."""
+    fe = _stereo_drone()
+    fe._box_hands_id([])
+    assert fe._box_handed == {10: {20: 20, 21: 20}}
+    for gr in fe.groupers.values():
+        for t in gr.tracks.values():
+            t.seen = False
+    b = np.array([0.0, 0.0, 1.0])
+    fe.groupers["cam0"].tracks[30] = ObstacleTrack(30, "cam0", np.zeros(0, np.int64), b, sigma_rad=0.005,
+                                                   status="confirmed", hits=5)
+    fe.boxers["cam0"].placed = {10: {21: 3, 30: 3}}
+    fe._reported.add(30)
+    fe._box_hands_id([])
+    assert fe._global(30) == 30 and fe._box_handed == {10: {20: 20, 21: 20}}
+    fe.boxers["cam0"].tracks[10].seen = True
+    fe.boxers["cam0"].links = {10: 21}
+    fe._box_hands_id([])
+    assert fe._global(21) == 10 and fe._global(20) == 20 and not fe._box_handed
+
+    fe = _stereo_drone()
+    fe.boxers["cam1"].tracks[12] = ObstacleTrack(12, "cam1", np.zeros(0, np.int64), b, sigma_rad=0.005,
+                                                 status="confirmed", hits=3, label="drone")
+    fe.boxers["cam1"].tracks[12].seen = False
+    fe._gid[12] = 20
+    fe._box_hands_id([])
+    assert fe._global(20) == fe._global(21) == 20 and not fe._box_handed
