@@ -740,15 +740,15 @@ class FeatureTracker:
         ``pipeline.live.detection_worker``, a process at a lower priority) and the frame goes on without
         it; its features join the tracker at the first frame that finds it done (``_merge``), tracked
         from their positions in the detection's frame into that one like any feature stepping from an
-        older reference (the frame's crop is kept until then); their history starts there, age 1, as for
-        a feature detected in that frame. One detection at a time; one still under way when ``history``
-        reference frames are kept is waited for; its error is raised there (RuntimeError naming the
-        frame). None: the synchronous schedule (the default: each detection in its own frame). A
-        detection under way when the schedule is set is dropped (the end of a live run). The executor
-        is first given the finder and waited for (``_Finder.ready``): a worker that cannot take it (a
-        detector that does not pickle, or does not load there) fails here, and a worker process's first
-        detection does not wait for the detector's imports (kornia's torch: 64 frames at 100 Hz
-        otherwise)."""
+        older reference (the frame's crop is kept until then); their history and age are as for features
+        detected in the join's frame (a new one: from there, age 1; a re-acquired one: its own, its lost
+        age + 1). One detection at a time; one still under way when ``history`` reference frames are
+        kept is waited for; its error is raised there (RuntimeError naming the frame). None: the
+        synchronous schedule (the default: each detection in its own frame). A detection under way when
+        the schedule is set is dropped (the end of a live run). The executor is first given the finder
+        and waited for (``_Finder.ready``): a worker that cannot take it (a detector that does not
+        pickle, or does not load there) fails here, and a worker process's first detection does not wait
+        for the detector's imports (kornia's torch: 64 frames at 100 Hz otherwise)."""
         self._pending = None
         self._executor = None
         if executor is not None:
@@ -826,8 +826,9 @@ class FeatureTracker:
         """The deferred detection's features join (``defer_detection``): waited for when still under
         way; the coming KLT steps them from their positions at the detection's frame (``_joined``), the
         previous frame's position extrapolated from there (their velocity: the neighbours' or the lost
-        feature's). Their first history sample is this frame's, as for a feature detected in it
-        (``age`` counts the samples: the grouper reads a feature's samples as one per frame)."""
+        feature's). They are as if detected in this frame: a new feature's first history sample is this
+        frame's, age 1 (``age`` counts the samples: the grouper reads a feature's samples as one per
+        frame); a re-acquired one keeps its history and age, its lost age + 1 (``_append``)."""
         fut, f_det, t_det, n_det = self._pending
         self._pending = None
         self.deferred["joined"] += 1
@@ -843,7 +844,9 @@ class FeatureTracker:
         if len(rows):
             self._joined = (int(f_det), float(t_det), self.ids[rows].copy(), self.uv[rows].copy())
             self.uv[rows] += self.vel[rows] * np.float32(max(self._t_uv - t_det, 0.0))
-            self.age[rows] = 0  # (1 once tracked into this frame)
+            # the age each would have had detected in this frame, once tracked into it: 1 for a new
+            # feature, a re-acquired one's lost age + 1 (``_append`` gave them that already, and KLT adds 1)
+            self.age[rows] -= 1
 
     @property
     def crop(self) -> tuple[np.ndarray | None, np.ndarray]:

@@ -13,6 +13,7 @@ import pytest
 from estimators.errors import InputError
 from estimators.rig import Camera, forward_T_C_B
 from tests.trackers.conftest import SphereScene, rot_axis
+from trackers.clock import FrameClock
 from trackers.detectors import make_detector
 from trackers.features import FeatureTracker
 
@@ -227,3 +228,33 @@ def test_a_worker_that_cannot_take_the_detector_fails_when_the_schedule_is_set()
         ft.defer_detection(PicklingExecutor())
     assert ft._executor is None
     assert len(ft.track(SphereScene(model).render(), 0, 0.0)[0]) > 50
+
+
+@pytest.mark.parametrize("deferred", [False, True])
+def test_a_deferred_reacquisition_keeps_the_lost_features_age_as_the_synchronous_one(deferred):
+    """A lost feature re-acquired by a detection keeps its age (``_append``: the lost age + 1 in the
+    detection's frame, one more a frame after). Joined a frame late, it has the age it would have had
+    re-acquired in the join's frame (the lost age + 1), as a new feature has a new one's (1): the
+    join restarted re-acquired ones at 1 too, so the grouper took them for new features (fails at
+    a451afe: age 1). Static scene: the dropped features are re-detected where they were."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    grey = SphereScene(model).render()
+    ft = make_tracker(model, max_features=300)
+    for k in range(6):
+        ft.track(grey, k, k / 30)
+    if deferred:
+        ft.defer_detection(NowExecutor())
+    drop = np.flatnonzero(ft.has_desc)[:40]
+    # the age each has when re-acquired in a detection's own frame (``_append``: its age when lost + 1)
+    again = dict(zip(ft.ids[drop].tolist(), (ft.age[drop] + 1).tolist(), strict=True))
+    ft._drop(drop, remember=True)
+    ft._frames_since_detect = FrameClock.UNKNOWN  # a detection in frame 6
+    ft.track(grey, 6, 6 / 30)
+    feats, _ = ft.track(grey, 7, 7 / 30)  # the deferred one joins here
+    back = [i for i in feats.ids.tolist() if i in again]
+    assert len(back) >= 10, f"{len(back)} re-acquired"
+    age = dict(zip(feats.ids.tolist(), feats.age.tolist(), strict=True))
+    want = {i: again[i] + (0 if deferred else 1) for i in back}  # (synchronous: re-acquired in frame 6)
+    assert {i: age[i] for i in back} == want
