@@ -819,6 +819,7 @@ def test_a_feature_tracker_detects_through_the_worker_process_as_in_its_frame():
         ft.defer_detection(None)
         ex.shutdown()
     got = ft.features()
+    assert ft.deferred["joined"] >= 1 and k >= 2  # (joined from the worker, not detected in frame 0)
     assert len(got) == len(sync) > 100
     np.testing.assert_allclose(got.uv, sync.uv, atol=0.05)
 

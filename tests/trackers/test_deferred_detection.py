@@ -138,7 +138,9 @@ def test_a_detection_that_joins_frames_later_steps_from_its_own_frame(monkeypatc
             feats5 = feats
     new = ids_at[5] - ids_at[4]
     assert len(new) >= 10, f"{len(new)} features joined at frame 5"
-    assert first5 and sum(n for _, n in first5) >= len(new)  # stepped from frame 2's crop
+    # stepped from frame 2's crop: the joined features, and only they (the others step from the KLT
+    # step's references, not from the frame kept for the detection)
+    assert first5 and sum(n for _, n in first5) == len(merged[-1][0]) >= len(new)
     R = rot_axis([0, 1, 0], 3 * step).T  # b_C5 = R_W_C5^T R_W_C2 b_C2 for a static world at infinity
     rad_px = model.max_angle_rad / model.image_circle()[2]
     errs = []
@@ -258,3 +260,35 @@ def test_a_deferred_reacquisition_keeps_the_lost_features_age_as_the_synchronous
     age = dict(zip(feats.ids.tolist(), feats.age.tolist(), strict=True))
     want = {i: again[i] + (0 if deferred else 1) for i in back}  # (synchronous: re-acquired in frame 6)
     assert {i: age[i] for i in back} == want
+
+
+class NeverDoneExecutor:
+    """A detection that never reports done: its result is made only when it is waited for."""
+
+    def submit(self, fn, *args):
+        class Lazy(Future):
+            def done(self):
+                return False
+
+            def result(self, timeout=None):
+                return fn(*args)
+
+        return Lazy()
+
+
+def test_a_detection_still_under_way_at_the_historys_reach_is_waited_for():
+    """The frames kept for a detection under way stop at ``history`` (the reach of a feature's samples):
+    the detection still not done then is waited for in that frame, ``history`` frames after its own, so
+    the crops kept never pass ``history`` (without the wait they grew by one a frame)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant()
+    grey = SphereScene(model).render()
+    ft = make_tracker(model, max_features=300)
+    ft.defer_detection(NeverDoneExecutor())
+    kept = []
+    for k in range(3 * ft.H):
+        ft.track(grey, k, k / 30)
+        kept.append(len(ft._refs))
+    assert max(kept) == ft.H, kept
+    assert ft.deferred["joined"] >= 2 and ft.deferred["frames_late"] == ft.H * ft.deferred["joined"]
