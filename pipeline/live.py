@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from estimators.egomotion import EgoMotion, TumTrajectory
-from estimators.errors import InputError, SourceError
+from estimators.errors import ConfigError, InputError, SourceError
 from estimators.se3 import Pose
 from pipeline.config import PipelineConfig, write_resolved
 from pipeline.run import (
@@ -849,6 +849,7 @@ def run_live(
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
+        ConfigError: live.deferred_detection true with a front end that has no ``defer_detection``.
         InputError: ``latency_log`` cannot be written (raised before any camera is opened).
         KeyboardInterrupt: re-raised after the outputs are written.
     """
@@ -867,7 +868,13 @@ def run_live(
         egomotion = FramePoseCache(egomotion)
     frontend = frontend if frontend is not None else build_frontend(cfg, rig)
     fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
-    defer = lv.deferred_detection and hasattr(frontend, "defer_detection")
+    defer = lv.deferred_detection
+    if defer and not hasattr(frontend, "defer_detection"):  # (asked for, not silently left undone)
+        raise ConfigError(
+            f"live.deferred_detection true: the front end {type(frontend).__name__} has no defer_detection "
+            "(its detections cannot run off the frame's path); expected a FrontEnd, or set "
+            "live.deferred_detection false"
+        )
     if readers is None:
         if len(lv.cameras) != len(names):
             raise SourceError(

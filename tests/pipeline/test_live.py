@@ -12,7 +12,7 @@ import pytest
 from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
 
 from estimators.egomotion import ConstantVelocity
-from estimators.errors import InputError, SourceError
+from estimators.errors import ConfigError, InputError, SourceError
 from pipeline.config import load_config
 from pipeline.live import (
     Grabber,
@@ -981,3 +981,19 @@ def test_a_ctrl_c_while_the_worker_shuts_down_keeps_the_runs_outputs(tmp_path, m
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["frames"] >= 1 and s["deferred_detection"]["worker_nice"] == 10
     assert len((tmp_path / "out" / "tracks.jsonl").read_text().splitlines()) == s["frames"]
+
+
+def test_deferred_detection_with_a_front_end_that_cannot_defer_is_a_clear_error(tmp_path):
+    """live.deferred_detection true asks for the detections off the frame's path: a front end without
+    ``defer_detection`` is a ConfigError naming the key and the front end, before any camera or worker
+    starts (it was silently left undone: summary.json's deferred_detection null)."""
+    v = write_video(tmp_path / "cam0.mkv", 4, times=[k / 20 for k in range(4)])
+    opened = []
+
+    def factory():
+        opened.append(1)
+        return make_reader_factory(str(v), "cam0", paced=False)()
+
+    with pytest.raises(ConfigError, match=r"live\.deferred_detection true.*FakeFrontEnd.*defer_detection"):
+        _live(tmp_path, [factory], cfg=_cfg("live.deferred_detection=true"))
+    assert not opened and _no_worker_left()
