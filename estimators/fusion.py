@@ -1437,6 +1437,8 @@ class ObstacleFusion:
         self._stereo_pairs = None
         todo: list[tuple[_Track, ObstacleObservation]] = []
         t_end = 0.0  # time spent reporting tracks ended in this loop (fuse)
+        for obs in observations:  # all checked before any state changes: a bad frame leaves none changed
+            self._check_obs(obs, frame, t_s, seen)
         for new, tr in self._continued(observations):
             te = perf()
             old = tr.id
@@ -1448,7 +1450,6 @@ class ObstacleFusion:
                 pid, ptr = self._prev_members
                 self._prev_members = (pid, np.where(ptr == old, new, ptr))
         for obs in observations:
-            self._check_obs(obs, frame, t_s, seen)
             tr = self._tracks.get(obs.track_id)
             if obs.status == "lost" or not obs.views:
                 if tr is not None:

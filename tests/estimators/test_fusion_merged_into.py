@@ -80,3 +80,37 @@ def test_the_continued_filter_keeps_its_members_and_is_not_restarted():
     reps, r_true = _merge_frame(True, corners=(4, 5))
     r5 = reps[5]
     assert r5.range_m is not None and abs(r5.range_m - r_true) < 0.05 * r_true
+
+
+def test_a_frame_with_a_bad_observation_changes_no_filter():
+    """The observations are all checked before any filter changes: a frame whose merged id's lost report
+    comes before an observation with another frame's time is an InputError that ends and re-keys
+    nothing (9 still ranged under its own id), so the corrected frame continues 9's filter under 5
+    (before, the failed frame had already ended 9 and moved its filter)."""
+    import pytest
+
+    from estimators.errors import InputError
+
+    rig = stereo_forward_rig(MODEL, 0.30)
+    ego = ConstantVelocity(2.0)
+    fus = ObstacleFusion(rig, ego, FusionSettings())
+    pts = CENTRE + OFFSETS
+    for k in range(15):
+        t = k / FPS
+        T_W_B = ego.pose_at(t)
+        views = tuple(
+            CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.arange(6),
+                       feature_b_C=np.array([exact_bearing(c, T_W_B, q) for q in pts]))
+            for c in rig)
+        fus.step([ObstacleObservation(9, k, t, "confirmed", views)], k, t)
+    t = 15 / FPS
+    c = rig["cam0"]
+    T_W_B = ego.pose_at(t)
+    view = CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.array([5]),
+                      feature_b_C=np.array([exact_bearing(c, T_W_B, pts[5])]))
+    lost9 = ObstacleObservation(9, 15, t, "lost", (), attributes={"merged_into": 5})
+    with pytest.raises(InputError, match="track 5 has t_s"):
+        fus.step([lost9, ObstacleObservation(5, 15, t + 0.01, "confirmed", (view,))], 15, t)
+    assert set(fus._tracks) == {9} and fus._tracks[9].id == 9
+    reps = {r.id: r for r in fus.step([lost9, ObstacleObservation(5, 15, t, "confirmed", (view,))], 15, t)}
+    assert reps[9].status == "lost" and reps[5].range_m is not None
