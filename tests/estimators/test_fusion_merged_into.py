@@ -17,9 +17,11 @@ it); at frame 15 the front end reports it under id 5, a new id, with one camera 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
+from estimators.errors import InputError
 from estimators.fusion import FusionSettings, ObstacleFusion
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import stereo_forward_rig
@@ -87,10 +89,6 @@ def test_a_frame_with_a_bad_observation_changes_no_filter():
     comes before an observation with another frame's time is an InputError that ends and re-keys
     nothing (9 still ranged under its own id), so the corrected frame continues 9's filter under 5
     (before, the failed frame had already ended 9 and moved its filter)."""
-    import pytest
-
-    from estimators.errors import InputError
-
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(2.0)
     fus = ObstacleFusion(rig, ego, FusionSettings())
