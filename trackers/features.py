@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import itertools
 import pickle
+import uuid
+import weakref
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -103,6 +105,12 @@ class _Found:
         return _Found(np.zeros((0, 2), np.float32), None, np.zeros(0, np.int64))
 
 
+# the finders loaded where deferred detections run (``FeatureTracker.defer_detection``): each tracker's,
+# sent once and loaded by ``_Finder.ready`` under the key the tracker holds (a worker process's registry;
+# an executor in this process shares this one, and a tracker's entry goes with the tracker)
+_FINDERS: dict[str, _Finder] = {}
+
+
 @dataclass(frozen=True)
 class _Finder:
     """A FeatureTracker's detection proper (``find``), apart from the tracker's state so that it may run
@@ -120,24 +128,46 @@ class _Finder:
     reacquire_max_hamming: int
 
     @staticmethod
-    def ready(blob: bytes) -> bool:
-        """True once the finder pickled in ``blob`` loads where this runs (``defer_detection``'s check of
-        its worker: the detector's code imported there). Unpickled here, in the job, so that a detector
-        the worker cannot load is this job's error, with its cause, not a worker process dying while it
-        reads the job (``BrokenProcessPool``, the cause only in the worker's traceback)."""
-        pickle.loads(blob)
+    def ready(key: str, blob: bytes) -> bool:
+        """Load the finder pickled in ``blob`` where this runs and keep it under ``key`` for the deferred
+        detections (``find_loaded``): ``defer_detection``'s set-up of its worker, which also checks that
+        the detector's code imports there. Unpickled here, in the job, so that a detector the worker
+        cannot load is this job's error, with its cause, not a worker process dying while it reads the
+        job (``BrokenProcessPool``, the cause only in the worker's traceback)."""
+        _FINDERS[key] = pickle.loads(blob)
         return True
 
-    def find(self, job: _DetectJob, image: np.ndarray) -> _Found:
-        """The detection proper, on ``image`` against the state copied in ``job``: the keypoints to add
-        (frame px, descriptors) and the lost feature each re-acquires (its id, -1 for a new feature).
-        Reads only ``job``, ``image`` and these settings, so it may run in another thread or process."""
+    @staticmethod
+    def find_loaded(key: str, job: _DetectJob, part: np.ndarray) -> _Found:
+        """A deferred detection (``defer_detection``): ``find`` of the finder loaded under ``key``
+        (``ready``), so that a job carries only the key, the state and the part of the frame."""
+        finder = _FINDERS.get(key)
+        if finder is None:
+            raise RuntimeError(f"no finder {key!r} loaded where this detection runs (no _Finder.ready there)")
+        return finder.find(job, part)
+
+    def part(self, image: np.ndarray) -> np.ndarray:
+        """The part of a full frame ``image`` that ``find`` reads, a view: ``box`` (ORB's: the lens's
+        bounding box + 32 px, or the whole frame; the whole frame for other detectors)."""
+        x0, y0, x1, y1 = self.box
+        return image[y0:y1, x0:x1]
+
+    def find(self, job: _DetectJob, part: np.ndarray) -> _Found:
+        """The detection proper, on ``part``, the frame's ``box`` (``part(image)``), against the state
+        copied in ``job``: the keypoints to add (frame px, descriptors) and the lost feature each
+        re-acquires (its id, -1 for a new feature). Reads only ``job``, ``part`` and these settings, so
+        it may run in another thread or process."""
         free = job.free
         # ORB runs on the lens's bounding box (``_det_box``: roi + 32 px, so that its coarse
         # levels see real pixels past the rim, not a reflected crop border), and describes only the
-        # keypoints that can be kept; other detectors get the whole frame
+        # keypoints that can be kept; other detectors get the whole frame (their box)
         orb = isinstance(self.detector, OrbDetector)
         x0, y0, x1, y1 = self.box
+        if part.shape[:2] != (y1 - y0, x1 - x0):
+            raise InputError(
+                f"detection: the frame part is {part.shape[1]}x{part.shape[0]} px, expected the box "
+                f"{self.box} ({x1 - x0}x{y1 - y0} px)"
+            )
         m = self.mask[y0:y1, x0:x1].copy()
         r = max(1, int(round(self.min_distance_px)))
         # keep new keypoints away from live features (int32 truncates as int() does; a list of
@@ -146,7 +176,7 @@ class _Finder:
             cv2.circle(m, (u, v), r, 0, -1)
         if orb:
             det = self.detector.detect(
-                image[y0:y1, x0:x1],
+                part,
                 m,
                 origin=(x0, y0),
                 frame_hw=self.shape_hw,
@@ -155,7 +185,7 @@ class _Finder:
             if len(det):
                 det = replace(det, keypoints=det.keypoints + np.array([x0, y0], np.float32))
         else:
-            det = self.detector.detect(image, m)
+            det = self.detector.detect(part, m)
         if not len(det):
             return _Found.empty()
         uv = det.keypoints
@@ -719,6 +749,7 @@ class FeatureTracker:
         # detection under way (its future, frame index, time) or None; _n_step: how many of _refs
         # are the KLT step's (the others are kept for that detection's frame)
         self._executor: Any = None
+        self._finder_key: str | None = None  # the key of the finder loaded where the executor runs it
         self._pending: tuple[Any, int, float, int] | None = None  # (+ n_frames when submitted)
         self.deferred: dict[str, int] = {"joined": 0, "frames_late": 0}  # joined, frames after their own
         self._n_step = 0
@@ -735,7 +766,8 @@ class FeatureTracker:
 
     def defer_detection(self, executor: Any) -> None:
         """Run the re-detections off the frame's path (live mode): a frame's detection (``_Finder.find``
-        on the frame and the state copied then, ``_detect_job``) is submitted to ``executor``
+        on the part of the frame it reads and the state, both copied then: ``_Finder.part``,
+        ``_detect_job``) is submitted to ``executor``
         (``submit(fn, *args)`` -> a ``concurrent.futures.Future``; live mode's is
         ``pipeline.live.detection_worker``, a process at a lower priority) and the frame goes on without
         it; its features join the tracker at the first frame that finds it done (``_merge``), tracked
@@ -746,20 +778,24 @@ class FeatureTracker:
         kept is waited for; its error is raised there (RuntimeError naming the frame). None: the
         synchronous schedule (the default: each detection in its own frame). A detection under way when
         the schedule is set is dropped (the end of a live run). The executor is first given the finder
-        and waited for (``_Finder.ready``): a worker that cannot take it (a detector that does not
-        pickle, or does not load there) fails here, and a worker process's first detection does not wait
-        for the detector's imports (kornia's torch: 64 frames at 100 Hz otherwise)."""
+        and waited for (``_Finder.ready``; it keeps it, so a job carries no finder): a worker that cannot
+        take it (a detector that does not pickle, or does not load there) fails here, and a worker
+        process's first detection does not wait for the detector's imports (kornia's torch: 64 frames at
+        100 Hz otherwise)."""
         self._pending = None
         self._executor = None
         if executor is not None:
+            key = uuid.uuid4().hex
             try:
-                executor.submit(_Finder.ready, pickle.dumps(self._finder)).result()
+                executor.submit(_Finder.ready, key, pickle.dumps(self._finder)).result()
             except Exception as e:
                 raise RuntimeError(
                     f"FeatureTracker {self.name!r}: the detection worker cannot take this tracker's "
                     f"detector {type(self.detector).__name__} ({type(e).__name__}: {e}); detect in the "
                     "frames instead (live: live.deferred_detection false)"
                 ) from e
+            self._finder_key = key
+            weakref.finalize(self, _FINDERS.pop, key, None)  # (an executor in this process: its copy)
         self._executor = executor
 
     def track(
@@ -811,7 +847,10 @@ class FeatureTracker:
             else:
                 job = self._detect_job(float(t_s))
                 if job is not None:
-                    fut = self._executor.submit(self._finder.find, job, img)
+                    # the part of the frame the finder reads, copied now: the frame's array may be
+                    # the reader's buffer, filled with a later frame before the worker reads it
+                    part = self._finder.part(img).copy()
+                    fut = self._executor.submit(_Finder.find_loaded, self._finder_key, job, part)
                     self._pending = (fut, int(frame), float(t_s), self.n_frames)
             self._frames_since_detect = 0
         t2 = time.perf_counter()
@@ -1320,7 +1359,7 @@ class FeatureTracker:
         ``_Finder.find`` on this frame's state, then ``_merge``)."""
         job = self._detect_job(t_s)
         if job is not None:
-            self._merge(self._finder.find(job, image))
+            self._merge(self._finder.find(job, self._finder.part(image)))
 
     def _detect_job(self, t_s: float) -> _DetectJob | None:
         """What a detection at time ``t_s`` reads of the tracker's state, copied (so ``_Finder.find`` may run

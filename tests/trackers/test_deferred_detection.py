@@ -15,7 +15,7 @@ from estimators.rig import Camera, forward_T_C_B
 from tests.trackers.conftest import SphereScene, rot_axis
 from trackers.clock import FrameClock
 from trackers.detectors import make_detector
-from trackers.features import FeatureTracker
+from trackers.features import _FINDERS, FeatureTracker
 
 
 class NowExecutor:
@@ -164,7 +164,7 @@ def test_a_detection_joins_into_the_room_left_and_drops_forgotten_reacquisitions
     model = equidistant()
     ft = make_tracker(model, max_features=50)
     job = ft._detect_job(0.0)
-    found = ft._finder.find(job, SphereScene(model).render())
+    found = ft._finder.find(job, ft._finder.part(SphereScene(model).render()))
     assert len(found.uv) == 50 and np.all(found.lost_id == -1)
     ft._append(np.array([[160.0, 120.0]] * 45, np.float32), None, np.full(45, -1, np.intp))
     rows = ft._merge(found)
@@ -188,7 +188,7 @@ def test_a_failing_deferred_detection_is_a_clear_error_at_its_join():
     def bad(*a, **k):
         raise InputError("orb: the frame is not an image")
 
-    ft.detector.detect = bad
+    _FINDERS[ft._finder_key].detector.detect = bad  # (the worker's copy: an executor in this process)
     ft.track(grey, 7, 0.0)  # submitted: the frame goes on
     with pytest.raises(RuntimeError, match=r"'cam0'.*frame 7.*InputError: orb: the frame is not an image"):
         ft.track(grey, 8, 1 / 30)
@@ -292,3 +292,81 @@ def test_a_detection_still_under_way_at_the_historys_reach_is_waited_for():
         kept.append(len(ft._refs))
     assert max(kept) == ft.H, kept
     assert ft.deferred["joined"] >= 2 and ft.deferred["frames_late"] == ft.H * ft.deferred["joined"]
+
+
+class PicklingExecutor:
+    """Runs each job at once across pickle, as a worker process takes it (the function and its arguments
+    pickled at submission, loaded and run), and keeps each detection's arguments and result."""
+
+    def __init__(self) -> None:
+        self.done: list[tuple[tuple, object]] = []  # (the detection's arguments as sent, its result)
+        self.sent_bytes: list[int] = []
+
+    def submit(self, fn, *args):
+        import pickle
+
+        blob = pickle.dumps((fn, args))
+        fn2, args2 = pickle.loads(blob)
+        fut: Future = Future()
+        fut.set_result(fn2(*args2))
+        if fn.__name__ != "ready":
+            self.done.append((args2, fut.result()))
+            self.sent_bytes.append(len(blob))
+        return fut
+
+
+@pytest.mark.parametrize("width", [320, 640])  # ORB's box: the whole frame | the lens's box, a crop
+def test_a_deferred_detection_finds_what_the_synchronous_one_finds_on_the_same_frame_and_job(width):
+    """The worker's detection (the finder loaded once there, a job with only the part of the frame it
+    reads) and the synchronous one (``_detect``) give the same keypoints, descriptors and re-acquired ids
+    on the same frame and state: here a detection with live features and a lost pool (some re-acquired).
+    What a job carries is the box, not the frame, and not the finder (its lens mask alone is a frame's
+    size)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant(width=width)
+    frames = _turning(model, 8)
+    ft = make_tracker(model, max_features=300)
+    for k in range(4):
+        ft.track(frames[k], k, k / 30)
+    ex = PicklingExecutor()
+    ft.defer_detection(ex)
+    ft._drop(np.flatnonzero(ft.has_desc)[:40], remember=True)
+    ft._frames_since_detect = FrameClock.UNKNOWN  # a detection in frame 4
+    ft.track(frames[4], 4, 4 / 30)
+    ((key, job, part), found), *_ = ex.done
+    assert len(job.uv) > 50 and len(job.lost_ids) >= 40
+    x0, y0, x1, y1 = ft.frame_box
+    assert part.shape == (y1 - y0, x1 - x0) and ((x1 - x0) < width) == (width == 640)
+    assert ex.sent_bytes[0] < part.nbytes + 20 * (job.uv.nbytes + job.lost_desc.nbytes) + 4096
+    want = ft._finder.find(job, ft._finder.part(frames[4]))  # the synchronous schedule's call (_detect)
+    assert len(want.uv) > 20 and np.sum(want.lost_id >= 0) >= 5
+    np.testing.assert_array_equal(found.uv, want.uv)
+    np.testing.assert_array_equal(found.desc, want.desc)
+    np.testing.assert_array_equal(found.lost_id, want.lost_id)
+
+
+@pytest.mark.parametrize("width", [320, 640])  # the whole frame (a copy, not the frame itself) | a crop
+def test_the_frame_a_deferred_detection_reads_is_copied_when_it_is_submitted(width):
+    """The caller's frame may be a reader's buffer, refilled with a later frame before the worker reads
+    it: the detection reads the frame as it was at submission. Here the caller's array is blanked after
+    the frame returns and before the held detection runs: its features are those of an untouched
+    frame's (fails at 61b58d6: it read the blank frame, no feature joined)."""
+    from tests.trackers.conftest import equidistant
+
+    model = equidistant(width=width)
+    frames = _turning(model, 2)
+    got = []
+    for blank in (False, True):
+        ft = make_tracker(model, max_features=300)
+        ex = HeldExecutor()
+        ft.defer_detection(ex)
+        bgr = np.repeat(frames[0][:, :, None], 3, axis=2)  # the reader's frame (the detector's image)
+        ft.track(frames[0], 0, 0.0, image=bgr)
+        if blank:
+            bgr[:] = 0
+        ex.release()
+        got.append(ft.track(frames[1], 1, 1 / 30)[0])
+    assert len(got[0]) > 100
+    np.testing.assert_array_equal(got[1].ids, got[0].ids)
+    np.testing.assert_array_equal(got[1].uv, got[0].uv)
