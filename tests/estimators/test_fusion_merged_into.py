@@ -34,30 +34,41 @@ OFFSETS = 0.1 * np.array([[0, 0.6, 0.5], [0, -0.6, 0.5], [0.3, 0, -0.6], [-0.3, 
 CENTRE = np.array([4.0, 0.8, 0.2])
 
 
-def _merge_frame(merged_into: bool, corners=(5,)):
-    """The reports of frame 15 (the merge) of the scene above (id 5 with ``corners`` of 9's members)."""
+def _before_merge():
+    """The fusion after frames 0-14 of the scene above (id 9 seen by both cameras with its 6 member
+    corners), and what frame 15 needs: the rig, the ego-motion, the corners."""
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(2.0)
     fus = ObstacleFusion(rig, ego, FusionSettings())
     pts = CENTRE + OFFSETS
-    for k in range(16):
+    for k in range(15):
         t = k / FPS
         T_W_B = ego.pose_at(t)
-        if k < 15:
-            views = tuple(
-                CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.arange(6),
-                           feature_b_C=np.array([exact_bearing(c, T_W_B, q) for q in pts]))
-                for c in rig)
-            obs = [ObstacleObservation(9, k, t, "confirmed", views)]
-        else:
-            c = rig["cam0"]
-            b5 = np.array([exact_bearing(c, T_W_B, pts[i]) for i in corners])
-            view = CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3,
-                              feature_ids=np.array(corners), feature_b_C=b5)
-            into = {"merged_into": 5} if merged_into else {}
-            obs = [ObstacleObservation(5, k, t, "confirmed", (view,)),
-                   ObstacleObservation(9, k, t, "lost", (), attributes=into)]
-        reps = fus.step(obs, k, t)
+        views = tuple(
+            CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.arange(6),
+                       feature_b_C=np.array([exact_bearing(c, T_W_B, q) for q in pts]))
+            for c in rig)
+        fus.step([ObstacleObservation(9, k, t, "confirmed", views)], k, t)
+    return fus, rig, ego, pts
+
+
+def _merge_obs(rig, ego, pts, corners, merged_into: bool, t_5: float | None = None):
+    """Frame 15's observations (id 5's, 9's): id 5 seen by cam0 with ``corners`` of 9's members at
+    frame 15's time (or ``t_5``), and 9 lost (``merged_into`` 5 or not)."""
+    t = 15 / FPS
+    c = rig["cam0"]
+    T_W_B = ego.pose_at(t)
+    view = CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.array(corners),
+                      feature_b_C=np.array([exact_bearing(c, T_W_B, pts[i]) for i in corners]))
+    into = {"merged_into": 5} if merged_into else {}
+    return (ObstacleObservation(5, 15, t if t_5 is None else t_5, "confirmed", (view,)),
+            ObstacleObservation(9, 15, t, "lost", (), attributes=into))
+
+
+def _merge_frame(merged_into: bool, corners=(5,)):
+    """The reports of frame 15 (the merge) of the scene above (id 5 with ``corners`` of 9's members)."""
+    fus, rig, ego, pts = _before_merge()
+    reps = fus.step(list(_merge_obs(rig, ego, pts, corners, merged_into)), 15, 15 / FPS)
     r_true = float(np.linalg.norm(CENTRE - ego.pose_at(15 / FPS).t))
     return {r.id: r for r in reps}, r_true
 
@@ -89,26 +100,12 @@ def test_a_frame_with_a_bad_observation_changes_no_filter():
     comes before an observation with another frame's time is an InputError that ends and re-keys
     nothing (9 still ranged under its own id), so the corrected frame continues 9's filter under 5
     (before, the failed frame had already ended 9 and moved its filter)."""
-    rig = stereo_forward_rig(MODEL, 0.30)
-    ego = ConstantVelocity(2.0)
-    fus = ObstacleFusion(rig, ego, FusionSettings())
-    pts = CENTRE + OFFSETS
-    for k in range(15):
-        t = k / FPS
-        T_W_B = ego.pose_at(t)
-        views = tuple(
-            CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.arange(6),
-                       feature_b_C=np.array([exact_bearing(c, T_W_B, q) for q in pts]))
-            for c in rig)
-        fus.step([ObstacleObservation(9, k, t, "confirmed", views)], k, t)
+    fus, rig, ego, pts = _before_merge()
     t = 15 / FPS
-    c = rig["cam0"]
-    T_W_B = ego.pose_at(t)
-    view = CameraView(c.name, exact_bearing(c, T_W_B, CENTRE), [0, 0], 1e-3, feature_ids=np.array([5]),
-                      feature_b_C=np.array([exact_bearing(c, T_W_B, pts[5])]))
-    lost9 = ObstacleObservation(9, 15, t, "lost", (), attributes={"merged_into": 5})
+    bad5, lost9 = _merge_obs(rig, ego, pts, (5,), True, t_5=t + 0.01)
     with pytest.raises(InputError, match="track 5 has t_s"):
-        fus.step([lost9, ObstacleObservation(5, 15, t + 0.01, "confirmed", (view,))], 15, t)
+        fus.step([lost9, bad5], 15, t)
     assert set(fus._tracks) == {9} and fus._tracks[9].id == 9
-    reps = {r.id: r for r in fus.step([lost9, ObstacleObservation(5, 15, t, "confirmed", (view,))], 15, t)}
+    obs5, lost9 = _merge_obs(rig, ego, pts, (5,), True)
+    reps = {r.id: r for r in fus.step([lost9, obs5], 15, t)}
     assert reps[9].status == "lost" and reps[5].range_m is not None
