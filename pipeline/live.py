@@ -117,7 +117,6 @@ def set_thread_nice(nice: int | None) -> int | None:
 
 
 def _detection_worker_init(nice: int | None) -> None:
-    import multiprocessing
     import os
     import signal
 

@@ -221,9 +221,7 @@ class _Finder:
             order = bucket(uv, det.scores, self.shape_hw, self.grid, per_cell=10**6)
             # spacing among the new ones: at most one per min_distance_px cell of a coarse grid
             # (the first in ``order`` wins), none in a cell of a re-acquired feature
-            cell = max(1.0, self.min_distance_px)
-            gw = int(self.shape_hw[1] // cell) + 2
-            key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
+            key = self._spacing_cells(uv)
             cand = order[reacq_all[order] < 0]
             cand = cand[~_isin(key[cand], key[re])]
             _, first = np.unique(key[cand], return_index=True)
@@ -245,12 +243,16 @@ class _Finder:
             near = self._near_lost(uv, job.pred)
         if free <= 0:
             return near
-        cell = max(1.0, self.min_distance_px)
-        gw = int(self.shape_hw[1] // cell) + 2
-        key = (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
-        _, first = np.unique(key, return_index=True)
+        _, first = np.unique(self._spacing_cells(uv), return_index=True)
         new = np.sort(first)[: max(free, 0) + len(near)]
         return np.union1d(near, new)
+
+    def _spacing_cells(self, uv: np.ndarray) -> np.ndarray:
+        """The cell key of each keypoint uv (N, 2) px in a grid of min_distance_px (at least 1 px) cells,
+        the new features' spacing (one per cell)."""
+        cell = max(1.0, self.min_distance_px)
+        gw = int(self.shape_hw[1] // cell) + 2
+        return (uv[:, 1] // cell).astype(np.int64) * gw + (uv[:, 0] // cell).astype(np.int64)
 
     def _near_lost(self, uv: np.ndarray, pred: np.ndarray) -> np.ndarray:
         """Indices of the keypoints uv (N, 2) px that may re-acquire a lost feature: in a grid cell
@@ -841,17 +843,7 @@ class FeatureTracker:
         t1 = time.perf_counter()
         self._frames_since_detect += 1
         if self._pending is None and self._need_detection():
-            img = image if image is not None else grey
-            if self._executor is None:
-                self._detect(img, float(t_s))
-            else:
-                job = self._detect_job(float(t_s))
-                if job is not None:
-                    # the part of the frame the finder reads, copied now: the frame's array may be
-                    # the reader's buffer, filled with a later frame before the worker reads it
-                    part = self._finder.part(img).copy()
-                    fut = self._executor.submit(_Finder.find_loaded, self._finder_key, job, part)
-                    self._pending = (fut, int(frame), float(t_s), self.n_frames)
+            self._detect(image if image is not None else grey, int(frame), float(t_s))
             self._frames_since_detect = 0
         t2 = time.perf_counter()
         self._bearings_and_history(frame, t_s)
@@ -1170,10 +1162,11 @@ class FeatureTracker:
             self._joined = None
             j = next(j for j in range(nref) if self._refs[nref - 1 - j][:2] == (f_det, t_det))
             at = np.flatnonzero(_isin(self.ids, jids))
-            k = np.searchsorted(jids, self.ids[at], sorter=np.argsort(jids))
+            by_id = np.argsort(jids)
+            k = np.searchsorted(jids, self.ids[at], sorter=by_id)
             lag[at] = j
             ref_uv = ref_uv.copy() if ref_uv is self.uv else ref_uv
-            ref_uv[at] = juv[np.argsort(jids)[k]]
+            ref_uv[at] = juv[by_id[k]]
             dt_ref[at] = dt_s + (self._t_uv - t_det)
         moving = bool(np.isfinite(dt_s) and dt_s > 0)
         # constant-velocity prediction (px): v (px/s) * dt (s) from the previous frame's position;
@@ -1354,12 +1347,21 @@ class FeatureTracker:
         period = self.clock.frames(self.redetect_s * (2 if full else 1))
         return self._frames_since_detect >= period
 
-    def _detect(self, image: np.ndarray, t_s: float) -> None:
-        """Detect new features (and re-acquire lost ones) in the lens, now (the synchronous schedule:
-        ``_Finder.find`` on this frame's state, then ``_merge``)."""
+    def _detect(self, image: np.ndarray, frame: int, t_s: float) -> None:
+        """Detect new features (and re-acquire lost ones) in the lens: ``_Finder.find`` on this frame's
+        state, then ``_merge``, now (the synchronous schedule), or submitted to the deferred schedule's
+        executor (``defer_detection``; merged by ``_merge_pending``)."""
         job = self._detect_job(t_s)
-        if job is not None:
+        if job is None:
+            return
+        if self._executor is None:
             self._merge(self._finder.find(job, self._finder.part(image)))
+            return
+        # the part of the frame the finder reads, copied now: the frame's array may be the reader's
+        # buffer, filled with a later frame before the worker reads it
+        part = self._finder.part(image).copy()
+        fut = self._executor.submit(_Finder.find_loaded, self._finder_key, job, part)
+        self._pending = (fut, frame, t_s, self.n_frames)
 
     def _detect_job(self, t_s: float) -> _DetectJob | None:
         """What a detection at time ``t_s`` reads of the tracker's state, copied (so ``_Finder.find`` may run
@@ -1389,11 +1391,7 @@ class FeatureTracker:
                 keep[k] = reacq[k] >= 0
         fresh = np.flatnonzero(found.lost_id < 0)
         keep[fresh[max(self.max_features - n0, 0) :]] = False
-        if keep.all():
-            self._append(found.uv, found.desc, reacq)
-        else:
-            desc = None if found.desc is None else found.desc[keep]
-            self._append(found.uv[keep], desc, reacq[keep])
+        self._append(found.uv[keep], None if found.desc is None else found.desc[keep], reacq[keep])
         return np.arange(n0, len(self.ids))
 
     def _append(self, uv: np.ndarray, desc: np.ndarray | None, reacq: np.ndarray) -> int:

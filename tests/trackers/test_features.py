@@ -307,9 +307,9 @@ def _detection_times(ft, grey: np.ndarray, fps: float, t_end: float) -> list[flo
     times: list[float] = []
     orig = ft._detect
 
-    def counting(image, t_s):
+    def counting(image, frame, t_s):
         times.append(t_s)
-        return orig(image, t_s)
+        return orig(image, frame, t_s)
 
     ft._detect = counting
     for k in range(int(round(t_end * fps))):
