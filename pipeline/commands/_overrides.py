@@ -11,8 +11,18 @@ def rig_and_motion_overrides(
     """Overrides for ``--calibration``, ``--trajectory``, ``--speed-mps`` and ``--out``.
 
     A calibration file replaces cameras written into the config; a trajectory and a constant speed
-    exclude each other, so setting one clears the other.
+    exclude each other, so setting one clears the other's value from the config.
+
+    Raises:
+        ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair).
     """
+    if trajectory is not None and speed_mps is not None:
+        from estimators.errors import ConfigError
+
+        raise ConfigError(
+            f"--trajectory {trajectory} and --speed-mps {speed_mps:g} are alternatives (the body's motion "
+            "from a TUM file, or a constant forward speed); give one of them, not both"
+        )
     cli: dict = {}
     if calibration is not None:
         cli["rig.calibration"] = str(calibration)
