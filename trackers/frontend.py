@@ -411,15 +411,20 @@ class FrontEnd:
             one ``lost`` observation for each track lost this frame. A black or saturated frame gives
             no detections (tracks coast).
         Raises:
-            InputError: an unknown camera, a frame of the wrong size, dtype or channel count.
+            InputError: an unknown camera, a frame of the wrong size, dtype or channel count (the
+                message names the frame index and its t_s).
         """
         if not isinstance(images, Mapping):
             raise InputError(
-                f"FrontEnd.process: expected a mapping camera name -> image, got {type(images).__name__}"
+                f"FrontEnd.process: frame {frame} (t_s {t_s!r}): expected a mapping camera name -> image, "
+                f"got {type(images).__name__}"
             )
         extra = sorted(set(images) - set(self.cams))
         if extra:
-            raise InputError(f"FrontEnd.process: unknown cameras {extra}; the rig has {list(self.cams)}")
+            raise InputError(
+                f"FrontEnd.process: frame {frame} (t_s {t_s!r}): unknown cameras {extra}; the rig has "
+                f"{list(self.cams)}"
+            )
         if not np.isfinite(t_s):
             raise InputError(f"FrontEnd.process: expected a finite t_s, got {t_s!r}")
         tm = dict.fromkeys(STAGES, 0.0)
@@ -427,7 +432,10 @@ class FrontEnd:
         full: dict[str, np.ndarray] = {}  # the full-size frames of box cameras wider than max_width
         for name, img in images.items():
             w, h = self.calib_size[name]
-            img = check_image(name, img, w, h)
+            try:
+                img = check_image(name, img, w, h)
+            except InputError as e:  # which frame was refused: a video's bad frame is found by index / time
+                raise InputError(f"frame {frame} (t_s {t_s!r}): {e}") from None
             if self.scale[name] != 1.0:
                 m = self.cams[name].model
                 t0 = time.perf_counter()

@@ -65,6 +65,17 @@ def test_bad_input(model, rig, case, build, exc, with_pose):
     assert isinstance(out, list)
 
 
+REFUSED = [b[:2] for b in BAD if b[2] is not None]
+
+
+@pytest.mark.parametrize("case,build", REFUSED, ids=[b[0] for b in REFUSED])
+def test_a_refused_frame_is_named_by_its_index_and_time(model, rig, case, build):
+    """A video's bad frame is found again by the index and t_s the message gives."""
+    fe = FrontEnd(rig)
+    with pytest.raises(InputError, match=r"frame 17 \(t_s 0\.567\)"):
+        fe.process(build(good_grey(model)), 17, 0.567)
+
+
 def test_wrong_size_message_names_both_sizes(rig):
     fe = FrontEnd(rig)
     with pytest.raises(InputError, match=r"640x480.*320x240"):
