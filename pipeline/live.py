@@ -46,8 +46,10 @@ from pipeline.run import (
     build_frontend,
     build_fusion,
     build_rig,
+    error_text,
     frozen_gc,
     reads_grey,
+    stopped_error,
 )
 from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
 from pipeline.sources import PacedSource, Source, VideoSource, open_capture
@@ -851,6 +853,8 @@ def run_live(
         ConfigError: live.deferred_detection true with a front end that has no ``defer_detection``.
         InputError: ``latency_log`` cannot be written (raised before any camera is opened).
         KeyboardInterrupt: re-raised after the outputs are written.
+        FisheyeDesError: a stage refused a frame mid-run: after the outputs are written (``error`` in
+            summary.json), raised again (same class) with "(outputs up to frame set N are in DIR)".
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -963,6 +967,7 @@ def run_live(
     frames = 0
     no_pose = 0
     interrupted = False
+    failed: Exception | None = None
     # The grabber threads need the GIL for a moment between frames; while the pipeline runs Python, a
     # waiting thread gets it only after the switch interval (5 ms by default), several times per frame,
     # so on one core a replay at 60-100 Hz fell behind its camera's schedule. A short interval while
@@ -1063,6 +1068,8 @@ def run_live(
                 busy.append(time.monotonic() - t_taken)  # taken -> ready for the next frame
     except KeyboardInterrupt:
         interrupted = True
+    except Exception as e:  # a stage refused a frame (or failed): recorded, raised below with where to look
+        failed = e
     finally:
         gc_clock.close()
         sys.setswitchinterval(switch_interval)
@@ -1095,6 +1102,8 @@ def run_live(
                 "wall_s": wall,
                 "frames_per_s": frames / wall if wall > 0 else None,
                 "interrupted": interrupted,
+                # the message of the error that stopped the run (null when it ended normally)
+                "error": None if failed is None else error_text(failed),
                 "latency": latency.summary(),
                 # latency split: from arrival until the loop took the frame, and from then to its line
                 "latency_waited": waited.summary(),
@@ -1126,6 +1135,8 @@ def run_live(
                 worker.shutdown(wait=True, cancel_futures=True)
     if interrupted:
         raise KeyboardInterrupt
+    if failed is not None:
+        raise stopped_error(failed, frames, out)
     return LiveResult(
         out,
         frames,

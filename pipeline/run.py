@@ -61,6 +61,8 @@ __all__ = [
     "open_inputs",
     "run",
     "run_batch",
+    "error_text",
+    "stopped_error",
     "find_recording",
     "VIDEO_SUFFIXES",
     "GREY_DETECTORS",
@@ -352,6 +354,23 @@ def open_inputs(cfg: PipelineConfig, rig: Any) -> SyncedSource:
 
 
 # ------------------------------------------------------------------------------------------- run
+def error_text(e: BaseException) -> str:
+    """The ``error`` that summary.json records for an exception that stopped a run mid-way: the
+    message of a fisheye-des error, else the exception's type and message."""
+    return str(e) if isinstance(e, FisheyeDesError) else f"{type(e).__name__}: {e}"
+
+
+def stopped_error(e: Exception, frames: int, out: Path) -> Exception:
+    """What a run (or live run) stopped by ``e`` raises once its outputs are written: a fisheye-des
+    error again, same class, its message ending "(outputs up to frame set N are in DIR)"; anything
+    else (a bug) unchanged."""
+    if isinstance(e, FisheyeDesError):
+        kept = type(e)(f"{e} (outputs up to frame set {frames} are in {out})")
+        kept.__cause__ = e
+        return kept
+    return e
+
+
 @dataclass
 class RunResult:
     """What a run did: output folder, frame sets processed, distinct tracks, wall time, frames/s, and
@@ -420,6 +439,9 @@ def run(
 
     Raises:
         KeyboardInterrupt: re-raised after every output so far has been written.
+        FisheyeDesError: a stage refused a frame mid-run (a frame of the wrong size, a time outside the
+            trajectory): after every output so far has been written, with ``error`` in summary.json,
+            raised again (same class) with "(outputs up to frame set N are in DIR)" appended.
     """
     out = Path(out_dir) if out_dir is not None else (cfg.outputs.dir or Path("runs") / "run")
     # bad input fails here, before anything is written
@@ -453,6 +475,7 @@ def run(
     annotator = Annotator(rig, egomotion) if video is not None else None
     frames = 0
     interrupted = False
+    failed: Exception | None = None
     first_t = last_t = None
     t_start = time.perf_counter()
     cpu_start = time.process_time()
@@ -503,6 +526,8 @@ def run(
                     break
     except KeyboardInterrupt:
         interrupted = True
+    except Exception as e:  # a stage refused a frame (or failed): recorded, raised below with where to look
+        failed = e
     finally:
         bar.close()
         writer.close()
@@ -511,7 +536,7 @@ def run(
             video.close()
         wall = time.perf_counter() - t_start
         cpu = time.process_time() - cpu_start  # all threads of this process (OpenCV's too)
-        error = source.error
+        error = source.error if failed is None else error_text(failed)
         summary = {
             "frames": frames,
             "tracks": len(writer.track_ids),
@@ -545,6 +570,8 @@ def run(
             write_json(out / SUMMARY_NAME, summary)
     if interrupted:
         raise KeyboardInterrupt
+    if failed is not None:
+        raise stopped_error(failed, frames, out)
     result = RunResult(
         out, frames, len(writer.track_ids), wall, summary["frames_per_s"] or 0.0, error, interrupted, summary
     )

@@ -36,3 +36,37 @@ def test_trajectory_and_speed_together_are_an_error_naming_both(tmp_path, monkey
     assert rc == 2 and len(err) == 1, err
     assert "--trajectory" in err[0] and "--speed-mps" in err[0] and "alternatives" in err[0]
     assert not (tmp_path / "o").exists()  # refused before anything is written
+
+
+class RefusingFrontEnd(FakeFrontEnd):
+    """Refuses its frame number ``at`` (counted from 0) as the real front end refuses a bad frame."""
+
+    def __init__(self, rig, at: int):
+        super().__init__(rig)
+        self.at = at
+
+    def process(self, images, frame, t_s, T_W_B=None):
+        if len(self.calls) == self.at:
+            from estimators.errors import InputError
+
+            raise InputError(f"frame {frame} (t_s {t_s!r}): camera 'cam0': frame is 1x1 px")
+        return super().process(images, frame, t_s, T_W_B)
+
+
+@pytest.mark.parametrize("command", ["run", "live"])
+def test_an_error_mid_run_is_recorded_and_says_what_was_kept(tmp_path, monkeypatch, capsys, command):
+    _fake_stages(monkeypatch, front=lambda cfg, rig: RefusingFrontEnd(rig, at=3))
+    v = write_video(tmp_path / "cam0.mkv", 8, times=[k / 10 for k in range(8)])
+    out = tmp_path / "o"
+    src = ["--video", str(v), "--no-progress"] if command == "run" else ["--camera", str(v)]
+    rc = main([command, *src, "--speed-mps", "3", "--out", str(out)])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1 and "Traceback" not in err[0], err
+    # (live: a replayed frame may be dropped as stale on a loaded machine, so the refused frame's
+    # index and time may come later; three frames were processed before it either way)
+    refused = "frame 3 (t_s 0.3)" if command == "run" else "frame "
+    assert err[0].startswith(f"fisheye-des: error: {refused}") and "camera 'cam0'" in err[0]
+    assert err[0].endswith(f"(outputs up to frame set 3 are in {out})")
+    assert len((out / "tracks.jsonl").read_text().splitlines()) == 3  # nothing already written lost
+    s = json.loads((out / "summary.json").read_text())
+    assert s["frames"] == 3 and s["error"].startswith(refused) and s["error"].endswith("frame is 1x1 px")
