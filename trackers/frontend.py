@@ -11,6 +11,7 @@ reference-camera (the rig's first) feature is reported under that feature's id (
 from __future__ import annotations
 
 import functools
+import inspect
 import itertools
 import time
 from collections import deque
@@ -52,6 +53,23 @@ _OPTION_GROUPS = (
     "densify_below",
     "densify_s",
 )
+_ASSOCIATION_OPTIONS = (
+    "every",
+    "epipolar_deg",
+    "max_hamming",
+    "min_votes",
+    "klt_link_px",
+    "recheck_every",
+    "recheck_px",
+    "follow_levels",
+    "reverse_views",
+)
+# the option groups built into a class per camera: group -> (class, its parameters the front end sets)
+_CLASS_OPTIONS = {
+    "features": (FeatureTracker, ("camera", "detector", "ids")),
+    "grouping": (ObstacleGrouper, ("ids", "label")),
+    "boxes": (BoxTracker, ("ids",)),
+}
 _FRONTEND_RENAMED = {"densify_every": ("densify_s", "every 2nd frame at 30 fps = 2/30 s")}
 DENSIFY_S = 2 / 30  # the front end's default densify_s: every 2nd frame at 30 fps, the count it was fitted as
 
@@ -87,6 +105,31 @@ def tracked_window(rig: Rig, features: Mapping[str, Any] | None = None) -> dict[
     """
     w = klt_window_px((features or {}).get("win_px", KLT_WIN_PX))
     return {c.name: w for c in rig.cameras}
+
+
+def accepted_options(group: str) -> list[str]:
+    """The option names the front end's ``group`` (features, grouping, boxes, association) accepts:
+    the keywords of the class it is built into (``_CLASS_OPTIONS``), or the association's."""
+    if group == "association":
+        return list(_ASSOCIATION_OPTIONS)
+    cls, internal = _CLASS_OPTIONS[group]
+    return [
+        n for n, p in inspect.signature(cls).parameters.items()
+        if p.kind is not p.VAR_KEYWORD and n not in internal
+    ]
+
+
+def _bad_options(group: str, given: Mapping[str, Any], e: Exception) -> ConfigError:
+    """The error for options of ``group`` its class refused (``e``: its TypeError): the unknown names
+    with the accepted ones, else the class's own message."""
+    accepted = accepted_options(group)
+    unknown = sorted(set(given) - set(accepted))
+    if unknown:
+        return ConfigError(
+            f"FrontEnd {group}: unknown option{'s' if len(unknown) > 1 else ''} "
+            f"{', '.join(map(repr, unknown))}; accepted: {', '.join(accepted)}"
+        )
+    return ConfigError(f"FrontEnd: bad {group} options: {e}")
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -242,11 +285,8 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        known = {"every", "epipolar_deg", "max_hamming", "min_votes", "klt_link_px", "recheck_every",
-                 "recheck_px", "follow_levels", "reverse_views"}
-        bad = sorted(set(a) - known)
-        if bad:
-            raise ConfigError(f"FrontEnd association: unknown options {bad}")
+        if set(a) - set(_ASSOCIATION_OPTIONS):
+            raise _bad_options("association", a, TypeError())
         self.assoc_every = int(a.get("every", 5))
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))
@@ -312,20 +352,23 @@ class FrontEnd:
         self.boxers: dict[str, BoxTracker] = {}
         for c in self.cams.values():
             if self.detector.produces_keypoints:
+                fo, go = options.get("features", {}), options.get("grouping", {})
                 try:
                     self.trackers[c.name] = FeatureTracker(
-                        c, self.detector.keypoint_part, ids=self._feature_ids, **options.get("features", {})
-                    )
-                    self.groupers[c.name] = ObstacleGrouper(
-                        self._track_ids, label=self.label, **options.get("grouping", {})
+                        c, self.detector.keypoint_part, ids=self._feature_ids, **fo
                     )
                 except TypeError as e:
-                    raise ConfigError(f"FrontEnd: bad features/grouping options: {e}") from e
-            if self.detector.produces_boxes:
+                    raise _bad_options("features", fo, e) from e
                 try:
-                    self.boxers[c.name] = BoxTracker(self._track_ids, **options.get("boxes", {}))
+                    self.groupers[c.name] = ObstacleGrouper(self._track_ids, label=self.label, **go)
                 except TypeError as e:
-                    raise ConfigError(f"FrontEnd: bad boxes options: {e}") from e
+                    raise _bad_options("grouping", go, e) from e
+            if self.detector.produces_boxes:
+                bo = options.get("boxes", {})
+                try:
+                    self.boxers[c.name] = BoxTracker(self._track_ids, **bo)
+                except TypeError as e:
+                    raise _bad_options("boxes", bo, e) from e
         if len(self.groupers) > 1:  # grouping step 3f: a split both cameras' flows support
             for n, g in self.groupers.items():
                 g.plane_confirm = functools.partial(self._plane_confirm, n)

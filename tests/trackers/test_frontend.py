@@ -117,6 +117,25 @@ def test_bad_options_are_config_errors(rig, opts):
         FrontEnd(rig, **opts)
 
 
+@pytest.mark.parametrize(
+    "group,name,detector,accepted",
+    [
+        ("features", "max_featurs", "orb", ["max_features", "grid", "redetect_s", "win_px", "klt_step_s"]),
+        ("grouping", "link_pix", "orb", ["link_px", "min_age_s", "confirm_s", "plane_every_s"]),
+        ("boxes", "gate", "navlights", ["gate_rad", "confirm_s", "link_share", "link_older_only"]),
+        ("association", "epipolar", "orb", ["every", "epipolar_deg", "reverse_views"]),
+    ],
+)
+def test_an_unknown_option_lists_the_accepted_ones(rig, group, name, detector, accepted):
+    with pytest.raises(ConfigError) as ei:
+        FrontEnd(rig, detector, **{group: {name: 1}})
+    msg = str(ei.value)
+    assert f"{group}: unknown option '{name}'; accepted: " in msg
+    listed = msg.split("accepted: ")[1].split(", ")
+    assert set(accepted) <= set(listed)
+    assert not {"ids", "camera", "detector", "label", "old"} & set(listed)  # set by the front end itself
+
+
 @pytest.mark.parametrize("bad", ["x", 2.7, -1, True, "2"])
 def test_follow_levels_must_be_a_non_negative_integer_or_null(rig, bad):
     """association.follow_levels is OpenCV's maxLevel: a string, a float (2.7 would be truncated
