@@ -594,9 +594,12 @@ def _removed(loc: tuple) -> str | None:
 
 
 def _suggest(key: str, valid: list[str]) -> str:
+    """The tail of an unknown-key message: the closest valid key if any, then all of them ("...in
+    tracker; did you mean 'boxes'? Valid keys: features, ..." or "...in tracker; valid keys: ...")."""
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
-    return f"{hint} Valid keys: {', '.join(valid)}"
+    if close:
+        return f"; did you mean '{close[0]}'? Valid keys: {', '.join(valid)}"
+    return f"; valid keys: {', '.join(valid)}"
 
 
 # ------------------------------------------------------------------------------------ YAML handling

@@ -31,6 +31,25 @@ def test_unknown_key_names_file_line_and_closest_key(tmp_path):
     assert "'sped_mps'" in msg and "did you mean 'speed_mps'" in msg
 
 
+@pytest.mark.parametrize(
+    ("where", "key", "tail"),
+    [
+        ("file", "qqqq", "in tracker; valid keys: features, grouping, boxes"),
+        ("file", "boxs", "in tracker; did you mean 'boxes'? Valid keys: features, grouping, boxes"),
+        ("--set", "qqqq", "in tracker; valid keys: features, grouping, boxes"),
+        ("--set", "boxs", "in tracker; did you mean 'boxes'? Valid keys: features, grouping, boxes"),
+    ],
+)
+def test_unknown_key_message_separates_the_key_from_the_valid_ones(tmp_path, where, key, tail):
+    """With or without a close match, the list of valid keys is set off from the key's own text."""
+    with pytest.raises(ConfigError) as e:
+        if where == "file":
+            load_config(_write(tmp_path, f"tracker:\n  {key}: 1\n"))
+        else:
+            load_config(None, [f"tracker.{key}=1"])
+    assert f"unknown key '{key}' {tail}" in str(e.value)
+
+
 def test_unknown_key_in_list_item(tmp_path):
     p = _write(tmp_path, "rig:\n  cameras:\n    - name: cam0\n      model: eucm\n      mout: up\n")
     with pytest.raises(ConfigError, match=r":5: unknown key 'mout' in rig\.cameras\.0; did you mean 'mount'"):
