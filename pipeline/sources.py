@@ -94,10 +94,11 @@ def timestamps_path_for(path: str | Path) -> Path:
 
 
 def read_timestamps(path: str | Path) -> list[tuple[int, float]]:
-    """Read a ``frame t_s`` file (``#`` comments allowed); frame ints, times strictly increasing.
+    """Read a ``frame t_s`` file (``#`` comments allowed); frame ints and times both strictly increasing.
 
     Raises:
-        SourceError: a malformed line (file and line number named) or times that do not increase.
+        SourceError: a malformed line (file and line number named), or frame numbers or times that do
+            not increase (the line number and both values named).
     """
     path = Path(path)
     out: list[tuple[int, float]] = []
@@ -117,6 +118,11 @@ def read_timestamps(path: str | Path) -> list[tuple[int, float]]:
                 ) from None
             if not np.isfinite(t_s):
                 raise SourceError(f"{path}:{lineno}: t_s is not finite: {s!r}")
+            if out and frame <= out[-1][0]:
+                raise SourceError(
+                    f"{path}:{lineno}: frame numbers must increase; frame {frame} follows frame "
+                    f"{out[-1][0]} (line {s!r})"
+                )
             if out and t_s <= out[-1][1]:
                 raise SourceError(f"{path}:{lineno}: times must increase; {t_s!r} follows {out[-1][1]!r}")
             out.append((frame, t_s))

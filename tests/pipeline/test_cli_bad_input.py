@@ -70,3 +70,14 @@ def test_an_error_mid_run_is_recorded_and_says_what_was_kept(tmp_path, monkeypat
     assert len((out / "tracks.jsonl").read_text().splitlines()) == 3  # nothing already written lost
     s = json.loads((out / "summary.json").read_text())
     assert s["frames"] == 3 and s["error"].startswith(refused) and s["error"].endswith("frame is 1x1 px")
+
+
+def test_a_timestamps_file_whose_frame_numbers_repeat_is_one_line(tmp_path, monkeypatch, capsys):
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 4, times=[0, 0.1, 0.2, 0.3], frames=[0, 1, 1, 3])
+    rc = main(["run", "--video", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o"), "--no-progress"])
+    err = _err_lines(capsys)
+    assert rc == 2 and err == [
+        f"fisheye-des: error: {tmp_path / 'cam0.timestamps.txt'}:3: frame numbers must increase; "
+        "frame 1 follows frame 1 (line '1 0.200000')"
+    ]

@@ -145,6 +145,15 @@ def test_malformed_timestamps_line(tmp_path):
         read_timestamps(f)
 
 
+@pytest.mark.parametrize("frames", [[0, 1, 1, 3], [0, 2, 1, 3]], ids=["repeated", "going back"])
+def test_timestamps_whose_frame_numbers_do_not_increase(tmp_path, frames):
+    f = tmp_path / "t.txt"
+    f.write_text("# frame t_s\n" + "".join(f"{k} {0.1 * i:.1f}\n" for i, k in enumerate(frames)))
+    with pytest.raises(SourceError, match=rf"t\.txt:4: frame numbers must increase; frame {frames[2]} "
+                       rf"follows frame {frames[1]}"):
+        read_timestamps(f)
+
+
 def test_paced_source_releases_frames_at_their_times(tmp_path):
     p = write_video(tmp_path / "cam0.mkv", 4, times=[0.0, 0.5, 1.0, 2.0])
     now = [100.0]
