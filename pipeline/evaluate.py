@@ -36,7 +36,7 @@ from estimators.egomotion import TumTrajectory
 from estimators.errors import InputError
 from pipeline.sim.scene import Scenario, load_scenario
 from pipeline.sim.world import SKY_ID, World, object_velocity, raycast, surface_distance
-from pipeline.sinks import to_plain
+from pipeline.sinks import make_output_dir, to_plain
 
 RANGE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 50.0, math.inf)
 Z_975 = 1.959963984540054  # standard normal 97.5% quantile
@@ -703,12 +703,7 @@ def plot_ranges(ev: Evaluation, out_dir: str | Path) -> list[Path]:
 
 def write_outputs(ev: Evaluation, out_dir: str | Path, plots: bool = True) -> dict[str, Path]:
     """Write ``metrics.json``, ``metrics.txt``, ``reports.jsonl`` (scored rows) and the plots."""
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"{out_dir}: cannot create the output folder ({e.strerror}); expected a "
-                         "writable folder path") from None
+    out_dir = make_output_dir(out_dir)
     (out_dir / "metrics.json").write_text(json.dumps(to_plain(ev.metrics), indent=2))
     (out_dir / "metrics.txt").write_text(format_table(ev.metrics) + "\n")
     with (out_dir / "reports.jsonl").open("w") as f:

@@ -51,7 +51,15 @@ from pipeline.run import (
     reads_grey,
     stopped_error,
 )
-from pipeline.sinks import SUMMARY_NAME, TRACKS_NAME, Annotator, TracksWriter, VideoWriter, write_json
+from pipeline.sinks import (
+    SUMMARY_NAME,
+    TRACKS_NAME,
+    Annotator,
+    TracksWriter,
+    VideoWriter,
+    make_output_dir,
+    write_json,
+)
 from pipeline.sources import PacedSource, Source, VideoSource, open_capture
 
 __all__ = [
@@ -856,8 +864,7 @@ def run_live(
         FisheyeDesError: a stage refused a frame mid-run: after the outputs are written (``error`` in
             summary.json), raised again (same class) with "(outputs up to frame set N are in DIR)".
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_output_dir(out_dir)
     write_resolved(cfg, out)
     lv = cfg.live
     rig = rig if rig is not None else build_rig(cfg)

@@ -34,6 +34,7 @@ from pipeline.sinks import (
     Annotator,
     TracksWriter,
     VideoWriter,
+    make_output_dir,
     make_plots,
     write_json,
 )
@@ -453,10 +454,10 @@ def run(
     try:
         frontend = frontend if frontend is not None else build_frontend(cfg, rig)
         fusion = fusion if fusion is not None else build_fusion(cfg, rig, egomotion)
+        make_output_dir(out)  # an --out that is a file or cannot be written: one line, nothing run
     except BaseException:
         source.close()
         raise
-    out.mkdir(parents=True, exist_ok=True)
     write_resolved(cfg, out, source=config_source, overrides=overrides)
     show = cfg.outputs.progress if progress is None else progress
 
@@ -683,7 +684,7 @@ def run_batch(
             add([item], item.stem, item.parent if len(names) == 1 else None)
         else:
             raise SourceError(f"{item}: not found")
-    out_root.mkdir(parents=True, exist_ok=True)
+    make_output_dir(out_root)
     n = workers or min(len(jobs), os.cpu_count() or 1)
     results: list[dict] = []
     if n <= 1 or len(jobs) == 1:

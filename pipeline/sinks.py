@@ -25,6 +25,7 @@ __all__ = [
     "to_plain",
     "report_dicts",
     "write_json",
+    "make_output_dir",
     "Annotator",
     "VideoWriter",
     "make_plots",
@@ -56,6 +57,33 @@ def to_plain(obj: Any) -> Any:
     if hasattr(obj, "to_json"):
         return to_plain(obj.to_json())
     return obj
+
+
+def make_output_dir(path: str | Path) -> Path:
+    """Create the output folder ``path`` (and its parents) if needed and check it can be written.
+
+    The one check of an ``--out`` folder for ``run``, ``live``, ``evaluate`` and ``demo``.
+
+    Raises:
+        InputError: ``path`` is a file, one of its parents is a file, or it cannot be created or
+            written (the reason named).
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{path}: cannot create the output folder (it is a file); expected a folder path "
+                         "that can be created and written")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        blocker = next((p for p in path.parents if p.exists()), None)
+        why = (f"{blocker} is a file" if blocker is not None and not blocker.is_dir()
+               else (e.strerror or str(e)).lower())
+        raise InputError(f"{path}: cannot create the output folder ({why}); expected a folder path "
+                         "that can be created and written") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise InputError(f"{path}: the output folder cannot be written (permission denied); expected a "
+                         "writable folder")
+    return path
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

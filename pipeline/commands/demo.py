@@ -71,10 +71,9 @@ def run_demo(
     from pipeline.run import run, wants_grey
     from pipeline.sim.scene import load_scenario
     from pipeline.sim.writer import VIDEO_EXT, simulate
-    from pipeline.sinks import write_json
+    from pipeline.sinks import make_output_dir, write_json
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = make_output_dir(out)
     scn_path = find_preset(DEFAULT_SCENARIO if scenario is None else scenario, scenarios_dir(), "scenario")
     wall: dict[str, float] = {}
     cli: dict[str, Any] = {

@@ -81,3 +81,29 @@ def test_a_timestamps_file_whose_frame_numbers_repeat_is_one_line(tmp_path, monk
         f"fisheye-des: error: {tmp_path / 'cam0.timestamps.txt'}:3: frame numbers must increase; "
         "frame 1 follows frame 1 (line '1 0.200000')"
     ]
+
+
+@pytest.mark.parametrize("command", ["run", "live", "batch"])
+@pytest.mark.parametrize("out", ["file", "file/sub"])
+def test_an_out_that_is_a_file_is_one_line(tmp_path, monkeypatch, capsys, command, out):
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    (tmp_path / "file").write_text("keep me")
+    src = {"run": ["--video", str(v), "--no-progress"], "live": ["--camera", str(v)],
+           "batch": ["--batch", str(v), "--no-progress"]}[command]
+    name = "live" if command == "live" else "run"
+    rc = main([name, *src, "--speed-mps", "3", "--out", str(tmp_path / out)])
+    err = _err_lines(capsys)
+    blocker = "it" if out == "file" else str(tmp_path / "file")
+    assert rc == 2 and err == [
+        f"fisheye-des: error: {tmp_path / out}: cannot create the output folder ({blocker} is a file); "
+        "expected a folder path that can be created and written"
+    ]
+    assert (tmp_path / "file").read_text() == "keep me"
+
+
+def test_make_output_dir_creates_parents_and_accepts_an_existing_folder(tmp_path):
+    from pipeline.sinks import make_output_dir
+
+    assert make_output_dir(tmp_path / "a" / "b") == tmp_path / "a" / "b" and (tmp_path / "a" / "b").is_dir()
+    assert make_output_dir(str(tmp_path / "a")) == tmp_path / "a"

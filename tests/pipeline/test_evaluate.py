@@ -363,6 +363,20 @@ def test_unwritable_output_folder_is_an_input_error(scen_dir, tmp_path):
         write_outputs(evaluate([(run, scen_dir)]), blocker, plots=False)
 
 
+@pytest.mark.parametrize("out", ["file", "file/sub"])
+def test_cli_evaluate_into_an_unusable_out_is_one_line(scen_dir, tmp_path, capsys, out):
+    from pipeline.cli import main
+
+    run = _write_run(tmp_path, [{"frame": 0, "t_s": 0.0, "tracks": []}])
+    (tmp_path / "file").write_text("x")
+    assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / out), "--no-plots"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"fisheye-des: error: {tmp_path / out}: cannot create the output folder "
+                   f"({'it' if out == 'file' else tmp_path / 'file'} is a file); expected a folder path that "
+                   "can be created and written"]
+    assert (tmp_path / "file").read_text() == "x"
+
+
 def test_nis_is_reported_against_its_dimension(scen_dir, tmp_path):
     # every report carries NIS 1.0 on a 2-D innovation, and one in ten NIS 9.0 (beyond the
     # chi2(2) 95% gate 5.991): mean 1.8 expected 2, 90% within the gate
