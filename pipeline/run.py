@@ -625,7 +625,7 @@ def run_batch(
             every camera name is one recording (its ``camchain.yaml`` / ``trajectory.tum`` are used when the
             config has none), otherwise each video file directly inside it is one mono run.
         out_root: results go to ``out_root/<video or folder stem>/``.
-        workers: process count (default: CPU count, at most the number of runs).
+        workers: process count, at least 1 (default: CPU count, at most the number of runs).
         camera_names: rig camera names used to recognise recording folders (default ``["cam0"]``, or
             ``["cam0", "cam1"]`` for a two-camera calibration).
 
@@ -634,6 +634,8 @@ def run_batch(
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"run_batch: workers expected an integer of at least 1 (or None), got {workers!r}")
     names = camera_names or ["cam0"]
     jobs: list[tuple[dict, str, str | None]] = []
     used: set[str] = set()

@@ -63,6 +63,10 @@ def register(app: typer.Typer) -> None:
         if describe:
             print(describe_config())
             return
+        if jobs is not None and jobs < 1:
+            from estimators.errors import ConfigError
+
+            raise ConfigError(f"--jobs {jobs}: expected at least 1 worker process")
 
         cli: dict = {}
         if video:

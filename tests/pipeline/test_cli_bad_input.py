@@ -107,3 +107,24 @@ def test_make_output_dir_creates_parents_and_accepts_an_existing_folder(tmp_path
 
     assert make_output_dir(tmp_path / "a" / "b") == tmp_path / "a" / "b" and (tmp_path / "a" / "b").is_dir()
     assert make_output_dir(str(tmp_path / "a")) == tmp_path / "a"
+
+
+@pytest.mark.parametrize("jobs", ["0", "-2"])
+def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    rc = main(["run", "--batch", str(v), "--jobs", jobs, "--speed-mps", "3", "--out", str(tmp_path / "o"),
+               "--no-progress"])
+    assert rc == 2 and _err_lines(capsys) == [
+        f"fisheye-des: error: --jobs {jobs}: expected at least 1 worker process"
+    ]
+    assert not (tmp_path / "o").exists()
+
+
+def test_run_batch_refuses_zero_workers(tmp_path):
+    from estimators.errors import ConfigError
+    from pipeline.config import load_config
+    from pipeline.run import run_batch
+
+    with pytest.raises(ConfigError, match="workers expected an integer of at least 1"):
+        run_batch(load_config(None, ["ego_motion.speed_mps=3"]), [], tmp_path / "o", workers=0)
