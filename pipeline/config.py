@@ -788,29 +788,50 @@ def load_config(
         _set_in(data, parts, value, origin)
         origins[parts] = origin
     try:
-        return PipelineConfig.model_validate(data, context={"base_dir": base_dir})
+        cfg = PipelineConfig.model_validate(data, context={"base_dir": base_dir})
     except ValidationError as e:
         raise ConfigError(_format_error(e, cfg_path, lines, origins)) from None
+    _check_fusion(cfg, cfg_path, lines, origins)
+    return cfg
+
+
+def _check_fusion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
+    """Check the fusion section as ``estimators.fusion.FusionSettings`` will take it (its value checks:
+    >= 0, a probability, ...), at load time and in the config's words: the key as written
+    (``fusion.max_speed_mps``) and where it was set, not the settings class's field name."""
+    from estimators.fusion import FusionSettings
+
+    try:
+        FusionSettings(**cfg.fusion.settings_kwargs())
+    except ConfigError as e:
+        m = re.match(r"FusionSettings\.(\w+): (.*)", str(e), re.S)
+        if m is None:
+            raise ConfigError(f"{_where(('fusion',), path, lines, origins)}: fusion: {e}") from None
+        key, problem = m.groups()
+        loc = ("fusion", key)
+        raise ConfigError(f"{_where(loc, path, lines, origins)}: fusion.{key}: {problem}") from None
+
+
+def _where(loc: tuple, path: Path | None, lines: dict, origins: dict) -> str:
+    """Where the value at ``loc`` was set: the --set item, or file:line of the longest known prefix of
+    loc (the file alone, or "config" for the defaults, when no line is known)."""
+    for n in range(len(loc), 0, -1):
+        if loc[:n] in origins:
+            return origins[loc[:n]]
+    line = None
+    for n in range(len(loc), -1, -1):
+        if loc[:n] in lines:
+            line = lines[loc[:n]]
+            break
+    name = str(path) if path is not None else "config"
+    return f"{name}:{line}" if line is not None else name
 
 
 def _format_error(e: ValidationError, path: Path | None, lines: dict, origins: dict) -> str:
     errors = sorted(e.errors(), key=lambda x: x["type"] != "extra_forbidden")  # a typo explains 'missing'
     err = errors[0]
     loc = tuple(err["loc"])
-    # where: the --set item, or file:line of the longest known prefix of loc
-    where = None
-    for n in range(len(loc), 0, -1):
-        if loc[:n] in origins:
-            where = origins[loc[:n]]
-            break
-    if where is None:
-        line = None
-        for n in range(len(loc), -1, -1):
-            if loc[:n] in lines:
-                line = lines[loc[:n]]
-                break
-        name = str(path) if path is not None else "config"
-        where = f"{name}:{line}" if line is not None else name
+    where = _where(loc, path, lines, origins)
     dotted = ".".join(str(p) for p in loc) or "(top level)"
     more = f" (and {len(errors) - 1} more error{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
     if err["type"] == "extra_forbidden":

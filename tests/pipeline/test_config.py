@@ -175,6 +175,23 @@ def test_shipped_configs_load_and_build_their_rig(name, kind, baseline_m):
         assert abs(float(np.linalg.norm(c0 - c1)) - baseline_m) < 1e-12
 
 
+@pytest.mark.parametrize(
+    ("yaml_text", "sets", "expected"),
+    [
+        (None, ["fusion.max_speed_mps=-3"],
+         "--set fusion.max_speed_mps=-3: fusion.max_speed_mps: expected a value >= 0, got -3.0"),
+        ("fusion:\n  lost_after_s: 0.5\n  gate_probability: 2\n", [],
+         "{path}:3: fusion.gate_probability: expected a probability in (0, 1), got 2.0"),
+    ],
+)
+def test_a_bad_fusion_value_is_named_as_the_config_key(tmp_path, yaml_text, sets, expected):
+    """Checked on load, named as the user wrote it (fusion.key, where it was set), not FusionSettings."""
+    path = _write(tmp_path, yaml_text) if yaml_text is not None else None
+    with pytest.raises(ConfigError) as e:
+        load_config(path, sets)
+    assert str(e.value) == expected.format(path=path)
+
+
 def test_fusion_section_mirrors_fusion_settings():
     import dataclasses
 
