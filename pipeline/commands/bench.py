@@ -28,7 +28,9 @@ def register(app: typer.Typer) -> None:
             "latency N times, in interleaved rounds; rows give the median (the verdict), min-max and "
             "the values per round (default 3; 1 with --quick).")] = None,
     ) -> None:
-        """Render (or reuse) simulator clips and measure the pipeline: frames/s at 640x480, 1280x720 and
+        """Measure the pipeline's frames/s, per-stage time, live latency, memory and scaling.
+
+        Renders (or reuses) simulator clips and measures: frames/s at 640x480, 1280x720 and
         1920x1080, mono and stereo, on one pinned core and on all cores, beside decode-only; time per
         stage (median, p99); live latency at the camera's rate; frames/s against obstacles and
         features; memory over 10,000 frames; kornia beside ORB. Prints a table and writes

@@ -43,8 +43,9 @@ def register(app: typer.Typer) -> None:
         progress: Annotated[bool, typer.Option("--progress/--no-progress", help="Progress bar.")] = True,
         grey: Annotated[bool, typer.Option("--grey", help="Write greyscale videos instead of BGR.")] = False,
     ) -> None:
-        """Render raw fisheye video of a scenario and write videos, camchain.yaml, trajectory.tum,
-        scene.yaml and gt.jsonl into OUT."""
+        """Render raw fisheye video of a scenario, with its exact ground truth.
+
+        Writes the videos, camchain.yaml, trajectory.tum, scene.yaml and gt.jsonl into OUT."""
         from pipeline.config import find_preset, scenarios_dir
         from pipeline.sim.scene import load_scenario
         from pipeline.sim.writer import simulate
