@@ -26,3 +26,30 @@ def test_top_level_help_lists_each_command_on_its_own_summary(capsys):
         assert f" {name} " in out
     assert "frames/s at 640x480, 1280x720 and" not in out  # bench's details stay in `bench --help`
     assert "scene.yaml and gt.jsonl into OUT" not in out  # simulate's too
+
+
+REPO = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+def _options(name: str) -> set[str]:
+    cmd = typer.main.get_command(app).commands[name]
+    return {o for p in cmd.params for o in (*p.opts, *p.secondary_opts)}
+
+
+@pytest.mark.parametrize("name", ["run", "live"])
+def test_readme_rows_of_run_and_live_show_the_motion_input_with_real_options(name):
+    """The README's usage row names the body's motion (--trajectory or --speed-mps) and only options the
+    command has."""
+    import re
+
+    row = next(ln for ln in (REPO / "README.md").read_text().splitlines()
+               if ln.startswith(f"| `fisheye-des {name} "))
+    usage = row.split("`")[1]
+    assert "(--trajectory traj.tum \\| --speed-mps V)" in usage
+    assert set(re.findall(r"--[a-z][a-z-]*", usage)) <= _options(name)
+
+
+def test_shipped_config_points_to_describe_config():
+    head = (REPO / "configs" / "mono_forward.yaml").read_text().splitlines()[:5]
+    assert any("fisheye-des run --describe-config" in ln for ln in head)
+    assert "--describe-config" in _options("run")
