@@ -1260,9 +1260,6 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
     Raises:
         ConfigError: naming the override (``--override ITEM``) or the key and what is expected.
     """
-    import importlib
-    import inspect
-
     from estimators.errors import ConfigError
     from pipeline.config import _suggest
 
@@ -1273,10 +1270,11 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
                               "calibration and trajectory) and cannot be overridden; expected a detector, "
                               "tracker or fusion key")
     cfg = _load_config(overrides)
-    for group, (mod, cls) in _TRACKER_GROUPS.items():
+    from trackers.frontend import accepted_options
+
+    for group, (_mod, cls) in _TRACKER_GROUPS.items():
         given = getattr(cfg.tracker, group) or {}
-        params = [p for p in inspect.signature(getattr(importlib.import_module(mod), cls)).parameters
-                  if p not in ("self", "ids")]
+        params = accepted_options(group)  # the class's keywords less those the front end sets itself
         for k in given:
             if k not in params:
                 raise ConfigError(f"--override tracker.{group}.{k}: unknown key '{k}' in tracker.{group} "

@@ -256,6 +256,9 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
         ("link_px", ["--override 'link_px'", "expected section.key=value"]),
         ("tracker.features.max_features=2.5", ["tracker.features.max_features=2.5", "integer"]),
         ("tracker.boxes.link_tol_px=-1", ["--override tracker.boxes", "link_tol_px"]),
+        # keywords the front end sets itself are no options (were accepted, then clashed in FrontEnd)
+        ("tracker.features.camera=1", ["--override tracker.features.camera:", "unknown key 'camera'"]),
+        ("tracker.grouping.old=1", ["--override tracker.grouping.old:", "unknown key 'old'"]),
         ("ego_motion.speed_mps=3", ["--override ego_motion.speed_mps=3", "set from each scene's render"]),
         ("rig.calibration=x.yaml", ["--override rig.calibration=x.yaml", "cannot be overridden"]),
     ],
