@@ -155,6 +155,34 @@ def _worker_nice() -> int | None:
     return set_thread_nice(None)
 
 
+def _worker_pid() -> int:
+    import os
+
+    return os.getpid()
+
+
+def process_cpu_s(pid: int | None) -> float | None:
+    """CPU seconds (user + system, all threads) that process ``pid`` has used so far, from
+    ``/proc/<pid>/stat`` (fields 14 and 15, utime and stime, in clock ticks); None when ``pid`` is None
+    or the file cannot be read (not Linux, the process gone)."""
+    import os
+
+    if pid is None:
+        return None
+    try:
+        stat = Path(f"/proc/{int(pid)}/stat").read_text()
+        ticks = os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError):
+        return None
+    # "pid (comm) state ppid ...": comm may hold spaces and parentheses, so split after its last ")";
+    # then field 3 (state) is index 0, utime (field 14) index 11, stime (field 15) index 12
+    fields = stat[stat.rfind(")") + 2 :].split()
+    try:
+        return (int(fields[11]) + int(fields[12])) / ticks
+    except (IndexError, ValueError):
+        return None
+
+
 def detection_worker(nice: int | None) -> ProcessPoolExecutor:
     """The deferred re-detection's executor (``FrontEnd.defer_detection``): one child process (spawned:
     no fork of a process with camera threads) at ``nice``, so that a detection runs in the loop's idle
@@ -170,6 +198,7 @@ def detection_worker(nice: int | None) -> ProcessPoolExecutor:
     )
     try:
         ex.nice = ex.submit(_worker_nice).result()  # (the value it runs at, for summary.json)
+        ex.pid = ex.submit(_worker_pid).result()  # (its CPU time, read from /proc, for summary.json)
     except BaseException:
         ex.shutdown(wait=False, cancel_futures=True)
         raise
@@ -981,6 +1010,9 @@ def run_live(
     # live lets each frame arrive on time.
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(min(switch_interval, LIVE_SWITCH_INTERVAL_S))
+    # the worker's CPU time over the loop (what the second core costs): read at loop start and end
+    worker_pid = getattr(worker, "pid", None) if worker is not None else None
+    worker_cpu_start = process_cpu_s(worker_pid)
     start_mono = time.monotonic()
     start_unix = time.time()
     t_start = time.perf_counter()
@@ -1086,8 +1118,15 @@ def run_live(
         if worker is not None:  # the detection under way (if any) is dropped; the process ends with the run
             frontend.defer_detection(None)
             per_cam = getattr(frontend, "deferred", {})
+            worker_cpu_end = process_cpu_s(worker_pid)
             deferred = {
                 "worker_nice": getattr(worker, "nice", None),
+                # CPU seconds (user + system) the worker process used from loop start to end; None where
+                # /proc cannot be read
+                "worker_cpu_s": (
+                    None if worker_cpu_start is None or worker_cpu_end is None
+                    else worker_cpu_end - worker_cpu_start
+                ),
                 "joined": {n: d["joined"] for n, d in per_cam.items()},
                 "frames_late": {n: d["frames_late"] for n, d in per_cam.items()},
             }
@@ -1127,8 +1166,8 @@ def run_live(
                 "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
                 "grabber_nice": {g.name: g.nice for g in grabbers},
                 # the re-detections run off the frame's path (live.deferred_detection): the worker process's
-                # nice value; per feature tracker, detections joined and the frames processed in all between
-                # each detection's frame and its join
+                # nice value and CPU seconds over the loop; per feature tracker, detections joined and the
+                # frames processed in all between each detection's frame and its join
                 "deferred_detection": deferred,
                 "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
                 "frames_without_pose": no_pose,

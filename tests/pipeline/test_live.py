@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -771,6 +772,40 @@ def test_the_live_run_detects_in_a_worker_process_at_its_nice_that_ends_with_the
     front.defer_detection = lambda ex: pytest.fail("no worker by default (live.deferred_detection false)")
     _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)], front=front)
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["deferred_detection"] is None
+
+
+def test_the_live_summary_reports_the_detection_workers_cpu_seconds_over_the_loop(tmp_path):
+    """summary.json's deferred_detection.worker_cpu_s: the worker process's CPU seconds (from
+    /proc/<pid>/stat) between loop start and end, so a user sees what the second core costs; a job that
+    burns CPU in the worker shows in it, the worker's start-up (spawn, imports) does not."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("needs /proc (Linux)")
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
+    front = DeferringFrontEnd(mono_rig(), job=(sum, range(20_000_000)))  # ~0.2-1 s of one core
+    _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=True)], front=front,
+          cfg=_cfg("live.deferred_detection=true"))
+    assert front.result == sum(range(20_000_000))
+    cpu = json.loads((tmp_path / "out" / "summary.json").read_text())["deferred_detection"]["worker_cpu_s"]
+    t0 = time.process_time()
+    sum(range(20_000_000))
+    here = time.process_time() - t0  # the same job in this process
+    assert 0.5 * here <= cpu <= 2.0 * here + 0.3
+
+
+def test_process_cpu_s_reads_a_process_cpu_time_from_proc():
+    """process_cpu_s(pid): user + system seconds from /proc/<pid>/stat, as os.times() counts them for this
+    process; None for no pid or a process that does not exist."""
+    if not Path("/proc/self/stat").is_file():
+        pytest.skip("needs /proc (Linux)")
+    import os
+
+    from pipeline.live import process_cpu_s
+
+    sum(range(5_000_000))
+    t = os.times()
+    assert process_cpu_s(os.getpid()) == pytest.approx(t.user + t.system, abs=0.05)
+    assert process_cpu_s(None) is None
+    assert process_cpu_s(2**22 + 12345) is None  # above Linux's pid_max
 
 
 def test_a_failing_detection_job_stops_the_live_run_with_its_error_and_no_worker_left(tmp_path):
