@@ -8,6 +8,7 @@ an extrapolation.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,6 +58,21 @@ class ConstantVelocity(EgoMotion):
         return self.start.R @ np.array([self.speed_mps, 0.0, 0.0])
 
 
+def _quaternion_norms(q: np.ndarray) -> np.ndarray:
+    """Norms of the quaternions ``q`` (N, 4); where the squares overflow, ``math.hypot``'s
+    (overflow-safe), so only a norm beyond the float range is infinite."""
+    with np.errstate(over="ignore"):
+        norms = np.linalg.norm(q, axis=1)
+    for i in np.flatnonzero(~np.isfinite(norms)):
+        norms[i] = math.hypot(*q[i])
+    return norms
+
+
+def _quaternion_problem(norm: float) -> str:
+    kind = "a zero quaternion" if norm < 1e-9 else "a quaternion too large to normalise"
+    return f"has {kind} (norm {norm:.3g}; expected a rotation [qx qy qz qw], any non-zero finite scale)"
+
+
 class TumTrajectory(EgoMotion):
     """A trajectory of timestamped poses ``T_W_B``, interpolated to any time inside its span.
 
@@ -85,10 +101,11 @@ class TumTrajectory(EgoMotion):
                 f"{source}: timestamps must increase strictly; pose {i} has t={t_s[i]!r} "
                 f"after t={t_s[i - 1]!r}"
             )
-        norms = np.linalg.norm(q_W_B, axis=1)
-        if np.any(norms < 1e-9):
-            i = int(np.argmax(norms < 1e-9))
-            raise InputError(f"{source}: pose {i} has a zero quaternion")
+        norms = _quaternion_norms(q_W_B)
+        bad = ~((norms >= 1e-9) & np.isfinite(norms))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise InputError(f"{source}: pose {i} {_quaternion_problem(norms[i])}")
         self.t_s = t_s
         self.p_W = p_W
         self.q_W_B = q_W_B / norms[:, None]
@@ -118,6 +135,9 @@ class TumTrajectory(EgoMotion):
                     raise InputError(f"{path}:{lineno}: not a number in {s!r}") from None
                 if not all(np.isfinite(vals)):
                     raise InputError(f"{path}:{lineno}: NaN or infinite value in {s!r}")
+                qn = float(_quaternion_norms(np.array([vals[4:8]]))[0])
+                if not (qn >= 1e-9 and np.isfinite(qn)):
+                    raise InputError(f"{path}:{lineno}: {_quaternion_problem(qn)} in {s!r}")
                 rows.append((lineno, vals))
         if len(rows) < 2:
             raise InputError(f"{path}: expected at least 2 poses, found {len(rows)}")

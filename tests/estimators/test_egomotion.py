@@ -47,6 +47,8 @@ def test_tum_save_load_round_trip(tmp_path):
         ("0 0 0 0 0 0 0 1\n1 nan 0 0 0 0 0 1\n", r":2: NaN"),
         ("0 0 0 0 0 0 0 1\n1 x 0 0 0 0 0 1\n", r":2: not a number"),
         ("0 0 0 0 0 0 0 1\n", r"at least 2 poses"),
+        ("# t tx ty tz qx qy qz qw\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 0\n", r"bad.tum:3: has a zero quaternion"),
+        ("0 0 0 0 0 0 0 1\n1 1 0 0 1e308 1e308 1e308 1e308\n", r":2: has a quaternion too large"),
     ],
 )
 def test_tum_bad_lines_name_the_line(tmp_path, text, match):
@@ -66,3 +68,17 @@ def test_time_outside_span_is_an_error_not_extrapolation():
 def test_missing_file():
     with pytest.raises(InputError, match="not found"):
         TumTrajectory.load("/nonexistent/traj.tum")
+
+
+def test_huge_quaternion_is_normalised_without_overflow():
+    # components whose squares overflow a float: the norm is still finite (2e200), the rotation the identity's
+    q = np.array([[0, 0, 0, 1.0], [0, 0, 0, 1e200]])
+    with np.errstate(all="raise"):
+        traj = TumTrajectory([0.0, 1.0], np.zeros((2, 3)), q, source="t.tum")
+    np.testing.assert_allclose(traj.pose_at(1.0).R, np.eye(3), atol=1e-15)
+
+
+def test_zero_quaternion_in_arrays_names_the_pose():
+    q = np.array([[0, 0, 0, 1.0], [0, 0, 0, 0.0]])
+    with pytest.raises(InputError, match=r"t.tum: pose 1 has a zero quaternion \(norm 0;"):
+        TumTrajectory([0.0, 1.0], np.zeros((2, 3)), q, source="t.tum")
