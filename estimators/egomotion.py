@@ -73,6 +73,36 @@ def _quaternion_problem(norm: float) -> str:
     return f"has {kind} (norm {norm:.3g}; expected a rotation [qx qy qz qw], any non-zero finite scale)"
 
 
+def parse_tum_line(line: str, where: str) -> list[float] | None:
+    """One line of a TUM file as its 8 numbers ``[t, tx, ty, tz, qx, qy, qz, qw]``, or None for a blank
+    or ``#`` comment line; commas count as spaces. The per-line check of :meth:`TumTrajectory.load` and
+    of readers of growing files (``pipeline.live.GrowingTrajectory``).
+
+    Args:
+        where: how errors name the line, e.g. ``"traj.tum:3"``.
+
+    Raises:
+        InputError: ``"<where>: ..."``: not 8 numbers, a NaN or infinite value, or a zero quaternion (or
+            one too large to normalise).
+    """
+    s = line.strip()
+    if not s or s.startswith("#"):
+        return None
+    parts = s.replace(",", " ").split()
+    if len(parts) != 8:
+        raise InputError(f"{where}: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', got {len(parts)}")
+    try:
+        vals = [float(x) for x in parts]
+    except ValueError:
+        raise InputError(f"{where}: not a number in {s!r}") from None
+    if not all(np.isfinite(vals)):
+        raise InputError(f"{where}: NaN or infinite value in {s!r}")
+    qn = float(_quaternion_norms(np.array([vals[4:8]]))[0])
+    if not (qn >= 1e-9 and np.isfinite(qn)):
+        raise InputError(f"{where}: {_quaternion_problem(qn)} in {s!r}")
+    return vals
+
+
 class TumTrajectory(EgoMotion):
     """A trajectory of timestamped poses ``T_W_B``, interpolated to any time inside its span.
 
@@ -120,25 +150,9 @@ class TumTrajectory(EgoMotion):
         rows = []
         with path.open() as f:
             for lineno, line in enumerate(f, start=1):
-                s = line.strip()
-                if not s or s.startswith("#"):
-                    continue
-                parts = s.replace(",", " ").split()
-                if len(parts) != 8:
-                    raise InputError(
-                        f"{path}:{lineno}: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', "
-                        f"got {len(parts)}"
-                    )
-                try:
-                    vals = [float(x) for x in parts]
-                except ValueError:
-                    raise InputError(f"{path}:{lineno}: not a number in {s!r}") from None
-                if not all(np.isfinite(vals)):
-                    raise InputError(f"{path}:{lineno}: NaN or infinite value in {s!r}")
-                qn = float(_quaternion_norms(np.array([vals[4:8]]))[0])
-                if not (qn >= 1e-9 and np.isfinite(qn)):
-                    raise InputError(f"{path}:{lineno}: {_quaternion_problem(qn)} in {s!r}")
-                rows.append((lineno, vals))
+                vals = parse_tum_line(line, f"{path}:{lineno}")
+                if vals is not None:
+                    rows.append((lineno, vals))
         if len(rows) < 2:
             raise InputError(f"{path}: expected at least 2 poses, found {len(rows)}")
         for (l0, v0), (l1, v1) in zip(rows, rows[1:], strict=False):

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from estimators.egomotion import EgoMotion, TumTrajectory
+from estimators.egomotion import EgoMotion, TumTrajectory, parse_tum_line
 from estimators.errors import ConfigError, InputError, SourceError
 from estimators.se3 import Pose
 from pipeline.config import PipelineConfig, write_resolved
@@ -622,21 +622,12 @@ class GrowingTrajectory(EgoMotion):
         self._stamp = stamp
         text = self.path.read_text()
         rows = []
-        for line in text.splitlines(keepends=True):
+        for lineno, line in enumerate(text.splitlines(keepends=True), start=1):
             if not line.endswith("\n"):
                 break  # being written
-            s = line.strip()
-            if not s or s.startswith("#"):
+            vals = parse_tum_line(line, f"{self.path}:{lineno}")  # TumTrajectory.load's line checks
+            if vals is None:
                 continue
-            parts = s.replace(",", " ").split()
-            try:
-                vals = [float(x) for x in parts]
-            except ValueError:
-                raise InputError(f"{self.path}: not a number in {s!r}") from None
-            if len(vals) != 8:
-                raise InputError(
-                    f"{self.path}: expected 8 numbers 'timestamp tx ty tz qx qy qz qw', got {s!r}"
-                )
             if rows and vals[0] <= rows[-1][0]:
                 continue  # a repeated stamp from the writer: keep the first
             rows.append(vals)

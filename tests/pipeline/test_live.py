@@ -183,6 +183,28 @@ def test_growing_trajectory_is_reread_when_time_passes_its_end(tmp_path):
     assert g.velocity_at(1.5) == pytest.approx([2.0, 0, 0])
 
 
+@pytest.mark.parametrize(
+    ("bad", "problem"),
+    [
+        ("1 1 0 0 0 0 0 0", "has a zero quaternion"),
+        ("1 1 0 0 nan 0 0 1", "NaN or infinite value"),
+        ("1 1 0 0 0 0 1", "expected 8 numbers"),
+        ("1 1 0 x 0 0 0 1", "not a number"),
+    ],
+)
+def test_growing_trajectory_errors_name_the_files_line_as_tum_load_does(tmp_path, bad, problem):
+    from estimators.egomotion import TumTrajectory
+
+    p = tmp_path / "zq.tum"
+    p.write_text(f"# h\n0 0 0 0 0 0 0 1\n{bad}\n")
+    with pytest.raises(InputError) as grown:
+        GrowingTrajectory(p)
+    with pytest.raises(InputError) as loaded:
+        TumTrajectory.load(p)
+    assert str(grown.value).startswith(f"{p}:3: {problem}")
+    assert str(grown.value) == str(loaded.value)
+
+
 def test_camera_index_that_does_not_exist(tmp_path):
     with pytest.raises(SourceError, match="camera index 97: cannot be opened"):
         _live(tmp_path, [make_reader_factory(97, "cam0")])
