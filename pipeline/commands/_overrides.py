@@ -6,15 +6,24 @@ from pathlib import Path
 
 
 def rig_and_motion_overrides(
-    calibration: Path | None, trajectory: Path | None, speed_mps: float | None, out: Path | None
+    calibration: Path | None,
+    trajectory: Path | None,
+    speed_mps: float | None,
+    out: Path | None,
+    sets: list[str] | tuple[str, ...] = (),
 ) -> dict:
     """Overrides for ``--calibration``, ``--trajectory``, ``--speed-mps`` and ``--out``.
 
     A calibration file replaces cameras written into the config; a trajectory and a constant speed
     exclude each other, so setting one clears the other's value from the config.
 
+    Args:
+        sets: the ``--set section.key=value`` items, checked against ``--trajectory`` / ``--speed-mps``.
+
     Raises:
-        ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair).
+        ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair), or one of
+            them with a ``--set`` of the other's key (``ego_motion.speed_mps`` / ``ego_motion.trajectory``;
+            the flag would silently replace it).
     """
     if trajectory is not None and speed_mps is not None:
         from estimators.errors import ConfigError
@@ -23,6 +32,19 @@ def rig_and_motion_overrides(
             f"--trajectory {trajectory} and --speed-mps {speed_mps:g} are alternatives (the body's motion "
             "from a TUM file, or a constant forward speed); give one of them, not both"
         )
+    for flag, value, other in (
+        ("--trajectory", trajectory, "speed_mps"),
+        ("--speed-mps", speed_mps, "trajectory"),
+    ):
+        item = _set_of(sets, ("ego_motion", other)) if value is not None else None
+        if item is not None:
+            from estimators.errors import ConfigError
+
+            shown = f"{value:g}" if isinstance(value, float) else str(value)
+            raise ConfigError(
+                f"{flag} {shown} and --set {item} are alternatives (the body's motion from a TUM file, or a "
+                "constant forward speed); give one of them, not both"
+            )
     cli: dict = {}
     if calibration is not None:
         cli["rig.calibration"] = str(calibration)
@@ -36,3 +58,22 @@ def rig_and_motion_overrides(
     if out is not None:
         cli["outputs.dir"] = str(out)
     return cli
+
+
+def _set_of(sets: list[str] | tuple[str, ...], key: tuple[str, ...]) -> str | None:
+    """The ``--set`` item that gives ``key`` its value (not null), directly or inside its section's
+    mapping (``--set ego_motion={speed_mps: 3}``); None when none does or a later item sets it back to
+    null. Malformed items are left to load_config."""
+    from pipeline.config import _parse_override
+
+    found = None
+    for item in sets:
+        try:
+            parts, value = _parse_override(item)
+        except Exception:
+            continue
+        if parts == key[: len(parts)]:
+            for p in key[len(parts):]:
+                value = value.get(p) if isinstance(value, dict) else None
+            found = item if value is not None else None  # a later item replaces an earlier one
+    return found

@@ -46,7 +46,7 @@ def register(app: typer.Typer) -> None:
         cli: dict = {}
         if camera:
             cli["live.cameras"] = [int(c) if c.isdigit() else c for c in camera]
-        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out))
+        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out, list(set_ or [])))
         if preview is not None:
             cli["live.preview"] = preview
         if port is not None:

@@ -73,7 +73,7 @@ def register(app: typer.Typer) -> None:
             cli["inputs.videos"] = list(video)
         if images:
             cli["inputs.images"] = [str(p) for p in images]
-        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out))
+        cli.update(rig_and_motion_overrides(calibration, trajectory, speed, out, list(set_ or [])))
         if annotate:
             cli["outputs.annotated_video"] = True
         if plots:

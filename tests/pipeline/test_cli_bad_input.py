@@ -109,6 +109,45 @@ def test_make_output_dir_creates_parents_and_accepts_an_existing_folder(tmp_path
     assert make_output_dir(str(tmp_path / "a")) == tmp_path / "a"
 
 
+@pytest.mark.parametrize("command", ["run", "live"])
+@pytest.mark.parametrize(
+    ("flag", "item"),
+    [
+        ("--trajectory", "ego_motion.speed_mps=3"),
+        ("--trajectory", "ego_motion={speed_mps: 3}"),
+        ("--speed-mps", "ego_motion.trajectory=TRAJ"),
+    ],
+)
+def test_motion_flag_and_a_set_of_the_other_key_are_an_error(
+    tmp_path, monkeypatch, capsys, command, flag, item
+):
+    """A --set the flag would silently replace (the flag clears the other key) is refused like the
+    two flags together."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    traj = tmp_path / "traj.tum"
+    traj.write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    src = ["--video", str(v)] if command == "run" else ["--camera", str(v)]
+    value = str(traj) if flag == "--trajectory" else "3"
+    item = item.replace("TRAJ", str(traj))
+    rc = main([command, *src, flag, value, "--set", item, "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert f"{flag} " in err[0] and f"--set {item}" in err[0] and "alternatives" in err[0]
+    assert not (tmp_path / "o").exists()  # refused before anything is written
+
+
+def test_motion_flag_with_the_other_key_set_back_to_null_runs(tmp_path, monkeypatch, capsys):
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    traj = tmp_path / "traj.tum"
+    traj.write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    rc = main(["run", "--video", str(v), "--trajectory", str(traj), "--set", "ego_motion.speed_mps=3",
+               "--set", "ego_motion.speed_mps=null", "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 0, capsys.readouterr().err
+    assert (tmp_path / "o" / "tracks.jsonl").is_file()
+
+
 @pytest.mark.parametrize("jobs", ["0", "-2"])
 def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
     _fake_stages(monkeypatch)
