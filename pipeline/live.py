@@ -884,8 +884,7 @@ def run_live(
         FisheyeDesError: a stage refused a frame mid-run: after the outputs are written (``error`` in
             summary.json), raised again (same class) with "(outputs up to frame set N are in DIR)".
     """
-    out = make_output_dir(out_dir)
-    write_resolved(cfg, out)
+    # bad input (calibration, trajectory, a stage's settings) fails here, before anything is written
     lv = cfg.live
     rig = rig if rig is not None else build_rig(cfg)
     names = list(rig.names)
@@ -916,6 +915,8 @@ def run_live(
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
+    out = make_output_dir(out_dir)  # once everything is built: a failed start leaves no folder (as `run`)
+    write_resolved(cfg, out)
     # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
     log = None
     log_stages = latency_log_stages() if latency_log is not None else ()

@@ -148,6 +148,38 @@ def test_motion_flag_with_the_other_key_set_back_to_null_runs(tmp_path, monkeypa
     assert (tmp_path / "o" / "tracks.jsonl").is_file()
 
 
+@pytest.mark.parametrize("command", ["run", "live"])
+def test_a_bad_trajectory_line_is_one_line_naming_it_and_leaves_no_folder(
+    tmp_path, monkeypatch, capsys, command
+):
+    """live as run: the trajectory (and the other stages) are built before the output folder is made."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    zq = tmp_path / "zq.tum"
+    zq.write_text("# h\n0 0 0 0 0 0 0 1\n1 1 0 0 0 0 0 0\n")
+    src = ["--video", str(v)] if command == "run" else ["--camera", str(v)]
+    rc = main([command, *src, "--trajectory", str(zq), "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert err[0].startswith(f"fisheye-des: error: {zq}:3: has a zero quaternion")
+    assert not (tmp_path / "o").exists()
+
+
+def test_live_whose_fusion_cannot_be_built_leaves_no_folder(tmp_path, monkeypatch, capsys):
+    from estimators.errors import ConfigError
+
+    _fake_stages(monkeypatch)
+
+    def refuse(cfg, rig, ego):
+        raise ConfigError("fusion: refused (test)")
+
+    monkeypatch.setattr(live_mod, "build_fusion", refuse)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    rc = main(["live", "--camera", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")])
+    assert rc == 2 and _err_lines(capsys) == ["fisheye-des: error: fusion: refused (test)"]
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize("jobs", ["0", "-2"])
 def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
     _fake_stages(monkeypatch)
