@@ -364,10 +364,12 @@ def error_text(e: BaseException) -> str:
 def stopped_error(e: Exception, frames: int, out: Path) -> Exception:
     """What a run (or live run) stopped by ``e`` raises once its outputs are written: a fisheye-des
     error again, same class, its message ending "(outputs up to frame set N are in DIR)"; anything
-    else (a bug) unchanged."""
+    else (a bug) unchanged. The fisheye-des error carries ``frames`` and ``out_dir`` (what was kept)."""
     if isinstance(e, FisheyeDesError):
         kept = type(e)(f"{e} (outputs up to frame set {frames} are in {out})")
         kept.__cause__ = e
+        kept.frames = frames
+        kept.out_dir = out
         return kept
     return e
 
@@ -605,8 +607,8 @@ def _batch_worker(args: tuple[dict, str, str | None]) -> dict:
             "frames_per_s": r.frames_per_s,
             "error": r.error,
         }
-    except FisheyeDesError as e:
-        return {"out_dir": out_dir, "frames": 0, "error": str(e)}
+    except FisheyeDesError as e:  # refused at the start (0 frames) or stopped mid-way (the frames kept)
+        return {"out_dir": out_dir, "frames": getattr(e, "frames", 0), "error": str(e)}
 
 
 def run_batch(

@@ -180,6 +180,17 @@ def test_live_whose_fusion_cannot_be_built_leaves_no_folder(tmp_path, monkeypatc
     assert not (tmp_path / "o").exists()
 
 
+def test_a_batch_run_stopped_mid_way_reports_the_frames_it_kept(tmp_path, monkeypatch, capsys):
+    _fake_stages(monkeypatch, front=lambda cfg, rig: RefusingFrontEnd(rig, at=3))
+    v = write_video(tmp_path / "cam0.mkv", 8, times=[k / 10 for k in range(8)])
+    out = tmp_path / "o"
+    rc = main(["run", "--batch", str(v), "--speed-mps", "3", "--out", str(out), "--no-progress"])
+    err = _err_lines(capsys)
+    assert rc == 2 and err[-1] == "fisheye-des: error: 1 of 1 batch runs reported an error (see above)"
+    assert err[0].startswith(f"{out / 'cam0'}: 3 frames  ERROR frame 3 (t_s 0.3)"), err
+    assert json.loads((out / "cam0" / "summary.json").read_text())["frames"] == 3
+
+
 @pytest.mark.parametrize("jobs", ["0", "-2"])
 def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
     _fake_stages(monkeypatch)
