@@ -637,7 +637,10 @@ def run_batch(
     from multiprocessing import get_context
 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ConfigError(f"run_batch: workers expected an integer of at least 1 (or None), got {workers!r}")
+        raise ConfigError(
+            f"--jobs {workers!r} (run_batch workers): expected an integer of at least 1 worker process "
+            "(or none: one per CPU, at most one per run)"
+        )
     names = camera_names or ["cam0"]
     jobs: list[tuple[dict, str, str | None]] = []
     used: set[str] = set()

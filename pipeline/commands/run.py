@@ -63,10 +63,6 @@ def register(app: typer.Typer) -> None:
         if describe:
             print(describe_config())
             return
-        if jobs is not None and jobs < 1:
-            from estimators.errors import ConfigError
-
-            raise ConfigError(f"--jobs {jobs}: expected at least 1 worker process")
 
         cli: dict = {}
         if video:
@@ -89,7 +85,7 @@ def register(app: typer.Typer) -> None:
 
                 names = list(build_rig(cfg).names)
             out_root = cfg.outputs.dir or Path("runs") / "batch"
-            results = run_batch(
+            results = run_batch(  # refuses --jobs below 1 before anything is written
                 cfg,
                 list(batch),
                 Path(out_root),

@@ -198,7 +198,8 @@ def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
     rc = main(["run", "--batch", str(v), "--jobs", jobs, "--speed-mps", "3", "--out", str(tmp_path / "o"),
                "--no-progress"])
     assert rc == 2 and _err_lines(capsys) == [
-        f"fisheye-des: error: --jobs {jobs}: expected at least 1 worker process"
+        f"fisheye-des: error: --jobs {jobs} (run_batch workers): expected an integer of at least 1 worker "
+        "process (or none: one per CPU, at most one per run)"
     ]
     assert not (tmp_path / "o").exists()
 
@@ -208,5 +209,5 @@ def test_run_batch_refuses_zero_workers(tmp_path):
     from pipeline.config import load_config
     from pipeline.run import run_batch
 
-    with pytest.raises(ConfigError, match="workers expected an integer of at least 1"):
+    with pytest.raises(ConfigError, match=r"run_batch workers\): expected an integer of at least 1"):
         run_batch(load_config(None, ["ego_motion.speed_mps=3"]), [], tmp_path / "o", workers=0)
