@@ -1054,3 +1054,19 @@ def test_deferred_detection_with_a_front_end_that_cannot_defer_is_a_clear_error(
     with pytest.raises(ConfigError, match=r"live\.deferred_detection true.*FakeFrontEnd.*defer_detection"):
         _live(tmp_path, [factory], cfg=_cfg("live.deferred_detection=true"))
     assert not opened and _no_worker_left()
+
+
+def test_a_replayed_file_cut_off_halfway_ends_the_live_run_normally_as_outputs_md_says(tmp_path):
+    """live records ``error`` only for a frame a stage refused: a replayed file that breaks halfway ends
+    the run normally (``error`` null), unlike ``run``; docs/OUTPUTS.md says which records what."""
+    v = write_video(tmp_path / "cam0.mkv", 30, times=[k / 30 for k in range(30)])
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(v.read_bytes()[: v.stat().st_size // 2])
+    (tmp_path / "cut.timestamps.txt").write_text((tmp_path / "cam0.timestamps.txt").read_text())
+    r = _live(tmp_path, [make_reader_factory(str(cut), "cam0", paced=False)])
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert 0 < r.frames < 30 and s["frames"] == r.frames and s["error"] is None
+    doc = " ".join((Path(__file__).resolve().parents[2] / "docs" / "OUTPUTS.md").read_text().split())
+    assert "(or `live`)" not in doc
+    assert "For `live` it is only a frame a stage refused" in doc
+    assert "even one cut off halfway, ends the live run normally (exit 0, `error` null)" in doc
