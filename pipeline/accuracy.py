@@ -1240,12 +1240,6 @@ def _load_config(overrides, cli: dict | None = None):
         raise ConfigError(msg) from None
 
 
-# tracker.<group> -> the class whose keywords that group holds (trackers.frontend.FrontEnd)
-_TRACKER_GROUPS = {"features": ("trackers.features", "FeatureTracker"),
-                   "grouping": ("trackers.grouping", "ObstacleGrouper"),
-                   "boxes": ("trackers.grouping", "BoxTracker")}
-
-
 def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_speed_mps: float | None = None,
                             ) -> FusionSettings:
     """Check ``overrides`` (``section.key=value``, as ``fisheye-des run --set``) before anything runs and
@@ -1270,15 +1264,16 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
                               "calibration and trajectory) and cannot be overridden; expected a detector, "
                               "tracker or fusion key")
     cfg = _load_config(overrides)
-    from trackers.frontend import accepted_options
+    from trackers.frontend import _CLASS_OPTIONS, accepted_options
 
-    for group, (_mod, cls) in _TRACKER_GROUPS.items():
+    # tracker.<group> -> the class whose keywords that group holds: the front end's own table
+    for group, (cls, _internal) in _CLASS_OPTIONS.items():
         given = getattr(cfg.tracker, group) or {}
         params = accepted_options(group)  # the class's keywords less those the front end sets itself
         for k in given:
             if k not in params:
                 raise ConfigError(f"--override tracker.{group}.{k}: unknown key '{k}' in tracker.{group} "
-                                  f"({cls} keywords)" + _suggest(k, params))
+                                  f"({cls.__name__} keywords)" + _suggest(k, params))
     if any(getattr(cfg, sec).model_fields_set for sec in ("detector", "tracker")):
         from pipeline.run import build_frontend
         from pipeline.sim.rigs import build_rig

@@ -479,3 +479,21 @@ def test_recording_key_is_relative_to_the_scene_folder_and_old_keys_still_match(
     rec.write_bytes(pickle.dumps({"key": _key(legacy), "key_parts": {k: _key(v) for k, v in legacy.items()}}))
     assert _stale_parts(rec, pa, legacy) == []  # replayed where it was recorded
     assert _stale_parts(rec, pb, frontend_key_parts(parts, scene_config(b))) == ["frontend config"]
+
+
+def test_an_override_of_an_unknown_tracker_key_names_the_class_from_the_front_ends_own_table(monkeypatch):
+    """accuracy's check of tracker.<group> keys reads the group's class from trackers.frontend's one
+    table (_CLASS_OPTIONS), not a copy of it: a class put there is the one the message names."""
+    import pipeline.accuracy as acc
+    import trackers.frontend as fe
+    from estimators.errors import ConfigError
+
+    class StubTracker:
+        def __init__(self, camera=None, detector=None, ids=None, win_px=21):
+            pass
+
+    monkeypatch.setitem(fe._CLASS_OPTIONS, "features", (StubTracker, ("camera", "detector", "ids")))
+    assert not hasattr(acc, "_TRACKER_GROUPS")
+    with pytest.raises(ConfigError, match=r"unknown key 'max_features' in tracker\.features \(StubTracker "
+                                          r"keywords\); valid keys: win_px"):
+        acc.settings_from_overrides(["tracker.features.max_features=5"])
