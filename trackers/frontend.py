@@ -119,17 +119,23 @@ def accepted_options(group: str) -> list[str]:
     ]
 
 
+def _unknown_options(group: str, given: Mapping[str, Any]) -> ConfigError | None:
+    """The error for the names in ``given`` that ``group`` does not accept (``accepted_options``), with
+    the accepted ones; None when it accepts them all."""
+    accepted = accepted_options(group)
+    unknown = sorted(set(given) - set(accepted))
+    if not unknown:
+        return None
+    return ConfigError(
+        f"FrontEnd {group}: unknown option{'s' if len(unknown) > 1 else ''} "
+        f"{', '.join(map(repr, unknown))}; accepted: {', '.join(accepted)}"
+    )
+
+
 def _bad_options(group: str, given: Mapping[str, Any], e: Exception) -> ConfigError:
     """The error for options of ``group`` its class refused (``e``: its TypeError): the unknown names
     with the accepted ones, else the class's own message."""
-    accepted = accepted_options(group)
-    unknown = sorted(set(given) - set(accepted))
-    if unknown:
-        return ConfigError(
-            f"FrontEnd {group}: unknown option{'s' if len(unknown) > 1 else ''} "
-            f"{', '.join(map(repr, unknown))}; accepted: {', '.join(accepted)}"
-        )
-    return ConfigError(f"FrontEnd: bad {group} options: {e}")
+    return _unknown_options(group, given) or ConfigError(f"FrontEnd: bad {group} options: {e}")
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -285,8 +291,9 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        if set(a) - set(_ASSOCIATION_OPTIONS):
-            raise _bad_options("association", a, TypeError())
+        unknown = _unknown_options("association", a)
+        if unknown is not None:
+            raise unknown
         self.assoc_every = int(a.get("every", 5))
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))

@@ -136,6 +136,18 @@ def test_an_unknown_option_lists_the_accepted_ones(rig, group, name, detector, a
     assert not {"ids", "camera", "detector", "label", "old"} & set(listed)  # set by the front end itself
 
 
+def test_unknown_association_options_are_named_without_a_class_error_to_fall_back_on(rig, monkeypatch):
+    """The association has no class whose TypeError could explain a refusal: its unknown names are the
+    whole error (``_unknown_options``), with no stand-in exception passed to ``_bad_options``."""
+    import trackers.frontend as fe
+
+    monkeypatch.setattr(fe, "_bad_options", lambda *a: pytest.fail(f"_bad_options{a}"))
+    with pytest.raises(ConfigError,
+                       match=r"^FrontEnd association: unknown options 'a', 'b'; accepted: every, "):
+        FrontEnd(rig, "orb", association={"b": 1, "a": 2, "every": 5})
+    assert fe._unknown_options("association", {"every": 5, "epipolar_deg": 1.0}) is None
+
+
 @pytest.mark.parametrize("bad", ["x", 2.7, -1, True, "2"])
 def test_follow_levels_must_be_a_non_negative_integer_or_null(rig, bad):
     """association.follow_levels is OpenCV's maxLevel: a string, a float (2.7 would be truncated
