@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
             "--repeat", help="Take the one-core throughput (pipeline and decode-only) and the live "
             "latency (one core, and the informational all-cores runs) N times, in interleaved rounds; "
             "rows give the median (the verdict), min-max and the values per round (default 3; 1 with "
-            "--quick).")] = None,
+            "--quick, where the all-cores live runs are taken once whatever N is).")] = None,
     ) -> None:
         """Measure the pipeline's frames/s, per-stage time, live latency, memory and scaling.
 

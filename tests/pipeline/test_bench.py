@@ -707,6 +707,19 @@ def test_quick_live_adds_one_short_all_cores_deferred_run(tmp_path):
     assert calls == [(1, None, 20), (None, True, 20), (1, None, 20), (1, None, 20)]
 
 
+
+def test_repeat_help_says_the_quick_all_cores_live_runs_are_taken_once():
+    """bench --help's --repeat: under --quick the all-cores live runs are taken once whatever N is
+    (``info_rounds`` in BenchRun.live), as the test above measures."""
+    import typer
+
+    from pipeline.cli import app
+
+    cmd = typer.main.get_command(app).commands["bench"]
+    (opt,) = [p for p in cmd.params if "--repeat" in p.opts]
+    text = " ".join(opt.help.split())
+    assert "1 with --quick, where the all-cores live runs are taken once whatever N is" in text
+
 def test_deferred_stats_hand_worked():
     dd = {"worker_nice": 10, "worker_cpu_s": 0.5, "joined": {"cam0": 3, "cam1": 1},
           "frames_late": {"cam0": 4, "cam1": 2}}
