@@ -6,7 +6,8 @@ functions so that ``fisheye-des --help`` stays fast.
 
 Errors: library code raises ``estimators.errors.FisheyeDesError``; here it becomes one line on
 stderr and exit code 2 (no traceback unless ``--debug``). Ctrl-C exits with 130 after the command's
-own clean-up has run.
+own clean-up has run. Anything else (a bug), and any error under ``--debug``, is raised on: Python
+prints its traceback and exits with 1.
 """
 
 from __future__ import annotations

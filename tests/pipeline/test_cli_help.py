@@ -53,3 +53,26 @@ def test_shipped_config_points_to_describe_config():
     head = (REPO / "configs" / "mono_forward.yaml").read_text().splitlines()[:5]
     assert any("fisheye-des run --describe-config" in ln for ln in head)
     assert "--describe-config" in _options("run")
+
+
+def test_exit_code_1_is_an_unexpected_error_with_its_traceback_as_the_readme_says(tmp_path):
+    """main() re-raises what is no fisheye-des error (a bug), and a fisheye-des error under --debug:
+    Python prints the traceback and exits with 1; the README's list of exit codes says so."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    bug = ("import sys, pipeline.cli as c\n"
+           "def app(**kw): raise ZeroDivisionError('a bug')\n"
+           "c.app = app\nsys.exit(c.main(['run']))\n")
+    r = subprocess.run([sys.executable, "-c", bug], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert r.returncode == 1 and "Traceback" in r.stderr and "ZeroDivisionError: a bug" in r.stderr
+    args = ["--debug", "run", "--video", str(tmp_path / "none.mkv"), "--speed-mps", "1",
+            "--out", str(tmp_path / "o")]
+    r = subprocess.run([sys.executable, "-m", "pipeline.cli", *args], capture_output=True, text=True, env=env,
+                       cwd=tmp_path)
+    assert r.returncode == 1 and "Traceback" in r.stderr, r.stderr
+    readme = " ".join((REPO / "README.md").read_text().split())
+    assert ("130 interrupted (Ctrl-C; outputs written so far are kept), 1 an unexpected internal error "
+            "(a bug: Python's traceback on stderr; also bad input under `--debug`") in readme
