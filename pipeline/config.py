@@ -595,7 +595,10 @@ def _removed(loc: tuple) -> str | None:
 
 def _suggest(key: str, valid: list[str]) -> str:
     """The tail of an unknown-key message: the closest valid key if any, then all of them ("...in
-    tracker; did you mean 'boxes'? Valid keys: features, ..." or "...in tracker; valid keys: ...")."""
+    tracker; did you mean 'boxes'? Valid keys: features, ..." or "...in tracker; valid keys: ..."),
+    or "; no key is valid there" when there are none."""
+    if not valid:
+        return "; no key is valid there"
     close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
     if close:
         return f"; did you mean '{close[0]}'? Valid keys: {', '.join(valid)}"
@@ -833,7 +836,9 @@ def _format_error(e: ValidationError, path: Path | None, lines: dict, origins: d
     loc = tuple(err["loc"])
     where = _where(loc, path, lines, origins)
     dotted = ".".join(str(p) for p in loc) or "(top level)"
-    more = f" (and {len(errors) - 1} more error{'s' if len(errors) > 2 else ''})" if len(errors) > 1 else ""
+    # its own clause, after the message (whose tail may be a list of valid keys or an expectation)
+    more = (f"; {len(errors) - 1} more error{'s' if len(errors) > 2 else ''} besides this one"
+            if len(errors) > 1 else "")
     if err["type"] == "extra_forbidden":
         gone = _removed(loc)
         if gone:

@@ -50,6 +50,22 @@ def test_unknown_key_message_separates_the_key_from_the_valid_ones(tmp_path, whe
     assert f"unknown key '{key}' {tail}" in str(e.value)
 
 
+def test_no_valid_keys_and_the_count_of_further_errors_are_not_read_as_part_of_a_key_list(tmp_path):
+    """With no valid keys the message says so (was "; valid keys: " and nothing); the count of further
+    errors is a clause of its own after the list (was " (and N more errors)", read as a key)."""
+    from pipeline.config import _suggest
+
+    assert _suggest("x", []) == "; no key is valid there"
+    assert _suggest("boxs", ["boxes"]) == "; did you mean 'boxes'? Valid keys: boxes"
+    with pytest.raises(ConfigError) as e:
+        load_config(_write(tmp_path, "tracker:\n  qqqq: 1\nfusion:\n  max_speed_mps: abc\n  zz: 2\n"))
+    msg = str(e.value)
+    assert msg.endswith(", densify_s; 2 more errors besides this one") and "(and " not in msg, msg
+    with pytest.raises(ConfigError) as e:
+        load_config(_write(tmp_path, "fusion:\n  max_speed_mps: abc\n  lost_after_s: xyz\n"))
+    assert str(e.value).endswith("; 1 more error besides this one"), str(e.value)
+
+
 def test_unknown_key_in_list_item(tmp_path):
     p = _write(tmp_path, "rig:\n  cameras:\n    - name: cam0\n      model: eucm\n      mout: up\n")
     with pytest.raises(ConfigError, match=r":5: unknown key 'mout' in rig\.cameras\.0; did you mean 'mount'"):
