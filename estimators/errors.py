@@ -27,6 +27,20 @@ class SourceError(InputError):
     """A video, image folder or camera that cannot be opened or read."""
 
 
+def frame_at(frame, t_s) -> str:
+    """How a message names the frame it refuses, in every stage (front end, fusion):
+    ``"frame 6 (t_s=0.200000 s)"``; a ``t_s`` that is not a number is shown as given.
+
+    >>> frame_at(6, 0.2), frame_at(6, "x")
+    ('frame 6 (t_s=0.200000 s)', "frame 6 (t_s='x')")
+    """
+    import numbers
+
+    if isinstance(t_s, numbers.Real) and not isinstance(t_s, bool):
+        return f"frame {frame} (t_s={float(t_s):.6f} s)"
+    return f"frame {frame} (t_s={t_s!r})"
+
+
 def check_shape(name: str, arr, shape: tuple) -> None:
     """Raise InputError unless ``arr.shape`` matches ``shape`` (``None`` entries match any size).
 

@@ -123,7 +123,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from estimators import geometry
 from estimators.egomotion import EgoMotion
-from estimators.errors import ConfigError, InputError
+from estimators.errors import ConfigError, InputError, frame_at
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
 from estimators.geometry import (
     _cross,  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
@@ -1428,7 +1428,7 @@ class ObstacleFusion:
         try:
             T_W_B = self.egomotion.pose_at(t_s)
         except InputError as e:
-            raise InputError(f"frame {frame} (t_s={t_s:.6f} s): ego-motion: {e}") from e
+            raise InputError(f"{frame_at(frame, t_s)}: ego-motion: {e}") from e
         fc = _FrameContext(T_W_B, self.egomotion.velocity_at(t_s), t_s)
         reports: list[TrackReport] = []
         seen: set[int] = set()

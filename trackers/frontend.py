@@ -22,7 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from estimators.errors import ConfigError, InputError
+from estimators.errors import ConfigError, InputError, frame_at
 from estimators.geometry import _isin
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera, Rig
@@ -466,17 +466,17 @@ class FrontEnd:
         """
         if not isinstance(images, Mapping):
             raise InputError(
-                f"FrontEnd.process: frame {frame} (t_s {t_s!r}): expected a mapping camera name -> image, "
+                f"{frame_at(frame, t_s)}: FrontEnd.process: expected a mapping camera name -> image, "
                 f"got {type(images).__name__}"
             )
         extra = sorted(set(images) - set(self.cams))
         if extra:
             raise InputError(
-                f"FrontEnd.process: frame {frame} (t_s {t_s!r}): unknown cameras {extra}; the rig has "
+                f"{frame_at(frame, t_s)}: FrontEnd.process: unknown cameras {extra}; the rig has "
                 f"{list(self.cams)}"
             )
         if not np.isfinite(t_s):
-            raise InputError(f"FrontEnd.process: expected a finite t_s, got {t_s!r}")
+            raise InputError(f"frame {frame}: FrontEnd.process: expected a finite t_s, got {t_s!r}")
         tm = dict.fromkeys(STAGES, 0.0)
         checked = {}
         full: dict[str, np.ndarray] = {}  # the full-size frames of box cameras wider than max_width
@@ -485,7 +485,7 @@ class FrontEnd:
             try:
                 img = check_image(name, img, w, h)
             except InputError as e:  # which frame was refused: a video's bad frame is found by index / time
-                raise InputError(f"frame {frame} (t_s {t_s!r}): {e}") from None
+                raise InputError(f"{frame_at(frame, t_s)}: {e}") from None
             if self.scale[name] != 1.0:
                 m = self.cams[name].model
                 t0 = time.perf_counter()

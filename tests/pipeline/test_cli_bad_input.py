@@ -47,9 +47,9 @@ class RefusingFrontEnd(FakeFrontEnd):
 
     def process(self, images, frame, t_s, T_W_B=None):
         if len(self.calls) == self.at:
-            from estimators.errors import InputError
+            from estimators.errors import InputError, frame_at
 
-            raise InputError(f"frame {frame} (t_s {t_s!r}): camera 'cam0': frame is 1x1 px")
+            raise InputError(f"{frame_at(frame, t_s)}: camera 'cam0': frame is 1x1 px")
         return super().process(images, frame, t_s, T_W_B)
 
 
@@ -64,7 +64,7 @@ def test_an_error_mid_run_is_recorded_and_says_what_was_kept(tmp_path, monkeypat
     assert rc == 2 and len(err) == 1 and "Traceback" not in err[0], err
     # (live: a replayed frame may be dropped as stale on a loaded machine, so the refused frame's
     # index and time may come later; three frames were processed before it either way)
-    refused = "frame 3 (t_s 0.3)" if command == "run" else "frame "
+    refused = "frame 3 (t_s=0.300000 s)" if command == "run" else "frame "
     assert err[0].startswith(f"fisheye-des: error: {refused}") and "camera 'cam0'" in err[0]
     assert err[0].endswith(f"(outputs up to frame set 3 are in {out})")
     assert len((out / "tracks.jsonl").read_text().splitlines()) == 3  # nothing already written lost

@@ -70,10 +70,29 @@ REFUSED = [b[:2] for b in BAD if b[2] is not None]
 
 @pytest.mark.parametrize("case,build", REFUSED, ids=[b[0] for b in REFUSED])
 def test_a_refused_frame_is_named_by_its_index_and_time(model, rig, case, build):
-    """A video's bad frame is found again by the index and t_s the message gives."""
+    """A video's bad frame is found again by the index and t_s the message gives, named as the fusion
+    names a frame it refuses ("frame 17 (t_s=0.567000 s): ..."): one form for every refusal."""
     fe = FrontEnd(rig)
-    with pytest.raises(InputError, match=r"frame 17 \(t_s 0\.567\)"):
+    with pytest.raises(InputError, match=r"^frame 17 \(t_s=0\.567000 s\): \S"):
         fe.process(build(good_grey(model)), 17, 0.567)
+
+
+def test_the_front_end_and_the_fusion_name_a_refused_frame_alike(model, rig):
+    """Unknown camera, not a mapping, a bad image: the message starts as the fusion's ego-motion
+    refusal does, "frame N (t_s=... s): "; a t_s that is no number is shown as given."""
+    from estimators.errors import frame_at
+
+    fe = FrontEnd(rig)
+    assert frame_at(6, 0.2) == "frame 6 (t_s=0.200000 s)" and frame_at(6, "x") == "frame 6 (t_s='x')"
+    with pytest.raises(InputError) as e:
+        fe.process({"cam9": good_grey(model)}, 6, 0.2)
+    assert str(e.value).startswith("frame 6 (t_s=0.200000 s): FrontEnd.process: unknown cameras ['cam9']")
+    with pytest.raises(InputError) as e:
+        fe.process([good_grey(model)], 6, "soon")
+    assert str(e.value).startswith("frame 6 (t_s='soon'): FrontEnd.process: expected a mapping")
+    with pytest.raises(InputError) as e:
+        fe.process({"cam0": np.zeros((8, 8), np.uint8)}, 6, 0.2)
+    assert str(e.value).startswith("frame 6 (t_s=0.200000 s): camera 'cam0': ")
 
 
 def test_wrong_size_message_names_both_sizes(rig):
@@ -164,7 +183,7 @@ def test_follow_levels_accepts_integers_and_null(rig, good):
 
 
 def test_non_finite_time_is_an_error(model, rig):
-    with pytest.raises(InputError, match="t_s"):
+    with pytest.raises(InputError, match=r"^frame 0: FrontEnd.process: expected a finite t_s, got nan"):
         FrontEnd(rig).process({"cam0": good_grey(model)}, 0, float("nan"))
 
 
