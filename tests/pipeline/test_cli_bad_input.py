@@ -187,7 +187,7 @@ def test_a_batch_run_stopped_mid_way_reports_the_frames_it_kept(tmp_path, monkey
     rc = main(["run", "--batch", str(v), "--speed-mps", "3", "--out", str(out), "--no-progress"])
     err = _err_lines(capsys)
     assert rc == 2 and err[-1] == "fisheye-des: error: 1 of 1 batch runs reported an error (see above)"
-    assert err[0].startswith(f"{out / 'cam0'}: 3 frames  ERROR frame 3 (t_s 0.3)"), err
+    assert err[0].startswith(f"{out / 'cam0'}: 3 frames  ERROR frame 3 (t_s=0.300000 s)"), err
     assert json.loads((out / "cam0" / "summary.json").read_text())["frames"] == 3
 
 
