@@ -18,33 +18,29 @@ def rig_and_motion_overrides(
     exclude each other, so setting one clears the other's value from the config.
 
     Args:
-        sets: the ``--set section.key=value`` items, checked against ``--trajectory`` / ``--speed-mps``.
+        sets: the ``--set section.key=value`` items, checked against the flags.
 
     Raises:
         ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair), or one of
-            them with a ``--set`` of the other's key (``ego_motion.speed_mps`` / ``ego_motion.trajectory``;
-            the flag would silently replace it).
+            them with a ``--set`` of the other's key (``ego_motion.speed_mps`` / ``ego_motion.trajectory``),
+            or ``--calibration`` with a ``--set`` of ``rig.cameras``: the flag would silently replace it.
     """
+    from estimators.errors import ConfigError
+
+    motion = "the body's motion from a TUM file, or a constant forward speed"
     if trajectory is not None and speed_mps is not None:
-        from estimators.errors import ConfigError
-
-        raise ConfigError(
-            f"--trajectory {trajectory} and --speed-mps {speed_mps:g} are alternatives (the body's motion "
-            "from a TUM file, or a constant forward speed); give one of them, not both"
-        )
-    for flag, value, other in (
-        ("--trajectory", trajectory, "speed_mps"),
-        ("--speed-mps", speed_mps, "trajectory"),
+        raise ConfigError(f"--trajectory {trajectory} and --speed-mps {speed_mps:g} are alternatives "
+                          f"({motion}); give one of them, not both")
+    for flag, value, key, what in (
+        ("--trajectory", trajectory, ("ego_motion", "speed_mps"), motion),
+        ("--speed-mps", speed_mps, ("ego_motion", "trajectory"), motion),
+        ("--calibration", calibration, ("rig", "cameras"), "the cameras from a calibration file, or inline"),
     ):
-        item = _set_of(sets, ("ego_motion", other)) if value is not None else None
+        item = _set_of(sets, key) if value is not None else None
         if item is not None:
-            from estimators.errors import ConfigError
-
             shown = f"{value:g}" if isinstance(value, float) else str(value)
-            raise ConfigError(
-                f"{flag} {shown} and --set {item} are alternatives (the body's motion from a TUM file, or a "
-                "constant forward speed); give one of them, not both"
-            )
+            raise ConfigError(f"{flag} {shown} and --set {item} are alternatives ({what}); give one of them, "
+                              "not both")
     cli: dict = {}
     if calibration is not None:
         cli["rig.calibration"] = str(calibration)

@@ -116,9 +116,10 @@ def test_make_output_dir_creates_parents_and_accepts_an_existing_folder(tmp_path
         ("--trajectory", "ego_motion.speed_mps=3"),
         ("--trajectory", "ego_motion={speed_mps: 3}"),
         ("--speed-mps", "ego_motion.trajectory=TRAJ"),
+        ("--calibration", "rig.cameras=[{name: cam0}]"),
     ],
 )
-def test_motion_flag_and_a_set_of_the_other_key_are_an_error(
+def test_a_flag_and_a_set_it_would_replace_are_an_error(
     tmp_path, monkeypatch, capsys, command, flag, item
 ):
     """A --set the flag would silently replace (the flag clears the other key) is refused like the
@@ -128,7 +129,9 @@ def test_motion_flag_and_a_set_of_the_other_key_are_an_error(
     traj = tmp_path / "traj.tum"
     traj.write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
     src = ["--video", str(v)] if command == "run" else ["--camera", str(v)]
-    value = str(traj) if flag == "--trajectory" else "3"
+    calib = tmp_path / "camchain.yaml"
+    calib.write_text("cam0: {}\n")  # never read: the clash is refused first
+    value = {"--trajectory": str(traj), "--calibration": str(calib)}.get(flag, "3")
     item = item.replace("TRAJ", str(traj))
     rc = main([command, *src, flag, value, "--set", item, "--out", str(tmp_path / "o")])
     err = _err_lines(capsys)
