@@ -1212,6 +1212,19 @@ def _judged(budgets: Sequence[float | None], values: Sequence[float | None]) -> 
     return repeat_summary(values, lambda v, i: budgets[i] is not None and v < budgets[i])
 
 
+def _live_rounds(runs: Sequence[Mapping[str, Any]], interval: float):
+    """The live latency of ``runs`` (one per round) against each round's budget (``interval`` + that
+    round's decode median): (budgets, the median budget, :func:`repeat_summary` of the medians,
+    :func:`_judged` p99s, the index of the round with the median p99 (0 when none has one))."""
+    budgets = [None if r.get("decode_median_s") is None else interval + r["decode_median_s"] for r in runs]
+    med = repeat_summary([(r.get("latency") or {}).get("median_s") for r in runs])
+    p99 = _judged(budgets, [(r.get("latency") or {}).get("p99_s") for r in runs])
+    vals = p99["values"]
+    order = sorted((i for i, v in enumerate(vals) if v is not None), key=lambda i: vals[i])
+    mid = order[(len(order) - 1) // 2] if order else 0
+    return budgets, repeat_summary(budgets)["median"], med, p99, mid
+
+
 def ms_extra(summary: Mapping[str, Any]) -> dict[str, Any]:
     """:func:`repeat_extra` of a summary in seconds, with its values in ms (the rows' unit)."""
     ex = repeat_extra(summary)
@@ -1428,17 +1441,9 @@ class BenchRun:
             rate = camera_rate_hz(res)
             interval = 1.0 / rate
             runs = rounds[res]
-            decs = [r.get("decode_median_s") for r in runs]
-            budgets = [None if d is None else interval + d for d in decs]
-            bs = repeat_summary(budgets)
-            budget = bs["median"]
-            med = repeat_summary([(r.get("latency") or {}).get("median_s") for r in runs])
-            p99 = _judged(budgets, [(r.get("latency") or {}).get("p99_s") for r in runs])
+            budgets, budget, med, p99, mid = _live_rounds(runs, interval)
             p99c = _judged(budgets, [((r.get("without_cuts") or {}).get("latency") or {}).get("p99_s")
                                      for r in runs])
-            vals = p99["values"]
-            order = sorted((i for i, v in enumerate(vals) if v is not None), key=lambda i: vals[i])
-            mid = order[(len(order) - 1) // 2] if order else 0
             r = runs[mid]
             out.append({"resolution": list(res), "rate_hz": rate, "result": r, "median_round": mid,
                         "rounds": runs})
@@ -1509,14 +1514,7 @@ class BenchRun:
         for (res, deferred), runs in info.items():
             rate = camera_rate_hz(res)
             interval = 1.0 / rate
-            budgets = [None if r.get("decode_median_s") is None else interval + r["decode_median_s"]
-                       for r in runs]
-            budget = repeat_summary(budgets)["median"]
-            med = repeat_summary([(r.get("latency") or {}).get("median_s") for r in runs])
-            p99 = _judged(budgets, [(r.get("latency") or {}).get("p99_s") for r in runs])
-            vals = p99["values"]
-            order = sorted((i for i, v in enumerate(vals) if v is not None), key=lambda i: vals[i])
-            mid = order[(len(order) - 1) // 2] if order else 0
+            budgets, budget, med, p99, mid = _live_rounds(runs, interval)
             r = runs[mid]
             results.append({"resolution": list(res), "rate_hz": rate, "threads": None, "deferred": deferred,
                             "result": r, "median_round": mid, "rounds": runs})

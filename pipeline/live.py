@@ -1003,7 +1003,7 @@ def run_live(
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(min(switch_interval, LIVE_SWITCH_INTERVAL_S))
     # the worker's CPU time over the loop (what the second core costs): read at loop start and end
-    worker_pid = getattr(worker, "pid", None) if worker is not None else None
+    worker_pid = getattr(worker, "pid", None)
     worker_cpu_start = process_cpu_s(worker_pid)
     start_mono = time.monotonic()
     start_unix = time.time()

@@ -60,13 +60,14 @@ def _set_of(sets: list[str] | tuple[str, ...], key: tuple[str, ...]) -> str | No
     """The ``--set`` item that gives ``key`` its value (not null), directly or inside its section's
     mapping (``--set ego_motion={speed_mps: 3}``); None when none does or a later item sets it back to
     null. Malformed items are left to load_config."""
+    from estimators.errors import ConfigError
     from pipeline.config import _parse_override
 
     found = None
     for item in sets:
         try:
             parts, value = _parse_override(item)
-        except Exception:
+        except ConfigError:
             continue
         if parts == key[: len(parts)]:
             for p in key[len(parts):]:
