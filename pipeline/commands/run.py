@@ -47,7 +47,11 @@ def register(app: typer.Typer) -> None:
             list[Path] | None,
             typer.Option("--batch", help="Recordings to run in parallel (videos or folders); a folder each."),
         ] = None,
-        jobs: Annotated[int | None, typer.Option("--jobs", help="Worker processes for --batch.")] = None,
+        jobs: Annotated[
+            int | None,
+            typer.Option("--jobs", help="Worker processes for --batch (only with it; default one per CPU, "
+                         "at most one per recording)."),
+        ] = None,
         no_progress: Annotated[bool, typer.Option("--no-progress", help="No progress bar.")] = False,
         describe: Annotated[
             bool, typer.Option("--describe-config", help="Print every config key and exit.")
@@ -63,6 +67,11 @@ def register(app: typer.Typer) -> None:
         if describe:
             print(describe_config())
             return
+        if jobs is not None and not batch:
+            from estimators.errors import ConfigError
+
+            raise ConfigError(f"--jobs {jobs} needs --batch: it is the number of worker processes that run "
+                              "the --batch recordings in parallel; a single run uses one process")
 
         cli: dict = {}
         if video:

@@ -207,6 +207,18 @@ def test_jobs_below_one_is_an_error(tmp_path, monkeypatch, capsys, jobs):
     assert not (tmp_path / "o").exists()
 
 
+def test_jobs_without_batch_is_an_error(tmp_path, monkeypatch, capsys):
+    """``--jobs`` sets the --batch worker processes: without --batch it would be ignored silently."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    rc = main(["run", "--video", str(v), "--jobs", "4", "--speed-mps", "3", "--out", str(tmp_path / "o"),
+               "--no-progress"])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert err[0].startswith("fisheye-des: error: --jobs 4 needs --batch: it is the number of worker")
+    assert not (tmp_path / "o").exists()
+
+
 def test_run_batch_refuses_zero_workers(tmp_path):
     from estimators.errors import ConfigError
     from pipeline.config import load_config
