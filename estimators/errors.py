@@ -27,6 +27,25 @@ class SourceError(InputError):
     """A video, image folder or camera that cannot be opened or read."""
 
 
+def did_you_mean(key: str, valid: list[str]) -> str:
+    """The tail of an unknown-key message, the one wording of every layer (config keys, the front end's
+    option groups): the closest valid key if any, then all of them ("...in tracker; did you mean
+    'boxes'? Valid keys: features, ..." or "...in tracker; valid keys: ..."), or "; no key is valid
+    there" when there are none.
+
+    >>> did_you_mean("boxs", ["boxes"])
+    "; did you mean 'boxes'? Valid keys: boxes"
+    """
+    import difflib
+
+    if not valid:
+        return "; no key is valid there"
+    close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
+    if close:
+        return f"; did you mean '{close[0]}'? Valid keys: {', '.join(valid)}"
+    return f"; valid keys: {', '.join(valid)}"
+
+
 def frame_at(frame, t_s) -> str:
     """How a message names the frame it refuses, in every stage (front end, fusion):
     ``"frame 6 (t_s=0.200000 s)"``; a ``t_s`` that is not a number is shown as given.

@@ -1246,16 +1246,15 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
     return the fusion settings they give: ``FusionSettings`` with the ``fusion.*`` keys set there (and
     ``max_speed_mps`` when not None; it wins over ``fusion.max_speed_mps``), defaults otherwise.
 
-    Checked: every key against the config schema (``pipeline.config.load_config``); the keys of the
-    free-form ``tracker.features`` / ``grouping`` / ``boxes`` groups against their class's keywords;
+    Checked: every key against the config schema (``pipeline.config.load_config``, which also checks the
+    names in the free-form ``tracker.features`` / ``grouping`` / ``boxes`` / ``association`` groups);
     then a front end is built on a stereo rig with the resulting config (detector name and options,
-    association options, values).
+    values).
 
     Raises:
         ConfigError: naming the override (``--override ITEM``) or the key and what is expected.
     """
     from estimators.errors import ConfigError
-    from pipeline.config import _suggest
 
     for item in overrides:
         key = item.split("=", 1)[0].strip()
@@ -1264,16 +1263,6 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
                               "calibration and trajectory) and cannot be overridden; expected a detector, "
                               "tracker or fusion key")
     cfg = _load_config(overrides)
-    from trackers.frontend import _CLASS_OPTIONS, accepted_options
-
-    # tracker.<group> -> the class whose keywords that group holds: the front end's own table
-    for group, (cls, _internal) in _CLASS_OPTIONS.items():
-        given = getattr(cfg.tracker, group) or {}
-        params = accepted_options(group)  # the class's keywords less those the front end sets itself
-        for k in given:
-            if k not in params:
-                raise ConfigError(f"--override tracker.{group}.{k}: unknown key '{k}' in tracker.{group} "
-                                  f"({cls.__name__} keywords)" + _suggest(k, params))
     if any(getattr(cfg, sec).model_fields_set for sec in ("detector", "tracker")):
         from pipeline.run import build_frontend
         from pipeline.sim.rigs import build_rig

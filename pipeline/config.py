@@ -21,7 +21,6 @@ Units: SI everywhere (metres, seconds, m/s, m/s^2); degrees only where the key s
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import inspect
 import os
 import re
@@ -43,7 +42,7 @@ from pydantic import (
     model_validator,
 )
 
-from estimators.errors import ConfigError
+from estimators.errors import ConfigError, did_you_mean
 
 __all__ = [
     "PipelineConfig",
@@ -193,8 +192,9 @@ class DetectorConfig(_Section):
 
 class TrackerConfig(_Section):
     """Front-end settings (feature tracking, obstacle grouping, cross-camera association), passed to
-    ``trackers.frontend.FrontEnd(rig, detector, **options)``; a key the front end does not take is an
-    error at start-up naming it."""
+    ``trackers.frontend.FrontEnd(rig, detector, **options)``; a key of features, grouping, boxes or
+    association that the front end does not take is an error when the config loads, naming the closest
+    valid key (``trackers.frontend.option_problem``)."""
 
     features: dict[str, Any] = Field(
         default_factory=dict,
@@ -593,18 +593,6 @@ def _removed(loc: tuple) -> str | None:
     return f"'{'.'.join(key)}' was removed: {_REMOVED_KEYS[key]}" if key in _REMOVED_KEYS else None
 
 
-def _suggest(key: str, valid: list[str]) -> str:
-    """The tail of an unknown-key message: the closest valid key if any, then all of them ("...in
-    tracker; did you mean 'boxes'? Valid keys: features, ..." or "...in tracker; valid keys: ..."),
-    or "; no key is valid there" when there are none."""
-    if not valid:
-        return "; no key is valid there"
-    close = difflib.get_close_matches(key, valid, n=1, cutoff=0.5)
-    if close:
-        return f"; did you mean '{close[0]}'? Valid keys: {', '.join(valid)}"
-    return f"; valid keys: {', '.join(valid)}"
-
-
 # ------------------------------------------------------------------------------------ YAML handling
 def _line_map(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
     """Map every key path of a composed YAML document to its 1-based line number."""
@@ -685,7 +673,7 @@ def _check_override_key(parts: tuple[str, ...], origin: str) -> None:
                 raise ConfigError(f"{origin}: {gone}")
             where = ".".join(parts[:i]) or "top level"
             raise ConfigError(
-                f"{origin}: unknown key '{p}' in {where}" + _suggest(p, list(model.model_fields))
+                f"{origin}: unknown key '{p}' in {where}" + did_you_mean(p, list(model.model_fields))
             )
         ann = model.model_fields[p].annotation
         nxt = None
@@ -795,7 +783,25 @@ def load_config(
     except ValidationError as e:
         raise ConfigError(_format_error(e, cfg_path, lines, origins)) from None
     _check_fusion(cfg, cfg_path, lines, origins)
+    _check_tracker(cfg, cfg_path, lines, origins)
     return cfg
+
+
+def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
+    """Check the names in the free-form tracker groups (``tracker.features`` / ``grouping`` / ``boxes`` /
+    ``association``) as the front end will take them (``trackers.frontend.option_problem``, the one
+    check), at load time and where they were set, as unknown config keys are: with the closest valid
+    name. Every group is checked, also one the detector does not build (``boxes`` beside ``orb``)."""
+    groups = {g: getattr(cfg.tracker, g) for g in ("features", "grouping", "boxes", "association")}
+    if not any(groups.values()):
+        return  # (the front end's import, cv2, only when there is something to check)
+    from trackers.frontend import option_problem
+
+    for group, given in groups.items():
+        problem = option_problem(group, given, section=f"tracker.{group}")
+        if problem is not None:
+            key, msg = problem
+            raise ConfigError(f"{_where(('tracker', group, key), path, lines, origins)}: {msg}")
 
 
 def _check_fusion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
@@ -846,7 +852,7 @@ def _format_error(e: ValidationError, path: Path | None, lines: dict, origins: d
         owner = _descend(loc[:-1])
         valid = list(owner.model_fields) if owner is not None else []
         parent = ".".join(str(p) for p in loc[:-1]) or "top level"
-        return f"{where}: unknown key '{loc[-1]}' in {parent}" + _suggest(str(loc[-1]), valid) + more
+        return f"{where}: unknown key '{loc[-1]}' in {parent}" + did_you_mean(str(loc[-1]), valid) + more
     # wrong type / value: say what is expected from the field's description
     owner = _model_at(loc)
     desc = ""

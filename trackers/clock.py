@@ -65,11 +65,7 @@ def check_durations(
     TypeError."""
     for k in old:
         if k in renamed:
-            new, hint = renamed[k]
-            raise ConfigError(
-                f"{owner}: '{k}' (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
-                f"{hint}); set {new} instead"
-            )
+            raise renamed_error(owner, renamed, k)
     if old:
         raise TypeError(f"{owner}.__init__() got an unexpected keyword argument {next(iter(old))!r}")
     out = {}
@@ -79,3 +75,13 @@ def check_durations(
             raise ConfigError(f"{owner}: expected {k} a finite duration >= 0 (seconds); got {v!r}")
         out[k] = float(v)
     return out
+
+
+def renamed_error(owner: str, renamed: dict[str, tuple[str, str]], key: str) -> ConfigError:
+    """The error for ``key``, a frame count of ``owner`` that ``renamed`` (old key -> (new key, its
+    default in frames at 30 fps)) replaced by a duration: it names the replacement."""
+    new, hint = renamed[key]
+    return ConfigError(
+        f"{owner}: '{key}' (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
+        f"{hint}); set {new} instead"
+    )

@@ -22,7 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from estimators.errors import ConfigError, InputError, frame_at
+from estimators.errors import ConfigError, InputError, did_you_mean, frame_at
 from estimators.geometry import _isin
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera, Rig
@@ -37,10 +37,10 @@ from trackers.association import (
     stereo_klt,
     unheld,
 )
-from trackers.clock import check_durations
+from trackers.clock import check_durations, renamed_error
 from trackers.detectors import Detector, make_detector, to_grey
-from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
-from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
+from trackers.features import _FEATURES_RENAMED, KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
+from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, ObstacleGrouper, ObstacleTrack
 
 STAGES = ("resize", "detect", "track", "group", "associate", "report")
 _OPTION_GROUPS = (
@@ -64,12 +64,14 @@ _ASSOCIATION_OPTIONS = (
     "follow_levels",
     "reverse_views",
 )
-# the option groups built into a class per camera: group -> (class, its parameters the front end sets)
+# the option groups built into a class per camera: group -> (class, its parameters the front end sets,
+# its old frame-count keys that are durations now: old key -> (new key, the old default in time))
 _CLASS_OPTIONS = {
-    "features": (FeatureTracker, ("camera", "detector", "ids")),
-    "grouping": (ObstacleGrouper, ("ids", "label")),
-    "boxes": (BoxTracker, ("ids",)),
+    "features": (FeatureTracker, ("camera", "detector", "ids"), _FEATURES_RENAMED),
+    "grouping": (ObstacleGrouper, ("ids", "label"), _GROUPER_RENAMED),
+    "boxes": (BoxTracker, ("ids",), _BOX_RENAMED),
 }
+OPTION_GROUPS = ("features", "grouping", "boxes", "association")  # the free-form groups: option_problem
 _FRONTEND_RENAMED = {"densify_every": ("densify_s", "every 2nd frame at 30 fps = 2/30 s")}
 DENSIFY_S = 2 / 30  # the front end's default densify_s: every 2nd frame at 30 fps, the count it was fitted as
 
@@ -112,30 +114,38 @@ def accepted_options(group: str) -> list[str]:
     the keywords of the class it is built into (``_CLASS_OPTIONS``), or the association's."""
     if group == "association":
         return list(_ASSOCIATION_OPTIONS)
-    cls, internal = _CLASS_OPTIONS[group]
+    cls, internal, _renamed = _CLASS_OPTIONS[group]
     return [
         n for n, p in inspect.signature(cls).parameters.items()
         if p.kind is not p.VAR_KEYWORD and n not in internal
     ]
 
 
-def _unknown_options(group: str, given: Mapping[str, Any]) -> ConfigError | None:
-    """The error for the names in ``given`` that ``group`` does not accept (``accepted_options``), with
-    the accepted ones; None when it accepts them all."""
+def option_problem(
+    group: str, given: Mapping[str, Any], section: str | None = None
+) -> tuple[str, str] | None:
+    """The one check of the names of a front-end option group (``OPTION_GROUPS``: features, grouping,
+    boxes, association), made by ``FrontEnd`` and, with the config's key and line, when a config
+    loads (``pipeline.config.load_config``): the first name in ``given`` that ``group`` does not take,
+    and the message: an old frame count that is a duration now names its replacement (its class's own
+    words, ``trackers.clock.renamed_error``); any other name is "unknown key 'x' in SECTION; did you
+    mean 'y'? Valid keys: ..." (``did_you_mean``, the config's wording). ``section``: how the message
+    names the group (default ``group``). None when every name is taken."""
     accepted = accepted_options(group)
-    unknown = sorted(set(given) - set(accepted))
-    if not unknown:
-        return None
-    return ConfigError(
-        f"FrontEnd {group}: unknown option{'s' if len(unknown) > 1 else ''} "
-        f"{', '.join(map(repr, unknown))}; accepted: {', '.join(accepted)}"
-    )
+    cls, _internal, renamed = _CLASS_OPTIONS.get(group, (None, (), {}))
+    for k in given:
+        if k in accepted:
+            continue
+        if k in renamed:
+            return k, str(renamed_error(cls.__name__, renamed, k))
+        return k, f"unknown key '{k}' in {section or group}" + did_you_mean(str(k), accepted)
+    return None
 
 
-def _bad_options(group: str, given: Mapping[str, Any], e: Exception) -> ConfigError:
-    """The error for options of ``group`` its class refused (``e``: its TypeError): the unknown names
-    with the accepted ones, else the class's own message."""
-    return _unknown_options(group, given) or ConfigError(f"FrontEnd: bad {group} options: {e}")
+def _bad_options(group: str, e: Exception) -> ConfigError:
+    """The error for options of ``group`` whose names its class takes but whose values it refused with a
+    TypeError (``e``)."""
+    return ConfigError(f"FrontEnd: bad {group} options: {e}")
 
 
 def check_image(name: str, image: Any, width: int, height: int) -> np.ndarray:
@@ -280,6 +290,10 @@ class FrontEnd:
         unknown = sorted(set(options) - set(_OPTION_GROUPS))
         if unknown:
             raise ConfigError(f"FrontEnd: unknown options {unknown}; expected any of {list(_OPTION_GROUPS)}")
+        for group in OPTION_GROUPS:  # every group, also one this detector does not build (boxes for orb)
+            problem = option_problem(group, options.get(group, {}))
+            if problem is not None:
+                raise ConfigError(f"FrontEnd: {problem[1]}")
         self.rig = rig
         self.detector = (
             detector
@@ -291,9 +305,6 @@ class FrontEnd:
         self._feature_ids = itertools.count(1)
         self._track_ids = itertools.count(1)
         a = dict(options.get("association", {}))
-        unknown = _unknown_options("association", a)
-        if unknown is not None:
-            raise unknown
         self.assoc_every = int(a.get("every", 5))
         self.epipolar_rad = float(np.radians(a.get("epipolar_deg", 1.0)))
         self.max_hamming = int(a.get("max_hamming", 64))
@@ -365,17 +376,17 @@ class FrontEnd:
                         c, self.detector.keypoint_part, ids=self._feature_ids, **fo
                     )
                 except TypeError as e:
-                    raise _bad_options("features", fo, e) from e
+                    raise _bad_options("features", e) from e
                 try:
                     self.groupers[c.name] = ObstacleGrouper(self._track_ids, label=self.label, **go)
                 except TypeError as e:
-                    raise _bad_options("grouping", go, e) from e
+                    raise _bad_options("grouping", e) from e
             if self.detector.produces_boxes:
                 bo = options.get("boxes", {})
                 try:
                     self.boxers[c.name] = BoxTracker(self._track_ids, **bo)
                 except TypeError as e:
-                    raise _bad_options("boxes", bo, e) from e
+                    raise _bad_options("boxes", e) from e
         if len(self.groupers) > 1:  # grouping step 3f: a split both cameras' flows support
             for n, g in self.groupers.items():
                 g.plane_confirm = functools.partial(self._plane_confirm, n)

@@ -257,8 +257,8 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
         ("tracker.features.max_features=2.5", ["tracker.features.max_features=2.5", "integer"]),
         ("tracker.boxes.link_tol_px=-1", ["--override tracker.boxes", "link_tol_px"]),
         # keywords the front end sets itself are no options (were accepted, then clashed in FrontEnd)
-        ("tracker.features.camera=1", ["--override tracker.features.camera:", "unknown key 'camera'"]),
-        ("tracker.grouping.old=1", ["--override tracker.grouping.old:", "unknown key 'old'"]),
+        ("tracker.features.camera=1", ["--override tracker.features.camera=1:", "unknown key 'camera'"]),
+        ("tracker.grouping.old=1", ["--override tracker.grouping.old=1:", "unknown key 'old'"]),
         ("ego_motion.speed_mps=3", ["--override ego_motion.speed_mps=3", "set from each scene's render"]),
         ("rig.calibration=x.yaml", ["--override rig.calibration=x.yaml", "cannot be overridden"]),
     ],
@@ -481,9 +481,10 @@ def test_recording_key_is_relative_to_the_scene_folder_and_old_keys_still_match(
     assert _stale_parts(rec, pb, frontend_key_parts(parts, scene_config(b))) == ["frontend config"]
 
 
-def test_an_override_of_an_unknown_tracker_key_names_the_class_from_the_front_ends_own_table(monkeypatch):
-    """accuracy's check of tracker.<group> keys reads the group's class from trackers.frontend's one
-    table (_CLASS_OPTIONS), not a copy of it: a class put there is the one the message names."""
+def test_an_override_of_an_unknown_tracker_key_is_the_config_s_check_on_the_front_ends_own_table(monkeypatch):
+    """accuracy's check of tracker.<group> keys is load_config's (trackers.frontend.option_problem on
+    the front end's one table, _CLASS_OPTIONS), not a copy of it: a class put there is the one whose
+    keywords the message lists, and the override is named as --override."""
     import pipeline.accuracy as acc
     import trackers.frontend as fe
     from estimators.errors import ConfigError
@@ -492,8 +493,8 @@ def test_an_override_of_an_unknown_tracker_key_names_the_class_from_the_front_en
         def __init__(self, camera=None, detector=None, ids=None, win_px=21):
             pass
 
-    monkeypatch.setitem(fe._CLASS_OPTIONS, "features", (StubTracker, ("camera", "detector", "ids")))
+    monkeypatch.setitem(fe._CLASS_OPTIONS, "features", (StubTracker, ("camera", "detector", "ids"), {}))
     assert not hasattr(acc, "_TRACKER_GROUPS")
-    with pytest.raises(ConfigError, match=r"unknown key 'max_features' in tracker\.features \(StubTracker "
-                                          r"keywords\); valid keys: win_px"):
+    with pytest.raises(ConfigError, match=r"^--override tracker\.features\.max_features=5: unknown key "
+                                          r"'max_features' in tracker\.features; valid keys: win_px$"):
         acc.settings_from_overrides(["tracker.features.max_features=5"])

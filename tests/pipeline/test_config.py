@@ -53,10 +53,10 @@ def test_unknown_key_message_separates_the_key_from_the_valid_ones(tmp_path, whe
 def test_no_valid_keys_and_the_count_of_further_errors_are_not_read_as_part_of_a_key_list(tmp_path):
     """With no valid keys the message says so (was "; valid keys: " and nothing); the count of further
     errors is a clause of its own after the list (was " (and N more errors)", read as a key)."""
-    from pipeline.config import _suggest
+    from estimators.errors import did_you_mean
 
-    assert _suggest("x", []) == "; no key is valid there"
-    assert _suggest("boxs", ["boxes"]) == "; did you mean 'boxes'? Valid keys: boxes"
+    assert did_you_mean("x", []) == "; no key is valid there"
+    assert did_you_mean("boxs", ["boxes"]) == "; did you mean 'boxes'? Valid keys: boxes"
     with pytest.raises(ConfigError) as e:
         load_config(_write(tmp_path, "tracker:\n  qqqq: 1\nfusion:\n  max_speed_mps: abc\n  zz: 2\n"))
     msg = str(e.value)
@@ -64,6 +64,37 @@ def test_no_valid_keys_and_the_count_of_further_errors_are_not_read_as_part_of_a
     with pytest.raises(ConfigError) as e:
         load_config(_write(tmp_path, "fusion:\n  max_speed_mps: abc\n  lost_after_s: xyz\n"))
     assert str(e.value).endswith("; 1 more error besides this one"), str(e.value)
+
+
+@pytest.mark.parametrize(
+    ("group", "key", "close"),
+    [("features", "max_featurs", "max_features"), ("grouping", "lnk_px", "link_px"),
+     ("boxes", "gate_rd", "gate_rad"), ("association", "evry", "every")],
+)
+def test_a_tracker_option_key_is_checked_when_the_config_loads(tmp_path, monkeypatch, group, key, close):
+    """tracker.<group>.<key> is checked by load_config, not first when the front end is built, with the
+    file's line (or the --set item) and the closest valid key, as unknown config keys are; boxes too
+    when the detector (orb) builds no box tracker, where it was ignored."""
+    import trackers.frontend as fe
+
+    monkeypatch.setattr(fe.FrontEnd, "__init__", lambda *a, **k: pytest.fail("front end built"))
+    p = _write(tmp_path, f"detector: {{name: orb}}\ntracker:\n  {group}:\n    {key}: 1\n")
+    with pytest.raises(ConfigError) as e:
+        load_config(p)
+    assert str(e.value).startswith(f"{p}:4: unknown key '{key}' in tracker.{group}; did you mean '{close}'? "
+                                   "Valid keys: "), str(e.value)
+    assert close in str(e.value).split("Valid keys: ")[1].split(", ")
+    with pytest.raises(ConfigError) as e:
+        load_config(None, [f"tracker.{group}.{key}=1"])
+    assert str(e.value).startswith(f"--set tracker.{group}.{key}=1: unknown key '{key}' in tracker.{group}; "
+                                   f"did you mean '{close}'?"), str(e.value)
+
+
+def test_an_old_tracker_frame_count_key_names_its_replacement_when_the_config_loads(tmp_path):
+    p = _write(tmp_path, "tracker:\n  features: {win_px: 11}\n  grouping:\n    min_age: 3\n")
+    with pytest.raises(ConfigError, match=rf"^{p}:4: ObstacleGrouper: 'min_age' \(frames\) was replaced by "
+                                          r"'min_age_s' \(seconds"):
+        load_config(p)
 
 
 def test_unknown_key_in_list_item(tmp_path):
