@@ -207,6 +207,37 @@ def test_torch_missing_or_broken_model_file(tmp_path):
         make_detector("torch", model_path=broken)
 
 
+def test_a_torch_model_that_fails_or_returns_no_tensor_is_bad_input_naming_the_contract(tmp_path):
+    """The user's model raising (TorchScript's multi-line message) or returning a dict is an InputError
+    (exit 2) of one line naming the model and what was expected, not a traceback (exit 1); a wrong
+    shape names the rows expected."""
+    torch = pytest.importorskip("torch")
+
+    class Raises(torch.nn.Module):
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return x.view(7, -1)
+
+    class Named(torch.nn.Module):
+        def forward(self, x: torch.Tensor) -> dict[str, torch.Tensor]:
+            return {"boxes": torch.zeros(1, 4)}
+
+    class Wide(torch.nn.Module):
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return torch.zeros(3, 7)
+
+    img = np.zeros((24, 32, 3), np.uint8)
+    for cls, expected in (
+        (Raises, r"^detector 'torch': model Raises\.pt failed on a float32 input of shape \(1, 3, 24, 32\): "
+                 r"RuntimeError: shape '\[7, -1\]' is invalid for input of size 2304$"),
+        (Named, r"^detector 'torch': model Named\.pt returned a dict; expected a tensor \(M, 4\.\.6\)"),
+        (Wide, r"^detector 'torch': model Wide\.pt returned shape \(3, 7\); expected \(M, 4\.\.6\) rows"),
+    ):
+        p = tmp_path / f"{cls.__name__}.pt"
+        torch.jit.script(cls()).save(str(p))
+        with pytest.raises(InputError, match=expected):
+            make_detector("torch", model_path=p).detect(img)
+
+
 def test_kornia_responses_run_on_cpu():
     pytest.importorskip("torch")
     pytest.importorskip("kornia")

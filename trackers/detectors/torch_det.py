@@ -3,8 +3,10 @@ file given by path. Nothing is downloaded.
 
 Model contract: input a float32 tensor (1, 3, H, W), BGR->RGB, values in [0, 1] (``input_size`` =
 (W, H) resizes first); output a tensor (M, 4..6) or (1, M, 4..6) of rows
-``[x1, y1, x2, y2, score?, class?]`` in the input's pixels (scaled back to the frame here). Rows
-below ``min_score`` are dropped; ``class_names`` maps class indices to labels.
+``[x1, y1, x2, y2, score?, class?]`` (TorchScript: or a tuple or list whose first item is that tensor)
+in the input's pixels (scaled back to the frame here). Rows below ``min_score`` are dropped;
+``class_names`` maps class indices to labels. A model that fails, or returns anything else, is an
+InputError naming the model and what was expected.
 TorchScript needs torch (``pip install fisheye-des[kornia]``); ONNX runs on cv2.dnn.
 """
 
@@ -47,8 +49,9 @@ class TorchModelDetector(Detector):
         path = Path(model_path) if model_path else None
         if path is None or not path.is_file():
             raise ConfigError(
-                f"detector 'torch': model_path {str(model_path)!r} is not a file; expected the path of "
-                "your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (nothing is downloaded)"
+                f"detector 'torch': model_path {'not given' if path is None else repr(str(model_path))} is "
+                "not a file; expected the path of your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (in "
+                "a config: detector.options.model_path; nothing is downloaded)"
             )
         self.path = path
         self.input_size = None if input_size is None else (int(input_size[0]), int(input_size[1]))
@@ -76,17 +79,32 @@ class TorchModelDetector(Detector):
                 raise ConfigError(f"detector 'torch': torch.jit.load cannot read {path}: {e}") from e
 
     def _run(self, rgb01: np.ndarray) -> np.ndarray:
+        blob = np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32)
+        # the user's model is not ours: any failure inside it is bad input (exit 2), named with the input
+        failed = f"detector 'torch': model {self.path.name} failed on a float32 input of shape {blob.shape}"
         if self._net is not None:
-            blob = np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32)
-            self._net.setInput(blob)
-            out = self._net.forward()
+            try:
+                self._net.setInput(blob)
+                out = self._net.forward()
+            except cv2.error as e:
+                raise InputError(f"{failed}: {e}") from e
         else:
             torch = self._torch
             with torch.no_grad():
-                t = torch.from_numpy(np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32))
-                out = self._module(t.to(self.device))
-                if isinstance(out, (tuple, list)):
-                    out = out[0]
+                try:
+                    out = self._module(torch.from_numpy(blob).to(self.device))
+                except Exception as e:  # TorchScript's message: its traceback, then "RuntimeError: ..."
+                    lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+                    why = lines[-1] if len(lines) > 1 else f"{type(e).__name__}: {''.join(lines)}"
+                    raise InputError(f"{failed}: {why}") from e
+                if isinstance(out, (tuple, list)) and out:
+                    out = out[0]  # (boxes, ...) as many detection models return
+                if not isinstance(out, torch.Tensor):
+                    raise InputError(
+                        f"detector 'torch': model {self.path.name} returned a {type(out).__name__}; expected "
+                        "a tensor (M, 4..6) or (1, M, 4..6) of rows [x1, y1, x2, y2, score?, class?] (or a "
+                        "tuple or list whose first item is one)"
+                    )
                 out = out.detach().float().cpu().numpy()
         out = np.asarray(out, dtype=np.float64)
         if out.ndim == 3 and out.shape[0] == 1:
