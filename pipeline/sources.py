@@ -418,8 +418,8 @@ class ImageFolderSource(Source):
                 raise SourceError(f"{timestamps}: timestamps file not found")
         if self.timestamps is None and not fps:
             raise SourceError(
-                f"{self.folder}: no timestamps.txt and no frame rate; "
-                "give inputs.fps (Hz) or a timestamps file"
+                f"{self.folder}: no timestamps.txt and no frame rate; give inputs.fps (Hz, e.g. --set "
+                f"inputs.fps=30) or a timestamps file ('frame t_s' per line) {' or '.join(map(str, cands))}"
             )
         self.fps = float(fps) if fps else None
         self.frame_count = len(self.files)

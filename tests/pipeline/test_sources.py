@@ -65,8 +65,10 @@ def test_image_folder_without_times_or_images(tmp_path):
     with pytest.raises(SourceError, match="no images"):
         ImageFolderSource(d, fps=10)
     cv2.imwrite(str(d / "a.png"), np.zeros((H, W), np.uint8))
-    with pytest.raises(SourceError, match="inputs.fps"):
+    with pytest.raises(SourceError) as e:  # how to give either: the flag and the two file names
         ImageFolderSource(d)
+    assert "give inputs.fps (Hz, e.g. --set inputs.fps=30) or a timestamps file ('frame t_s' per line) " \
+           f"{d / 'timestamps.txt'} or {tmp_path / 'imgs.timestamps.txt'}" in str(e.value), str(e.value)
 
 
 def test_stereo_sync_drops_frame_without_partner(tmp_path):
