@@ -666,6 +666,9 @@ class MjpegServer:
     Args:
         port: TCP port (0 = any free port; the chosen one is ``.port``).
         quality: JPEG quality 1..100.
+
+    Raises:
+        ConfigError: the port cannot be listened on (in use), naming it and the way out.
     """
 
     def __init__(self, port: int = 0, quality: int = 80):
@@ -727,7 +730,13 @@ class MjpegServer:
                 else:
                     self.send_error(404)
 
-        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", int(port)), Handler)
+        try:
+            self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", int(port)), Handler)
+        except OSError as e:  # the port is taken (another preview, a web server) or not ours to bind
+            raise ConfigError(
+                f"live.preview_port {port}: the MJPEG preview cannot listen on 127.0.0.1:{port} "
+                f"({e.strerror or e}); give another --port (0: any free one), or --preview file / none"
+            ) from None
         self.httpd.daemon_threads = True
         self.port = int(self.httpd.server_address[1])
         self._thread = threading.Thread(

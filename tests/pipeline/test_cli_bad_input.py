@@ -219,6 +219,26 @@ def test_jobs_without_batch_is_an_error(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_preview_port_in_use_is_an_error_naming_it(tmp_path, monkeypatch, capsys):
+    """live's MJPEG preview on a port something else listens on (the shipped webcam config's 8080): one
+    line naming the port and the way out, exit 2 (was OSError's traceback, exit 1)."""
+    import socket
+
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        rc = main(["live", "--camera", str(v), "--speed-mps", "3", "--preview", "mjpeg", "--port", str(port),
+                   "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert err[0].startswith(f"fisheye-des: error: live.preview_port {port}: the MJPEG preview cannot listen "
+                             f"on 127.0.0.1:{port} (")
+    assert err[0].endswith("give another --port (0: any free one), or --preview file / none")
+
+
 def test_run_batch_refuses_zero_workers(tmp_path):
     from estimators.errors import ConfigError
     from pipeline.config import load_config

@@ -917,7 +917,7 @@ def test_a_set_up_error_after_the_worker_started_leaves_no_worker_camera_or_thre
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        with pytest.raises(OSError):
+        with pytest.raises(ConfigError, match="live.preview_port .*in use"):
             _live(tmp_path, [factory], front=DeferringFrontEnd(mono_rig()),
                   cfg=_cfg("live.deferred_detection=true", "live.preview=mjpeg", f"live.preview_port={port}"))
     assert _no_worker_left() and not _grabbing_threads() and len(closed) == 2
