@@ -37,11 +37,18 @@ def register(app: typer.Typer) -> None:
             Path | None, typer.Option("--out", help="Write accuracy.json / accuracy.txt here.")
         ] = None,
         pixel_sigma: Annotated[
-            float, typer.Option("--pixel-sigma", help="Pixel noise (px, 1-sigma) of bearings mode.")
-        ] = 0.5,
-        seed: Annotated[int, typer.Option("--seed", help="Seed of the noise and of the random scenes.")] = 0,
+            float | None,
+            typer.Option("--pixel-sigma", help="Bearings mode: pixel noise (px, 1-sigma; default 0.5)."),
+        ] = None,
+        seed: Annotated[
+            int | None,
+            typer.Option("--seed", help="Bearings mode: seed of the noise and of the random scenes "
+                         "(default 0)."),
+        ] = None,
         n_random: Annotated[
-            int | None, typer.Option("--n-random", help="Random scenes per family (default 1 quick, 6 full).")
+            int | None,
+            typer.Option("--n-random", help="Bearings mode: random scenes per family (default 1 quick, "
+                         "6 full)."),
         ] = None,
         thesis_interval: Annotated[
             float,
@@ -91,7 +98,7 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         render_cache: Annotated[
-            bool,
+            bool | None,
             typer.Option(
                 "--render-cache/--no-render-cache",
                 help="Pipeline mode: keep scene renders in ~/.cache/fisheye-des/accuracy "
@@ -99,9 +106,9 @@ def register(app: typer.Typer) -> None:
                 "version, linked into --out/scenes and reused by every later run (delete the folder "
                 "to render again). --no-render-cache renders into --out/scenes (reused there while "
                 "the scenario text and length are unchanged). A render already in --out/scenes from "
-                "an earlier run is used either way when its scenario text matches.",
+                "an earlier run is used either way when its scenario text matches. Default: render-cache.",
             ),
-        ] = True,
+        ] = None,
         reuse_frontend: Annotated[
             bool,
             typer.Option(
@@ -124,11 +131,21 @@ def register(app: typer.Typer) -> None:
                 not o.strip().startswith("fusion.") for o in overrides):
             raise ConfigError("accuracy --override: bearings mode runs only the fusion (fusion.* keys); "
                               f"got {', '.join(overrides)}; use --mode pipeline for front-end keys")
+        # options of one mode given in the other would be ignored: refused, as an unknown flag would be
+        other = {"bearings": {"--reuse-frontend": reuse_frontend or None, "--render-cache/--no-render-cache":
+                              render_cache},
+                 "pipeline": {"--pixel-sigma": pixel_sigma, "--seed": seed, "--n-random": n_random}}[mode]
+        given = [flag for flag, value in other.items() if value is not None]
+        if given:
+            needs = "pipeline" if mode == "bearings" else "bearings"
+            raise ConfigError(f"accuracy {', '.join(given)}: {needs} mode only, ignored in {mode} mode; "
+                              f"drop {'it' if len(given) == 1 else 'them'} or give --mode {needs}")
+        chosen = {"pixel_sigma_px": pixel_sigma, "seed": seed, "render_cache": render_cache}
         opts = AccuracyOptions(
-            mode=mode, quick=quick, pixel_sigma_px=pixel_sigma, seed=seed, n_random=n_random,
+            mode=mode, quick=quick, n_random=n_random,
             thesis_interval_s=thesis_interval, scenes=tuple(scene) if scene else None,
             settings=settings_from_overrides(overrides, max_speed), reuse_frontend=reuse_frontend,
-            scene_set=scene_set, overrides=overrides, render_cache=render_cache,
+            scene_set=scene_set, overrides=overrides, **{k: v for k, v in chosen.items() if v is not None},
         )
         res = run_accuracy(opts, out, progress=lambda s: typer.echo(s, err=True))
         typer.echo(res["table"])

@@ -277,6 +277,48 @@ def test_bad_override_is_a_clear_error_before_anything_runs(monkeypatch, item, e
         assert e in msg, msg
 
 
+@pytest.mark.parametrize(
+    "args, expect",
+    [
+        (["--mode", "pipeline", "--pixel-sigma", "1.0"],
+         "accuracy --pixel-sigma: bearings mode only, ignored in pipeline mode; drop it or give --mode "
+         "bearings"),
+        (["--mode", "pipeline", "--seed", "3", "--n-random", "2"],
+         "accuracy --seed, --n-random: bearings mode only, ignored in pipeline mode; drop them or give "
+         "--mode bearings"),
+        (["--reuse-frontend"],
+         "accuracy --reuse-frontend: pipeline mode only, ignored in bearings mode; drop it or give --mode "
+         "pipeline"),
+        (["--no-render-cache"], "accuracy --render-cache/--no-render-cache: pipeline mode only"),
+    ],
+)
+def test_an_option_of_the_other_mode_is_an_error_not_ignored(monkeypatch, capsys, args, expect):
+    """--pixel-sigma / --seed / --n-random shape bearings mode's noise and scenes, --reuse-frontend and
+    --render-cache pipeline mode's renders: given in the other mode they did nothing, silently."""
+    import pipeline.accuracy as acc
+    from pipeline.cli import main
+
+    monkeypatch.setattr(acc, "run_accuracy", lambda *a, **k: pytest.fail("ran despite an ignored option"))
+    assert main(["accuracy", *args]) == 2
+    assert capsys.readouterr().err.strip().startswith(f"fisheye-des: error: {expect}")
+
+
+def test_the_mode_s_own_options_reach_it_with_their_defaults_when_not_given(monkeypatch):
+    import pipeline.accuracy as acc
+    from pipeline.cli import main
+
+    seen = []
+    monkeypatch.setattr(acc, "run_accuracy", lambda opts, *a, **k: seen.append(opts) or {
+        "table": "", "elapsed_s": 0.0})
+    assert main(["accuracy", "--pixel-sigma", "0.25", "--seed", "4"]) == 0
+    assert main(["accuracy", "--mode", "pipeline", "--no-render-cache", "--reuse-frontend"]) == 0
+    assert main(["accuracy", "--mode", "pipeline"]) == 0
+    b, p, d = seen
+    assert (b.pixel_sigma_px, b.seed, b.render_cache) == (0.25, 4, True)
+    assert (p.pixel_sigma_px, p.seed, p.render_cache, p.reuse_frontend) == (0.5, 0, False, True)
+    assert (d.render_cache, d.reuse_frontend) == (True, False)
+
+
 # -------------------------------------------------------------------------------------- render cache
 def test_render_cache_key_ignores_comments_and_follows_the_scenario(tmp_path):
     from pipeline.accuracy import render_key
