@@ -32,7 +32,9 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option("--preview", help="none | file (preview.mp4) | mjpeg (http://127.0.0.1:PORT/)."),
         ] = None,
-        port: Annotated[int | None, typer.Option("--port", help="MJPEG preview port on 127.0.0.1.")] = None,
+        port: Annotated[
+            int | None, typer.Option("--port", help="MJPEG preview port on 127.0.0.1 (with --preview mjpeg).")
+        ] = None,
         duration: Annotated[float | None, typer.Option("--duration", help="Stop after S seconds.")] = None,
         set_: Annotated[list[str] | None, typer.Option("--set", help="section.key=value override.")] = None,
     ) -> None:
@@ -54,6 +56,11 @@ def register(app: typer.Typer) -> None:
         if duration is not None:
             cli["live.duration_s"] = duration
         cfg = load_config(config, list(set_ or []), cli)
+        if port is not None and cfg.live.preview != "mjpeg":
+            from estimators.errors import ConfigError
+
+            raise ConfigError(f"--port {port} is the MJPEG preview's port, but live.preview is "
+                              f"'{cfg.live.preview}'; give --preview mjpeg too, or drop --port")
         out_dir = cfg.outputs.dir or Path("runs") / "live"
         try:
             r = run_live(cfg, out_dir, on_event=lambda m: print(m, file=sys.stderr))

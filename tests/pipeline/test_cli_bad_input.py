@@ -239,6 +239,20 @@ def test_a_preview_port_in_use_is_an_error_naming_it(tmp_path, monkeypatch, caps
     assert err[0].endswith("give another --port (0: any free one), or --preview file / none")
 
 
+def test_a_preview_port_without_the_mjpeg_preview_is_an_error(tmp_path, monkeypatch, capsys):
+    """--port is the MJPEG preview's: with live.preview none (the default) or file it was ignored."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    for preview in ([], ["--preview", "file"]):
+        rc = main(["live", "--camera", str(v), "--speed-mps", "3", "--port", "9123", *preview,
+                   "--out", str(tmp_path / "o")])
+        shown = preview[1] if preview else "none"
+        assert rc == 2 and _err_lines(capsys) == [
+            f"fisheye-des: error: --port 9123 is the MJPEG preview's port, but live.preview is '{shown}'; "
+            "give --preview mjpeg too, or drop --port"]
+    assert not (tmp_path / "o").exists()
+
+
 def test_run_batch_refuses_zero_workers(tmp_path):
     from estimators.errors import ConfigError
     from pipeline.config import load_config
