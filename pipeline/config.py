@@ -186,8 +186,16 @@ class DetectorConfig(_Section):
         "alone, at ORB's cost).",
     )
     options: dict[str, Any] = Field(
-        default_factory=dict, description="dict: keyword options passed to the detector's constructor."
+        default_factory=dict,
+        description="dict: keyword options passed to the detector's constructor; a model file "
+        "(model_path, e.g. torch's, also in a composite's part: {torch: {model_path: ...}}) is relative to "
+        "the config file, as the config's other paths.",
     )
+
+    @field_validator("options")
+    @classmethod
+    def _model_paths_relative_to_the_config(cls, v: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        return _model_paths(v, lambda p: _resolve_path(p, info))
 
 
 class TrackerConfig(_Section):
@@ -686,6 +694,20 @@ def _check_override_key(parts: tuple[str, ...], origin: str) -> None:
         model = nxt
 
 
+MODEL_PATH_KEY = "model_path"  # a detector option naming a file (torch's model): a path, as the config's
+
+
+def _model_paths(value: Any, resolve) -> Any:
+    """``value`` (detector options, or a mapping holding them) with every relative ``model_path`` string,
+    at any depth (a composite's parts), passed through ``resolve``."""
+    if not isinstance(value, dict):
+        return value
+    return {
+        k: resolve(v) if k == MODEL_PATH_KEY and isinstance(v, str) and v else _model_paths(v, resolve)
+        for k, v in value.items()
+    }
+
+
 def _absolutize(value: Any) -> Any:
     """Command-line paths are relative to the current directory."""
     if isinstance(value, list):
@@ -776,6 +798,9 @@ def load_config(
         _check_override_key(parts, origin)
         if _is_path_field(parts):
             value = _absolutize(value)
+        elif parts[0] == "detector":  # a model file in the detector's options (as the dict or in it)
+            value = (_absolutize(value) if parts[-1] == MODEL_PATH_KEY and isinstance(value, str) and value
+                     else _model_paths(value, _absolutize))
         _set_in(data, parts, value, origin)
         origins[parts] = origin
     try:

@@ -133,6 +133,28 @@ def test_paths_relative_to_config_file(tmp_path, monkeypatch):
     assert cfg.inputs.videos == [str(tmp_path / "v" / "a.mkv"), "rtsp://host/s"]
 
 
+def test_a_detector_model_path_is_relative_to_the_config_file_or_on_the_command_line_to_cwd(
+        tmp_path, monkeypatch):
+    """detector.options.model_path (torch's model, also inside a composite's part) is a path like the
+    config's others: relative to the config file (was: to the current directory, so a config next to
+    its model failed when run from elsewhere); given by --set, relative to the current directory."""
+    sub = tmp_path / "configs"
+    sub.mkdir()
+    monkeypatch.chdir(tmp_path)
+    p = _write(sub, "detector: {name: torch, options: {model_path: m/boxes.pt, min_score: 0.3}}\n")
+    assert load_config(p).detector.options == {"model_path": str(sub / "m" / "boxes.pt"), "min_score": 0.3}
+    p = _write(sub, "detector: {name: orb+torch, options: {torch: {model_path: boxes.pt}}}\n", "c2.yaml")
+    assert load_config(p).detector.options == {"torch": {"model_path": str(sub / "boxes.pt")}}
+    assert load_config(p, ["detector.options.torch.model_path=here.pt"]).detector.options == {
+        "torch": {"model_path": str(tmp_path / "here.pt")}}
+    assert load_config(p, ["detector.options={torch: {model_path: here.pt}}"]).detector.options == {
+        "torch": {"model_path": str(tmp_path / "here.pt")}}
+    assert load_config(p, ["detector.options.torch.model_path=/abs/x.pt"]).detector.options == {
+        "torch": {"model_path": "/abs/x.pt"}}
+    assert load_config(None, ["detector.options.model_path=x.pt"]).detector.options == {
+        "model_path": str(tmp_path / "x.pt")}
+
+
 def test_set_overrides_are_typed_and_cli_paths_relative_to_cwd(tmp_path, monkeypatch):
     (tmp_path / "cfgdir").mkdir()
     p = _write(tmp_path / "cfgdir", "ego_motion: {speed_mps: 2}\n")
