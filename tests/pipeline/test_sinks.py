@@ -152,3 +152,17 @@ def test_writer_line_for_a_nan_report_is_to_json_s(tmp_path):
     rec = json.loads((tmp_path / "tracks.jsonl").read_text())
     want = to_plain(r.to_json())
     assert rec["tracks"] == [want] and want["range_min_m"] is None and want["range_max_m"] is None
+
+
+def test_every_field_of_a_tracks_jsonl_entry_is_documented_in_outputs_md():
+    """docs/OUTPUTS.md's table names every key a track entry has (speed_sigma_mps was missing)."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from estimators.records import TrackReport
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "OUTPUTS.md").read_text()
+    table = doc.split("## `tracks.jsonl`", 1)[1]
+    keys = TrackReport(1, "confirmed", "cam0", np.array([1.0, 0.0, 0.0])).to_json()
+    assert [k for k in keys if f"`{k}`" not in table] == []
