@@ -45,7 +45,8 @@ def register(app: typer.Typer) -> None:
         plots: Annotated[bool, typer.Option("--plots", help="Also write PNG plots.")] = False,
         batch: Annotated[
             list[Path] | None,
-            typer.Option("--batch", help="Recordings to run in parallel (videos or folders); a folder each."),
+            typer.Option("--batch", help="Recordings to run in parallel (videos or folders; repeat the flag "
+                         "for each: --batch A --batch B); a result folder each."),
         ] = None,
         jobs: Annotated[
             int | None,
@@ -67,6 +68,11 @@ def register(app: typer.Typer) -> None:
         if describe:
             print(describe_config())
             return
+        if batch and config is not None and config.is_dir():  # `--batch A B`: B became the CONFIG argument
+            from estimators.errors import ConfigError
+
+            raise ConfigError(f"{config}: a folder where the YAML config goes; --batch takes one recording "
+                              f"per flag: --batch {batch[-1]} --batch {config}")
         if jobs is not None and not batch:
             from estimators.errors import ConfigError
 

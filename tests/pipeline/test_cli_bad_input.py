@@ -253,6 +253,23 @@ def test_a_preview_port_without_the_mjpeg_preview_is_an_error(tmp_path, monkeypa
     assert not (tmp_path / "o").exists()
 
 
+def test_batch_recordings_after_one_flag_are_named_as_such_not_as_a_missing_config(tmp_path, monkeypatch,
+                                                                                   capsys):
+    """`--batch A B` makes B the CONFIG argument: the error says to repeat --batch, not 'config file not
+    found'."""
+    _fake_stages(monkeypatch)
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d in (a, b):
+        d.mkdir()
+        write_video(d / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    rc = main(["run", "--batch", str(a), str(b), "--speed-mps", "3", "--out", str(tmp_path / "o"),
+               "--no-progress"])
+    assert rc == 2 and _err_lines(capsys) == [
+        f"fisheye-des: error: {b}: a folder where the YAML config goes; --batch takes one recording per "
+        f"flag: --batch {a} --batch {b}"]
+    assert not (tmp_path / "o").exists()
+
+
 def test_run_batch_refuses_zero_workers(tmp_path):
     from estimators.errors import ConfigError
     from pipeline.config import load_config
