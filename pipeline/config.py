@@ -621,7 +621,11 @@ def _line_map(node: yaml.Node, path: tuple = (), out: dict | None = None) -> dic
 def _read_yaml(path: Path) -> tuple[dict, dict[tuple, int]]:
     if not path.is_file():
         raise ConfigError(f"{path}: config file not found")
-    text = path.read_text()
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a YAML config (not UTF-8 text); expected a YAML file of sections "
+                          "(rig, ego_motion, ...), e.g. configs/mono_forward.yaml") from None
     try:
         loader = yaml.SafeLoader(text)
         try:

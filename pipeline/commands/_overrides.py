@@ -1,4 +1,5 @@
-"""Command-line flags shared by ``run`` and ``live``, turned into config overrides (``section.key``)."""
+"""Command-line flags shared by ``run`` and ``live``: turned into config overrides (``section.key``), and the
+CONFIG argument checked against the repeatable flags."""
 
 from __future__ import annotations
 
@@ -74,3 +75,32 @@ def _set_of(sets: list[str] | tuple[str, ...], key: tuple[str, ...]) -> str | No
                 value = value.get(p) if isinstance(value, dict) else None
             found = item if value is not None else None  # a later item replaces an earlier one
     return found
+
+
+def check_config_argument(config: Path | None, flags: dict[str, list | None]) -> None:
+    """Refuse a CONFIG argument that is no YAML config but the second value of a repeatable flag: each
+    such flag takes one value (``--video a.mkv b.mkv`` makes b.mkv the CONFIG, ``--camera 0 1`` makes 1
+    it), so the message says to repeat the flag. A shipped preset's name (``mono_forward``) is a config.
+
+    Args:
+        flags: the repeatable flags (``--video``, ...) and the values they got.
+
+    Raises:
+        ConfigError: ``config`` is neither a .yaml/.yml/.json file nor a preset, and one of ``flags`` got
+            a value.
+    """
+    from estimators.errors import ConfigError
+    from pipeline.config import find_preset
+
+    if config is None:
+        return
+    try:
+        config = find_preset(config)
+    except ConfigError:
+        pass
+    if config.is_file() and config.suffix.lower() in (".yaml", ".yml", ".json"):
+        return
+    for flag, values in flags.items():
+        if values:
+            raise ConfigError(f"{config}: not a YAML config (the first argument); {flag} takes one value per "
+                              f"flag: {flag} {values[-1]} {flag} {config}")

@@ -41,10 +41,11 @@ def register(app: typer.Typer) -> None:
         """Range obstacles live from cameras; Ctrl-C stops with everything written."""
         import sys
 
-        from pipeline.commands._overrides import rig_and_motion_overrides
+        from pipeline.commands._overrides import check_config_argument, rig_and_motion_overrides
         from pipeline.config import load_config
         from pipeline.live import run_live
 
+        check_config_argument(config, {"--camera": camera})
         cli: dict = {}
         if camera:
             cli["live.cameras"] = [int(c) if c.isdigit() else c for c in camera]

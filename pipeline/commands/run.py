@@ -61,18 +61,14 @@ def register(app: typer.Typer) -> None:
         """Range obstacles in recorded fisheye videos: tracks.jsonl, summary.json, config.resolved.yaml."""
         import sys
 
-        from pipeline.commands._overrides import rig_and_motion_overrides
+        from pipeline.commands._overrides import check_config_argument, rig_and_motion_overrides
         from pipeline.config import describe_config, load_config
         from pipeline.run import run, run_batch
 
         if describe:
             print(describe_config())
             return
-        if batch and config is not None and config.is_dir():  # `--batch A B`: B became the CONFIG argument
-            from estimators.errors import ConfigError
-
-            raise ConfigError(f"{config}: a folder where the YAML config goes; --batch takes one recording "
-                              f"per flag: --batch {batch[-1]} --batch {config}")
+        check_config_argument(config, {"--video": video, "--images": images, "--batch": batch})
         if jobs is not None and not batch:
             from estimators.errors import ConfigError
 

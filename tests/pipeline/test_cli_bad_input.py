@@ -253,21 +253,31 @@ def test_a_preview_port_without_the_mjpeg_preview_is_an_error(tmp_path, monkeypa
     assert not (tmp_path / "o").exists()
 
 
-def test_batch_recordings_after_one_flag_are_named_as_such_not_as_a_missing_config(tmp_path, monkeypatch,
-                                                                                   capsys):
-    """`--batch A B` makes B the CONFIG argument: the error says to repeat --batch, not 'config file not
-    found'."""
+@pytest.mark.parametrize("flag", ["--video", "--images", "--batch", "--camera"])
+def test_a_second_value_after_a_repeatable_flag_is_named_as_such_not_as_a_config(tmp_path, monkeypatch,
+                                                                                  capsys, flag):
+    """`--video a.mkv b.mkv` (or --images, --batch; live's `--camera 0 1`) makes the second value the
+    CONFIG argument: the error says to repeat the flag (was 'config file not found', or for a video a
+    UnicodeDecodeError traceback, exit 1)."""
     _fake_stages(monkeypatch)
-    a, b = tmp_path / "a", tmp_path / "b"
-    for d in (a, b):
-        d.mkdir()
-        write_video(d / "cam0.mkv", 3, times=[0, 0.1, 0.2])
-    rc = main(["run", "--batch", str(a), str(b), "--speed-mps", "3", "--out", str(tmp_path / "o"),
-               "--no-progress"])
+    a = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
+    b = write_video(tmp_path / "b.mkv", 3, times=[0, 0.1, 0.2])
+    values = {"--video": [a, b], "--images": [tmp_path, tmp_path], "--batch": [a, tmp_path],
+              "--camera": ["0", "1"]}[flag]
+    command = "live" if flag == "--camera" else "run"
+    rc = main([command, flag, *map(str, values), "--speed-mps", "3", "--out", str(tmp_path / "o")])
     assert rc == 2 and _err_lines(capsys) == [
-        f"fisheye-des: error: {b}: a folder where the YAML config goes; --batch takes one recording per "
-        f"flag: --batch {a} --batch {b}"]
+        f"fisheye-des: error: {values[1]}: not a YAML config (the first argument); {flag} takes one value "
+        f"per flag: {flag} {values[0]} {flag} {values[1]}"]
     assert not (tmp_path / "o").exists()
+
+
+def test_a_config_that_is_no_text_is_an_error_not_a_traceback(tmp_path, capsys):
+    v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
+    assert main(["run", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")]) == 2
+    assert _err_lines(capsys) == [
+        f"fisheye-des: error: {v}: not a YAML config (not UTF-8 text); expected a YAML file of sections "
+        "(rig, ego_motion, ...), e.g. configs/mono_forward.yaml"]
 
 
 def test_run_batch_refuses_zero_workers(tmp_path):
