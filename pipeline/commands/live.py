@@ -69,9 +69,12 @@ def register(app: typer.Typer) -> None:
             print(f"stopped; tracks.jsonl and summary.json are in {out_dir}", file=sys.stderr)
             raise typer.Exit(130) from None
         lat = r.latency
+        no_pose = r.summary.get("frames_without_pose", 0)
         print(
-            f"{r.frames} frames, {r.stale} stale frames dropped, latency median "
-            f"{1000 * lat.get('median_s', 0):.1f} ms p99 {1000 * lat.get('p99_s', 0):.1f} ms -> "
-            f"{r.out_dir / 'tracks.jsonl'}",
+            f"{r.frames} frames, {r.stale} stale frames dropped"
+            + (f", {no_pose} skipped without a pose (the trajectory did not reach their time within "
+               f"live.trajectory_wait_s)" if no_pose else "")
+            + f", latency median {1000 * lat.get('median_s', 0):.1f} ms p99 "
+            f"{1000 * lat.get('p99_s', 0):.1f} ms -> {r.out_dir / 'tracks.jsonl'}",
             file=sys.stderr,
         )

@@ -280,6 +280,22 @@ def test_a_config_that_is_no_text_is_an_error_not_a_traceback(tmp_path, capsys):
         "(rig, ego_motion, ...), e.g. configs/mono_forward.yaml"]
 
 
+def test_live_says_how_many_frames_it_skipped_for_want_of_a_pose(tmp_path, monkeypatch, capsys):
+    """A trajectory that stops short of the frames: the frames past its end are skipped (counted in
+    summary.json's frames_without_pose); the closing line says so too (was silent there)."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 8, times=[k / 10 for k in range(8)])
+    traj = tmp_path / "short.tum"
+    traj.write_text("0.0 0 0 0 0 0 0 1\n0.35 1 0 0 0 0 0 1\n")
+    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
+               "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    skipped = json.loads((tmp_path / "o" / "summary.json").read_text())["frames_without_pose"]
+    assert rc == 0 and skipped >= 1  # (4 unless the loaded machine dropped some as stale)
+    assert f" stale frames dropped, {skipped} skipped without a pose (the trajectory did not reach their " \
+        "time within live.trajectory_wait_s), latency median " in err[-1], err
+
+
 def test_run_batch_refuses_zero_workers(tmp_path):
     from estimators.errors import ConfigError
     from pipeline.config import load_config
