@@ -196,6 +196,26 @@ def test_torchscript_boxes_scaled_filtered_and_labelled(torchscript_model):
     np.testing.assert_allclose(d.box_scores, [0.9], rtol=1e-6)
 
 
+def test_a_misspelt_detector_option_names_the_closest_one(monkeypatch, request):
+    """As an unknown config key: the closest accepted option and all of them (was the TypeError and the
+    constructor's whole signature), also for a composite's part; a CUDA device on a torch without one is a
+    ConfigError when the detector is built (was an AssertionError traceback at the first frame)."""
+    with pytest.raises(ConfigError, match=r"^detector 'orb': unknown option 'max_featurs'; did you mean "
+                                          r"'max_features'\? Valid keys: max_features, grid, "):
+        make_detector("orb", max_featurs=100)
+    with pytest.raises(ConfigError, match=r"^detector 'navlights': unknown option 'min_vale'; did you mean "
+                                          r"'min_value'\?"):
+        make_detector("orb+navlights", navlights={"min_vale": 3})
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("kornia")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ConfigError, match=r"^kornia: device 'cuda', but this torch sees no CUDA device"):
+        make_detector("kornia", device="cuda")
+    model = request.getfixturevalue("torchscript_model")
+    with pytest.raises(ConfigError, match=r"^detector 'torch': device 'cuda', but this torch sees no CUDA"):
+        make_detector("torch", model_path=model, device="cuda")
+
+
 def test_torch_missing_or_broken_model_file(tmp_path):
     with pytest.raises(ConfigError, match="not a file"):
         make_detector("torch", model_path=tmp_path / "nothing.onnx")

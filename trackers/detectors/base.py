@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from estimators.errors import ConfigError, FisheyeDesError, InputError, check_rows
+from estimators.errors import ConfigError, FisheyeDesError, InputError, check_rows, did_you_mean
 
 ENTRY_POINT_GROUP = "fisheye_des.detectors"
 
@@ -257,6 +257,12 @@ def make_detector(name: str, **options: Any) -> Detector:
         sig = inspect.signature(factory)
         sig.bind(**options)
     except TypeError as e:
+        named = [n for n, p in sig.parameters.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+        takes_any = any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+        unknown = [k for k in options if k not in named]
+        if unknown and not takes_any:  # a misspelt option: named as an unknown config key is
+            raise ConfigError(f"detector {name!r}: unknown option '{unknown[0]}'"
+                              + did_you_mean(str(unknown[0]), named)) from e
         raise ConfigError(f"detector {name!r}: bad options {sorted(options)}: {e}; accepted: {sig}") from e
     except ValueError:
         pass  # no signature available (builtin): let the call report

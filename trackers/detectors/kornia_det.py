@@ -58,6 +58,9 @@ class KorniaDetector(Detector):
             device = "cuda" if self.torch.cuda.is_available() else "cpu"
         if device not in ("cpu", "cuda"):
             raise ConfigError(f"kornia: device expected 'auto', 'cpu' or 'cuda', got {device!r}")
+        if device == "cuda" and not self.torch.cuda.is_available():
+            raise ConfigError("kornia: device 'cuda', but this torch sees no CUDA device (or is a CPU "
+                              "build); expected 'auto' or 'cpu' here")
         self.device = device
         self.response = response
         self.max_features = int(max_features)

@@ -73,6 +73,9 @@ class TorchModelDetector(Detector):
                 ) from e
             self._torch = torch
             self.device = ("cuda" if torch.cuda.is_available() else "cpu") if device == "auto" else device
+            if self.device == "cuda" and not torch.cuda.is_available():
+                raise ConfigError("detector 'torch': device 'cuda', but this torch sees no CUDA device (or "
+                                  "is a CPU build); expected 'auto' or 'cpu' here")
             try:
                 self._module = torch.jit.load(str(path), map_location=self.device).eval()
             except Exception as e:
