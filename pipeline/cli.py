@@ -13,6 +13,7 @@ prints its traceback and exits with 1.
 from __future__ import annotations
 
 import importlib
+import inspect
 import sys
 
 import typer
@@ -41,6 +42,11 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show full traceback
 
 for _name in COMMANDS:
     importlib.import_module(f"pipeline.commands.{_name}").register(app)
+# --help shows a command's docstring; typer keeps the single line breaks of its later paragraphs, which
+# wrapped at the source's width break the terminal's lines mid-sentence: one line per paragraph instead
+for _info in app.registered_commands:
+    _doc = _info.help or inspect.getdoc(_info.callback) or ""
+    _info.help = "\n\n".join(" ".join(par.split()) for par in _doc.split("\n\n"))
 
 
 def main(argv: list[str] | None = None) -> int:

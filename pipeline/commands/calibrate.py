@@ -457,7 +457,9 @@ def register(app: typer.Typer) -> None:
         out: Annotated[Path, typer.Option("--out", help="Kalibr camchain.yaml to write.")] = Path(
             "camchain.yaml"
         ),
-        model: Annotated[str, typer.Option("--model", help="Camera model to fit.")] = "kannala_brandt",
+        model: Annotated[
+            str, typer.Option("--model", help="Camera model to fit (kannala_brandt only: cv2.fisheye's).")
+        ] = "kannala_brandt",
         every: Annotated[int, typer.Option("--every", help="Use every n-th frame of a video.")] = 10,
         max_angle_deg: Annotated[
             float | None, typer.Option("--max-angle-deg", help="Lens half field of view to record (degrees).")

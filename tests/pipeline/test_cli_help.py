@@ -28,6 +28,15 @@ def test_top_level_help_lists_each_command_on_its_own_summary(capsys):
     assert "scene.yaml and gt.jsonl into OUT" not in out  # simulate's too
 
 
+@pytest.mark.parametrize("name", COMMANDS)
+def test_a_command_s_help_paragraphs_are_not_broken_at_the_source_s_line_ends(name):
+    """typer keeps single line breaks in a docstring's later paragraphs: `bench --help` showed its
+    description broken mid-sentence at the source's line ends; each paragraph is one line now."""
+    cmd = typer.main.get_command(app).commands[name]
+    for par in (cmd.help or "").split("\n\n"):
+        assert "\n" not in par, par
+
+
 REPO = __import__("pathlib").Path(__file__).resolve().parents[2]
 
 
