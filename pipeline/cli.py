@@ -49,9 +49,22 @@ for _info in app.registered_commands:
     _info.help = "\n\n".join(" ".join(par.split()) for par in _doc.split("\n\n"))
 
 
+INTERRUPTED = 130
+_GENERIC_NOTE = "fisheye-des: interrupted; outputs written so far are kept"
+
+
+def interrupted(note: str) -> typer.Exit:
+    """A command's own note on a Ctrl-C (where its outputs are), printed instead of :func:`main`'s
+    generic one; the command raises the returned Exit (code 130)."""
+    print(note, file=sys.stderr)
+    _state["noted"] = True
+    return typer.Exit(INTERRUPTED)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console-script entry point; returns the process exit code."""
     args = sys.argv[1:] if argv is None else argv
+    _state["noted"] = False
     try:
         rc = app(args=args, standalone_mode=False)
     except FisheyeDesError as e:
@@ -60,8 +73,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"fisheye-des: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("fisheye-des: interrupted; outputs written so far are kept", file=sys.stderr)
-        return 130
+        rc = INTERRUPTED
     except SystemExit as e:  # typer/click exits (e.g. --help)
         return int(e.code or 0)
     except Exception as e:  # click usage errors and the like
@@ -74,11 +86,17 @@ def main(argv: list[str] | None = None) -> int:
         ):
             e.show()
             return e.exit_code
-        if isinstance(e, click.exceptions.Abort | typer.Abort):
-            return 130
-        raise
+        if not isinstance(e, click.exceptions.Abort | typer.Abort):
+            raise
+        rc = INTERRUPTED  # (click's form of a Ctrl-C)
+    # typer turns a Ctrl-C (KeyboardInterrupt) in a command into exit code 130 itself, silently: the
+    # generic note unless the command gave its own (``interrupted``)
+    if rc == INTERRUPTED and not _state["noted"]:
+        print(_GENERIC_NOTE, file=sys.stderr)
     return rc if isinstance(rc, int) else 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # python -m pipeline.cli: run the package's module, whose state (``_state``)
+    from pipeline.cli import main as package_main  # the commands share, not this __main__ copy's
+
+    sys.exit(package_main())

@@ -66,8 +66,9 @@ def register(app: typer.Typer) -> None:
         try:
             r = run_live(cfg, out_dir, on_event=lambda m: print(m, file=sys.stderr))
         except KeyboardInterrupt:
-            print(f"stopped; tracks.jsonl and summary.json are in {out_dir}", file=sys.stderr)
-            raise typer.Exit(130) from None
+            from pipeline.cli import interrupted
+
+            raise interrupted(f"stopped; tracks.jsonl and summary.json are in {out_dir}") from None
         lat = r.latency
         no_pose = r.summary.get("frames_without_pose", 0)
         print(

@@ -120,8 +120,9 @@ def register(app: typer.Typer) -> None:
         try:
             r = run(cfg, out_dir, config_source=config, overrides=overrides)
         except KeyboardInterrupt:
-            print(f"interrupted; everything up to the last frame is in {out_dir}", file=sys.stderr)
-            raise typer.Exit(130) from None
+            from pipeline.cli import interrupted
+
+            raise interrupted(f"interrupted; everything up to the last frame is in {out_dir}") from None
         print(
             f"{r.frames} frames, {r.tracks} tracks, {r.frames_per_s:.1f} frames/s"
             f" -> {r.out_dir / 'tracks.jsonl'}",

@@ -85,3 +85,18 @@ def test_exit_code_1_is_an_unexpected_error_with_its_traceback_as_the_readme_say
     readme = " ".join((REPO / "README.md").read_text().split())
     assert ("130 interrupted (Ctrl-C; outputs written so far are kept), 1 an unexpected internal error "
             "(a bug: Python's traceback on stderr; also bad input under `--debug`") in readme
+
+
+def test_ctrl_c_in_a_command_without_its_own_note_says_it_was_interrupted(tmp_path, monkeypatch, capsys):
+    """click turns a KeyboardInterrupt into Abort: simulate, demo, calibrate ... exited 130 silently (run
+    and live print their own note); the note is the one the README's exit codes describe."""
+    import pipeline.sim.writer as writer
+    from pipeline.cli import main
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(writer, "simulate", interrupted)
+    assert main(["simulate", "ci_small", "--out", str(tmp_path / "s"), "--no-progress"]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "fisheye-des: interrupted; outputs written so far are kept")

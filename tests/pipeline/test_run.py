@@ -363,8 +363,30 @@ def test_cli_ctrl_c_exits_130_with_a_note(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(run_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig, interrupt_at=3))
     rc = main(["run", "--video", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o"), "--no-progress"])
     assert rc == 130
-    assert "interrupted; everything up to the last frame is in" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "interrupted; everything up to the last frame is in" in err
+    assert "outputs written so far are kept" not in err  # its own note, not main's generic one as well
     assert len(_lines(tmp_path / "o" / "tracks.jsonl")) == 3
+
+
+@pytest.mark.filterwarnings("ignore:.*found in sys.modules:RuntimeWarning")  # runpy on an imported module
+def test_python_m_pipeline_cli_ctrl_c_gives_the_command_s_note_alone(tmp_path, monkeypatch, capsys):
+    """`python -m pipeline.cli` runs the module as __main__, a copy beside pipeline.cli, which the
+    commands import: it hands over to pipeline.cli's main, so run's note is known there and main's
+    generic one is not printed as well."""
+    import runpy
+    import sys
+
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
+    monkeypatch.setattr(run_mod, "build_frontend", lambda cfg, rig: FakeFrontEnd(rig, interrupt_at=3))
+    monkeypatch.setattr(sys, "argv", ["pipeline.cli", "run", "--video", str(v), "--speed-mps", "3", "--out",
+                                      str(tmp_path / "o"), "--no-progress"])
+    with pytest.raises(SystemExit) as e:
+        runpy.run_module("pipeline.cli", run_name="__main__")
+    err = capsys.readouterr().err
+    assert e.value.code == 130 and "interrupted; everything up to the last frame is in" in err
+    assert "outputs written so far are kept" not in err, err
 
 
 def test_cli_run_over_image_folders(tmp_path, monkeypatch):
