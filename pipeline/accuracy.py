@@ -703,6 +703,14 @@ def _run_bearings_set(opts: AccuracyOptions, scenes: list, rng, progress) -> tup
     return samples, per_scene
 
 
+def _title(opts: AccuracyOptions) -> str:
+    """A table's first line: the mode and the settings it ran with (the pixel noise only in bearings
+    mode: pipeline mode measures rendered frames)."""
+    noise = f"pixel noise {opts.pixel_sigma_px} px; " if opts.mode == "bearings" else ""
+    return (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
+            f"{noise}thesis interval {opts.thesis_interval_s} s)")
+
+
 def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progress=None) -> dict:
     """Run the harness; returns {"metrics", "per_scene", "table", "options", "elapsed_s", "sets"} and
     writes ``accuracy.json`` and ``accuracy.txt`` into ``out_dir`` when given.
@@ -753,8 +761,7 @@ def run_accuracy(opts: AccuracyOptions, out_dir: str | Path | None = None, progr
             for rig in ("mono", "stereo"):
                 metrics[f"{rig}_uncovered"] = pool_uncovered(per_scene, rig)
             metrics["scored_ranges"] = scored_ranges(rows_by_scene)
-        title = (f"fisheye-des accuracy ({opts.mode} mode{', quick' if opts.quick else ''}; "
-                 f"pixel noise {opts.pixel_sigma_px} px; thesis interval {opts.thesis_interval_s} s)")
+        title = _title(opts)
         if set_name != "tuned" or len(set_names) > 1:
             title += f"; {SET_TITLES[set_name]}"
         table = format_table(metrics, title)

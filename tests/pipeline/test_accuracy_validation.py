@@ -303,6 +303,16 @@ def test_an_option_of_the_other_mode_is_an_error_not_ignored(monkeypatch, capsys
     assert capsys.readouterr().err.strip().startswith(f"fisheye-des: error: {expect}")
 
 
+def test_the_table_title_gives_the_pixel_noise_only_in_bearings_mode():
+    """Pipeline mode measures rendered frames: its title said 'pixel noise 0.5 px', which it never used."""
+    from pipeline.accuracy import AccuracyOptions, _title
+
+    assert _title(AccuracyOptions()) == ("fisheye-des accuracy (bearings mode; pixel noise 0.5 px; thesis "
+                                         "interval 0.5 s)")
+    assert _title(AccuracyOptions(mode="pipeline", quick=True)) == (
+        "fisheye-des accuracy (pipeline mode, quick; thesis interval 0.5 s)")
+
+
 def test_the_mode_s_own_options_reach_it_with_their_defaults_when_not_given(monkeypatch):
     import pipeline.accuracy as acc
     from pipeline.cli import main
