@@ -518,3 +518,18 @@ def _report(res: FisheyeCalibration) -> None:
         f"k1..k4 {m.k1:.6f} {m.k2:.6f} {m.k3:.6f} {m.k4:.6f} ({m.width}x{m.height} px)"
     )
     typer.echo(f"overall RMS reprojection error: {res.rms_px:.3f} px")
+    seen_deg, lens_deg = board_coverage_deg(res)
+    typer.echo(f"board corners seen up to {seen_deg:.1f} deg off the optical axis; the camchain's lens half "
+               f"field (max_angle_rad) is {lens_deg:.1f} deg: bearings beyond {seen_deg:.1f} deg are "
+               "extrapolated" + (" (--max-angle-deg sets the lens's half field)" if lens_deg > seen_deg + 5
+                                 else ""))
+
+
+def board_coverage_deg(res: FisheyeCalibration) -> tuple[float, float]:
+    """(the largest angle off the optical axis of a used view's board corner, the model's
+    ``max_angle_rad``), degrees: the calibration is fitted up to the first; between the two the lens
+    model is an extrapolation."""
+    uv = np.concatenate([v.corners for v in res.used]).reshape(-1, 2)
+    b, valid = res.model.pixel_to_bearing(uv, within_image=False)
+    seen = np.degrees(np.arccos(np.clip(b[valid, 2], -1.0, 1.0)))
+    return float(seen.max()) if seen.size else 0.0, float(np.degrees(res.model.max_angle_rad))
