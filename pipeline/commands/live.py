@@ -20,7 +20,8 @@ def register(app: typer.Typer) -> None:
         config: Annotated[Path | None, typer.Argument(help="YAML config (configs/live_webcam.yaml).")] = None,
         camera: Annotated[
             list[str] | None,
-            typer.Option("--camera", help="Device index or URL (repeat; cam0 first)."),
+            typer.Option("--camera", help="Device index, URL, or a video file replayed at its real rate "
+                         "(testing without a camera); repeat for each camera, cam0 first."),
         ] = None,
         calibration: Annotated[Path | None, typer.Option("--calibration", help="Calibration file.")] = None,
         trajectory: Annotated[
