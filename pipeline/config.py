@@ -821,7 +821,7 @@ def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins:
     ``association``) as the front end will take them (``trackers.frontend.option_problem``, the one
     check), at load time and where they were set, as unknown config keys are: with the closest valid
     name. Every group is checked, also one the detector does not build (``boxes`` beside ``orb``)."""
-    groups = {g: getattr(cfg.tracker, g) for g in ("features", "grouping", "boxes", "association")}
+    groups = {g: v for g, v in cfg.tracker.model_dump().items() if isinstance(v, dict)}  # the free-form ones
     if not any(groups.values()):
         return  # (the front end's import, cv2, only when there is something to check)
     from trackers.frontend import option_problem

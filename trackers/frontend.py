@@ -71,7 +71,7 @@ _CLASS_OPTIONS = {
     "grouping": (ObstacleGrouper, ("ids", "label"), _GROUPER_RENAMED),
     "boxes": (BoxTracker, ("ids",), _BOX_RENAMED),
 }
-OPTION_GROUPS = ("features", "grouping", "boxes", "association")  # the free-form groups: option_problem
+_OPTION_DICTS = ("features", "grouping", "boxes", "association")  # the options given as dicts: option_problem
 _FRONTEND_RENAMED = {"densify_every": ("densify_s", "every 2nd frame at 30 fps = 2/30 s")}
 DENSIFY_S = 2 / 30  # the front end's default densify_s: every 2nd frame at 30 fps, the count it was fitted as
 
@@ -124,7 +124,7 @@ def accepted_options(group: str) -> list[str]:
 def option_problem(
     group: str, given: Mapping[str, Any], section: str | None = None
 ) -> tuple[str, str] | None:
-    """The one check of the names of a front-end option group (``OPTION_GROUPS``: features, grouping,
+    """The one check of the names of a front-end option group (``_OPTION_DICTS``: features, grouping,
     boxes, association), made by ``FrontEnd`` and, with the config's key and line, when a config
     loads (``pipeline.config.load_config``): the first name in ``given`` that ``group`` does not take,
     and the message: an old frame count that is a duration now names its replacement (its class's own
@@ -290,7 +290,7 @@ class FrontEnd:
         unknown = sorted(set(options) - set(_OPTION_GROUPS))
         if unknown:
             raise ConfigError(f"FrontEnd: unknown options {unknown}; expected any of {list(_OPTION_GROUPS)}")
-        for group in OPTION_GROUPS:  # every group, also one this detector does not build (boxes for orb)
+        for group in _OPTION_DICTS:  # every group, also one this detector does not build (boxes for orb)
             problem = option_problem(group, options.get(group, {}))
             if problem is not None:
                 raise ConfigError(f"FrontEnd: {problem[1]}")
