@@ -86,8 +86,8 @@ def check_config_argument(config: Path | None, flags: dict[str, list | None]) ->
         flags: the repeatable flags (``--video``, ...) and the values they got.
 
     Raises:
-        ConfigError: ``config`` is neither a .yaml/.yml/.json file nor a preset, and one of ``flags`` got
-            a value.
+        ConfigError: ``config`` is neither named .yaml/.yml/.json nor a preset, and one of ``flags`` got a
+            value.
     """
     from estimators.errors import ConfigError
     from pipeline.config import find_preset
@@ -98,8 +98,8 @@ def check_config_argument(config: Path | None, flags: dict[str, list | None]) ->
         config = find_preset(config)
     except ConfigError:
         pass
-    if config.is_file() and config.suffix.lower() in (".yaml", ".yml", ".json"):
-        return
+    if config.suffix.lower() in (".yaml", ".yml", ".json"):
+        return  # a config, or a missing one: load_config says which
     for flag, values in flags.items():
         if values:
             raise ConfigError(f"{config}: not a YAML config (the first argument); {flag} takes one value per "

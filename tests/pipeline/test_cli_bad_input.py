@@ -272,6 +272,13 @@ def test_a_second_value_after_a_repeatable_flag_is_named_as_such_not_as_a_config
     assert not (tmp_path / "o").exists()
 
 
+def test_a_missing_yaml_config_beside_a_repeatable_flag_is_named_missing(tmp_path, capsys):
+    v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
+    assert main(["run", str(tmp_path / "my.yaml"), "--video", str(v), "--speed-mps", "3"]) == 2
+    missing = tmp_path / "my.yaml"
+    assert _err_lines(capsys)[0].startswith(f"fisheye-des: error: {missing}: config file not found")
+
+
 def test_a_config_that_is_no_text_is_an_error_not_a_traceback(tmp_path, capsys):
     v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
     assert main(["run", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")]) == 2
