@@ -6,8 +6,8 @@ Every source yields :class:`Frame` records (``frame`` index, ``t_s`` seconds, ``
 - video: ``<video stem>.timestamps.txt`` beside the video (one ``frame t_s`` pair per line, the
   authoritative times; the k-th decoded frame gets the k-th line), else the container's
   presentation time (``CAP_PROP_POS_MSEC``), else ``frame / fps``;
-- image folder: ``timestamps.txt`` inside the folder or ``<folder>.timestamps.txt`` beside it, else
-  ``frame / fps`` with a configured ``fps``.
+- image folder: ``timestamps.txt`` inside the folder or ``<folder>.timestamps.txt`` beside it (the
+  k-th image in natural name order gets the k-th line), else ``frame / fps`` with a configured ``fps``.
 
 Bad input raises :class:`~estimators.errors.SourceError` naming the file (or camera index) and what
 was wrong. A video that stops decoding before its announced end does not raise: the source ends
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import queue
+import re
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -43,6 +44,7 @@ __all__ = [
     "PrefetchSource",
     "SyncedSource",
     "open_capture",
+    "natural_key",
     "read_timestamps",
     "timestamps_path_for",
     "IMAGE_SUFFIXES",
@@ -85,6 +87,14 @@ class FrameSet:
     def images(self) -> dict[str, np.ndarray]:
         """Camera name -> image, as ``FrontEnd.process`` takes them."""
         return {k: f.image for k, f in self.frames.items()}
+
+
+def natural_key(path: str | Path) -> tuple:
+    """Sort key of a path in natural order: digit runs compare as numbers, so ``frame_2`` comes before
+    ``frame_10`` (plain name order puts ``frame_10`` first); names whose numbers are zero-padded to one
+    width keep their name order. Ties (``f_01``, ``f_1``) are broken by the plain text."""
+    text = str(path)
+    return tuple(int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)), text
 
 
 def timestamps_path_for(path: str | Path) -> Path:
@@ -365,7 +375,8 @@ class VideoSource(Source):
 
 
 class ImageFolderSource(Source):
-    """Frames from a folder of images (sorted by file name).
+    """Frames from a folder of images, in natural name order (``frame_2`` before ``frame_10``,
+    :func:`natural_key`); with a timestamps file the k-th image gets its k-th line.
 
     Args:
         folder: folder of ``.png/.jpg/...`` images.
@@ -392,7 +403,8 @@ class ImageFolderSource(Source):
         self.grey = grey
         if not self.folder.is_dir():
             raise SourceError(f"{self.folder}: image folder not found")
-        self.files = sorted(p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        self.files = sorted((p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES),
+                            key=natural_key)
         if not self.files:
             raise SourceError(f"{self.folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in the folder")
         cands = (

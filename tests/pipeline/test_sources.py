@@ -59,6 +59,28 @@ def test_image_folder_sorted_with_fps_and_with_timestamps(tmp_path):
     assert [(f.frame, f.t_s) for f in got] == [(10, 1.5), (11, 1.6), (13, 1.8)]
 
 
+def test_image_folder_unpadded_names_in_natural_order_with_timestamps(tmp_path):
+    """frame_1, frame_2, ..., frame_11 are read 1, 2, ..., 11 (plain name order: 1, 10, 11, 2, ...), and
+    the k-th line of timestamps.txt goes with the k-th image in that order."""
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for k in range(1, 12):
+        cv2.imwrite(str(d / f"frame_{k}.png"), np.full((H, W), 10 * k, np.uint8))
+    (d / "timestamps.txt").write_text("".join(f"{k} {k / 10}\n" for k in range(1, 12)))
+    got = list(ImageFolderSource(d, grey=True))
+    assert [int(f.image[0, 0]) for f in got] == [10 * k for k in range(1, 12)]
+    assert [(f.frame, f.t_s) for f in got] == [(k, pytest.approx(k / 10)) for k in range(1, 12)]
+
+
+def test_natural_key_keeps_name_order_of_zero_padded_names():
+    from pipeline.sources import natural_key
+
+    names = [f"cam0_{k:04d}.png" for k in (0, 7, 10, 99, 100, 1000)] + ["a.png", "b_2.png", "b_10.png"]
+    assert sorted(names[:6], key=natural_key) == sorted(names[:6])
+    assert sorted(names, key=natural_key) == ["a.png", "b_2.png", "b_10.png"] + names[:6]
+    assert sorted(["f_1.png", "f_01.png"], key=natural_key) == ["f_01.png", "f_1.png"]  # a tie: by name
+
+
 def test_image_folder_without_times_or_images(tmp_path):
     d = tmp_path / "imgs"
     d.mkdir()
