@@ -1,18 +1,20 @@
 """``fisheye-des calibrate``: Kannala-Brandt calibration from checkerboard images or a video.
 
 ``fisheye-des calibrate IMAGES_OR_VIDEO... --board COLSxROWS --square-m S --out camchain.yaml``
-(stereo: ``--right RIGHT_IMAGES_OR_VIDEO...``, frames paired in sorted order)
+(stereo: ``--right RIGHT_IMAGES_OR_VIDEO...``, frames paired in order: a folder's or glob's images in
+natural name order, ``pipeline.sources.natural_key``)
 
 Inputs may be image files, folders of images, glob patterns (quoted, so that the shell leaves them
-alone) or video files (every ``--every``-th frame is used). Corners are found with
-``cv2.findChessboardCorners`` and refined with ``cv2.cornerSubPix`` (falling back to
-``cv2.findChessboardCornersSB``); views without the whole board, and views ``cv2.fisheye.calibrate``
-finds ill-conditioned, are rejected with the reason. The result is written as a Kalibr camchain
-(``estimators.calibration.save_kalibr``; one camera ``cam0``, assumed to look forward from the
-body origin: the extrinsics are not calibrated here), and the per-view and overall RMS
-reprojection errors (px) are printed. With ``--right`` both cameras are calibrated, then their
-relative pose with ``cv2.fisheye.stereoCalibrate`` (intrinsics fixed); the camchain then holds
-cam0 (left) and cam1 (right) with ``T_cn_cnm1``, the body origin midway between them.
+alone) or video files (every ``--every``-th frame is used; every image is used, so ``--every`` with
+image inputs only is an error). Corners are found with ``cv2.findChessboardCorners`` and refined
+with ``cv2.cornerSubPix`` (falling back to ``cv2.findChessboardCornersSB``); views without the whole
+board, and views ``cv2.fisheye.calibrate`` finds ill-conditioned, are rejected with the reason. The
+result is written as a Kalibr camchain (``estimators.calibration.save_kalibr``; one camera ``cam0``,
+assumed to look forward from the body origin: the extrinsics are not calibrated here), and the
+per-view and overall RMS reprojection errors (px) are printed. With ``--right`` both cameras are
+calibrated, then their relative pose with ``cv2.fisheye.stereoCalibrate`` (intrinsics fixed); the
+camchain then holds cam0 (left) and cam1 (right) with ``T_cn_cnm1``, the body origin midway between
+them.
 """
 
 from __future__ import annotations
@@ -100,41 +102,73 @@ class FisheyeCalibration:
 
 
 # ------------------------------------------------------------------------------------- inputs
-def iter_frames(inputs: list[str], every: int = 10) -> Iterator[tuple[str, np.ndarray]]:
-    """Grey frames ``(name, (H,W) uint8)`` from image files, folders, glob patterns and videos.
+def expand_inputs(inputs: list[str]) -> list[Path]:
+    """The files of ``inputs`` (image files, folders, glob patterns, videos), in order: a folder's images
+    and a glob's files in natural name order (``frame_2`` before ``frame_10``,
+    ``pipeline.sources.natural_key``).
 
-    Images of a folder or glob are taken in sorted order; from a video every ``every``-th frame.
-    A path that does not exist or cannot be decoded is a SourceError.
+    Raises:
+        SourceError: a path that does not exist, a folder without images, a pattern that matches nothing.
     """
-    import cv2
+    from pipeline.sources import natural_key
 
-    if every < 1:
-        raise InputError(f"--every: expected an integer >= 1, got {every}")
+    out: list[Path] = []
     for spec in inputs:
         p = Path(spec)
         if p.is_dir():
-            files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES)
+            files = sorted((f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES), key=natural_key)
             if not files:
                 raise SourceError(f"{spec}: folder holds no images ({', '.join(IMAGE_SUFFIXES)})")
         elif p.is_file():
             files = [p]
         elif any(ch in spec for ch in "*?["):
-            files = sorted(Path(f) for f in globmod.glob(spec) if Path(f).is_file())
+            files = sorted((Path(f) for f in globmod.glob(spec) if Path(f).is_file()), key=natural_key)
             if not files:
                 raise SourceError(f"{spec}: the pattern matches no files")
         else:
             raise SourceError(f"{spec}: no such file or folder")
-        for f in files:
-            if f.suffix.lower() in VIDEO_SUFFIXES:
-                yield from _video_frames(f, every)
-                continue
-            img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
-            if img is None:
-                if f.suffix.lower() in IMAGE_SUFFIXES:
-                    raise SourceError(f"{f}: cannot be read as an image")
-                yield from _video_frames(f, every)  # unknown suffix: let FFmpeg try
-                continue
-            yield str(f), img
+        out += files
+    return out
+
+
+def iter_frames(inputs: list[str], every: int = 10) -> Iterator[tuple[str, np.ndarray]]:
+    """Grey frames ``(name, (H,W) uint8)`` from image files, folders, glob patterns and videos.
+
+    Images of a folder or glob are taken in natural name order (:func:`expand_inputs`); from a video
+    every ``every``-th frame. A path that does not exist or cannot be decoded is a SourceError.
+    """
+    import cv2
+
+    if every < 1:
+        raise InputError(f"--every: expected an integer >= 1, got {every}")
+    for f in expand_inputs(inputs):
+        if f.suffix.lower() in VIDEO_SUFFIXES:
+            yield from _video_frames(f, every)
+            continue
+        img = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            if f.suffix.lower() in IMAGE_SUFFIXES:
+                raise SourceError(f"{f}: cannot be read as an image")
+            yield from _video_frames(f, every)  # unknown suffix: let FFmpeg try
+            continue
+        yield str(f), img
+
+
+def every_for(every: int | None, inputs: list[str]) -> int:
+    """``--every`` as given, 10 by default; given with image inputs only it is refused (every image is
+    used: it applies to videos, and files whose suffix is no image suffix are tried as videos).
+
+    Raises:
+        InputError: ``every`` given and no input file could be a video.
+    """
+    if every is None:
+        return 10
+    files = expand_inputs(inputs)
+    if all(f.suffix.lower() in IMAGE_SUFFIXES for f in files):
+        raise InputError(f"--every {every}: takes every n-th frame of a video, and the inputs are "
+                         f"{len(files)} image{'s' if len(files) != 1 else ''}, which are all used; expected "
+                         "a video input, or no --every (to use fewer images, give fewer)")
+    return every
 
 
 def _video_frames(path: Path, every: int) -> Iterator[tuple[str, np.ndarray]]:
@@ -392,7 +426,7 @@ def calibrate_stereo_views(
 
     if len(left_views) != len(right_views):
         raise InputError(
-            f"calibrate --right: expected as many right frames as left frames (pairs in sorted order); "
+            f"calibrate --right: expected as many right frames as left frames (pairs in natural name order); "
             f"got {len(left_views)} left and {len(right_views)} right"
         )
     left = calibrate_views(left_views, board, size_left, max_angle_rad=max_angle_rad)
@@ -460,7 +494,11 @@ def register(app: typer.Typer) -> None:
         model: Annotated[
             str, typer.Option("--model", help="Camera model to fit (kannala_brandt only: cv2.fisheye's).")
         ] = "kannala_brandt",
-        every: Annotated[int, typer.Option("--every", help="Use every n-th frame of a video.")] = 10,
+        every: Annotated[
+            int | None,
+            typer.Option("--every", help="Use every n-th frame of a video (default 10); images are all used, "
+                         "so --every with image inputs only is an error."),
+        ] = None,
         max_angle_deg: Annotated[
             float | None, typer.Option("--max-angle-deg", help="Lens half field of view to record (degrees).")
         ] = None,
@@ -472,7 +510,8 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--right",
                 help="Stereo: the right camera's images/folder/glob/video (repeatable); frames pair "
-                "with the inputs in sorted order. Writes a 2-camera camchain with T_cn_cnm1.",
+                "with the inputs in natural name order (frame_2 before frame_10). Writes a 2-camera "
+                "camchain with T_cn_cnm1.",
             ),
         ] = None,
     ) -> None:
@@ -483,6 +522,7 @@ def register(app: typer.Typer) -> None:
         if model != "kannala_brandt":
             raise InputError(f"--model: {model!r} cannot be calibrated here; expected: kannala_brandt")
         b = Board.parse(board, square_m)
+        every = every_for(every, list(inputs) + list(right or []))
         max_rad = None if max_angle_deg is None else float(np.radians(max_angle_deg))
         echo = typer.echo if verbose else None
         if right:

@@ -352,3 +352,25 @@ def test_real_stereopi_stereo_cli(tmp_path, capsys):
     assert np.degrees(np.arccos((np.trace(R) - 1) / 2)) == pytest.approx(0.94, abs=0.3)
     stereo_rms = float(re.search(r"stereo: \d+ pairs, RMS ([\d.]+) px", text).group(1))
     assert stereo_rms < 0.3  # measured 0.11 px
+
+
+def test_folder_images_in_natural_order(tmp_path):
+    """view_2 before view_10 (plain name order: view_10, view_11, view_2): the order --right pairs in."""
+    for k in (1, 2, 10, 11):
+        cv2.imwrite(str(tmp_path / f"view_{k}.png"), np.full((8, 8), k, np.uint8))
+    assert [Path(n).name for n, _ in iter_frames([str(tmp_path)])] == [
+        "view_1.png", "view_2.png", "view_10.png", "view_11.png"]
+    got = [Path(n).name for n, _ in iter_frames([str(tmp_path / "view_*.png")])]
+    assert got[:2] == ["view_1.png", "view_2.png"]
+
+
+def test_every_with_images_only_is_refused(board_images, tmp_path, capsys):
+    """--every applies to videos; with image inputs only it was silently ignored."""
+    rc = main(["calibrate", str(board_images), "--every", "3", "--board", "9x6", "--square-m", "0.03",
+               "--out", str(tmp_path / "c.yaml")])
+    assert rc == 2 and not (tmp_path / "c.yaml").exists()
+    err = capsys.readouterr().err
+    n = len(list(board_images.glob("*.png")))
+    assert err.startswith("fisheye-des: error: --every 3: takes every n-th frame of a video, and the inputs "
+                          f"are {n} images, which are all used; expected a "
+                          "video input, or no --every"), err
