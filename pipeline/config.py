@@ -364,8 +364,8 @@ class InputsConfig(_Section):
     )
     images: list[RelPath] = Field(
         default_factory=list,
-        description="list of paths: one image folder per camera (instead of videos), files in natural name order "
-        "(frame_2 before frame_10; the k-th image gets the k-th line of its timestamps file).",
+        description="list of paths: one image folder per camera (instead of videos), files in natural name "
+        "order (frame_2 before frame_10; the k-th image gets the k-th line of its timestamps file).",
     )
     fps: float | None = Field(
         None,
