@@ -163,7 +163,9 @@ class EgoMotionConfig(_Section):
         "metres) interpolated to frame times. Relative to the config file.",
     )
     t0_s: float = Field(
-        0.0, description="float, s: time at which the constant-velocity body is at the origin."
+        0.0,
+        description="float, s: time at which the constant-velocity body is at the origin (with `speed_mps`; "
+        "with `trajectory` an error: the trajectory's own timestamps place the body).",
     )
 
     @model_validator(mode="after")
@@ -814,7 +816,21 @@ def load_config(
         raise ConfigError(_format_error(e, cfg_path, lines, origins)) from None
     _check_fusion(cfg, cfg_path, lines, origins)
     _check_tracker(cfg, cfg_path, lines, origins)
+    _check_ego_motion(cfg, cfg_path, lines, origins)
     return cfg
+
+
+def _check_ego_motion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
+    """Refuse ``ego_motion.t0_s`` beside ``ego_motion.trajectory``: it belongs to the constant-velocity
+    motion (``speed_mps``) and a trajectory would silently ignore it; named where it was set."""
+    em = cfg.ego_motion
+    if em.trajectory is not None and em.t0_s != 0.0:
+        raise ConfigError(
+            f"{_where(('ego_motion', 't0_s'), path, lines, origins)}: ego_motion.t0_s ({em.t0_s:g} s) "
+            "belongs to the constant-velocity motion (ego_motion.speed_mps) and is not used with "
+            "ego_motion.trajectory (its timestamps place the body in time); expected no ego_motion.t0_s "
+            "beside ego_motion.trajectory"
+        )
 
 
 def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:

@@ -658,6 +658,12 @@ def run_batch(
                 d["rig"]["calibration"] = folder / "camchain.yaml"
             em = d["ego_motion"]
             if em["trajectory"] is None and em["speed_mps"] is None and (folder / "trajectory.tum").is_file():
+                if em["t0_s"]:  # as load_config refuses it beside a trajectory
+                    raise ConfigError(
+                        f"{folder / 'trajectory.tum'}: the recording's trajectory is used, and "
+                        f"ego_motion.t0_s ({em['t0_s']:g} s) belongs to the constant-velocity motion "
+                        "(ego_motion.speed_mps); expected no ego_motion.t0_s beside a trajectory"
+                    )
                 em["trajectory"] = folder / "trajectory.tum"
         name = stem
         k = 1

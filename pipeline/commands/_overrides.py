@@ -16,14 +16,16 @@ def rig_and_motion_overrides(
     """Overrides for ``--calibration``, ``--trajectory``, ``--speed-mps`` and ``--out``.
 
     A calibration file replaces cameras written into the config; a trajectory and a constant speed
-    exclude each other, so setting one clears the other's value from the config.
+    exclude each other, so setting one clears the other's value from the config (a trajectory also
+    clears ``ego_motion.t0_s``, which belongs to the constant speed).
 
     Args:
         sets: the ``--set section.key=value`` items, checked against the flags.
 
     Raises:
         ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair), or one of
-            them with a ``--set`` of the other's key (``ego_motion.speed_mps`` / ``ego_motion.trajectory``),
+            them with a ``--set`` of the other's key (``ego_motion.speed_mps`` or ``ego_motion.t0_s`` /
+            ``ego_motion.trajectory``),
             or ``--calibration`` with a ``--set`` of ``rig.cameras``: the flag would silently replace it.
     """
     from estimators.errors import ConfigError
@@ -34,6 +36,7 @@ def rig_and_motion_overrides(
                           f"({motion}); give one of them, not both")
     for flag, value, key, what in (
         ("--trajectory", trajectory, ("ego_motion", "speed_mps"), motion),
+        ("--trajectory", trajectory, ("ego_motion", "t0_s"), motion),
         ("--speed-mps", speed_mps, ("ego_motion", "trajectory"), motion),
         ("--calibration", calibration, ("rig", "cameras"), "the cameras from a calibration file, or inline"),
     ):
@@ -49,6 +52,7 @@ def rig_and_motion_overrides(
     if trajectory is not None:
         cli["ego_motion.trajectory"] = str(trajectory)
         cli["ego_motion.speed_mps"] = None
+        cli["ego_motion.t0_s"] = 0.0
     if speed_mps is not None:
         cli["ego_motion.speed_mps"] = speed_mps
         cli["ego_motion.trajectory"] = None

@@ -115,6 +115,7 @@ def test_make_output_dir_creates_parents_and_accepts_an_existing_folder(tmp_path
     [
         ("--trajectory", "ego_motion.speed_mps=3"),
         ("--trajectory", "ego_motion={speed_mps: 3}"),
+        ("--trajectory", "ego_motion.t0_s=2"),  # belongs to the constant speed (was silently ignored)
         ("--speed-mps", "ego_motion.trajectory=TRAJ"),
         ("--calibration", "rig.cameras=[{name: cam0}]"),
     ],
@@ -149,6 +150,31 @@ def test_motion_flag_with_the_other_key_set_back_to_null_runs(tmp_path, monkeypa
                "--set", "ego_motion.speed_mps=null", "--out", str(tmp_path / "o"), "--no-progress"])
     assert rc == 0, capsys.readouterr().err
     assert (tmp_path / "o" / "tracks.jsonl").is_file()
+
+
+@pytest.mark.parametrize("command", ["run", "live"])
+def test_t0_s_beside_a_trajectory_is_refused_naming_both_keys(tmp_path, monkeypatch, capsys, command):
+    """ego_motion.t0_s places the constant-velocity body; a trajectory ignored it without a word.
+    --trajectory clears a config's t0_s (it replaces the constant speed, as it clears speed_mps)."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    (tmp_path / "traj.tum").write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("ego_motion:\n  trajectory: traj.tum\n  t0_s: 2.0\n")
+    src = ["--video", str(v)] if command == "run" else ["--camera", str(v)]
+    rc = main([command, str(cfg), *src, "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert err[0] == (f"fisheye-des: error: {cfg}:3: ego_motion.t0_s (2 s) belongs to the constant-velocity "
+                      "motion (ego_motion.speed_mps) and is not used with ego_motion.trajectory (its "
+                      "timestamps place the body in time); expected no ego_motion.t0_s beside "
+                      "ego_motion.trajectory")
+    assert not (tmp_path / "o").exists()
+    cfg.write_text("ego_motion:\n  speed_mps: 3.0\n  t0_s: 2.0\n")
+    rc = main(["run", str(cfg), "--video", str(v), "--trajectory", str(tmp_path / "traj.tum"),
+               "--out", str(tmp_path / "o"), "--no-progress"])
+    assert rc == 0, capsys.readouterr().err
+    assert "t0_s: 0.0" in (tmp_path / "o" / "config.resolved.yaml").read_text()
 
 
 @pytest.mark.parametrize("command", ["run", "live"])

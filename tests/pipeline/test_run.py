@@ -227,6 +227,23 @@ def test_batch_runs_each_video_in_its_own_folder(tmp_path, monkeypatch):
     assert len(_lines(tmp_path / "out" / "b" / "tracks.jsonl")) == 5
 
 
+def test_batch_refuses_t0_s_beside_a_recordings_trajectory(tmp_path, monkeypatch):
+    """A recording folder's trajectory.tum stands in for a missing ego-motion; an ego_motion.t0_s (of the
+    constant speed) would be ignored there, so it is refused before anything is written."""
+    from pipeline.run import run_batch
+
+    rec = tmp_path / "rec"
+    write_video(rec / "cam0.mkv", 3, times=[0.0, 0.1, 0.2])
+    (rec / "trajectory.tum").write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    _fake_stages(monkeypatch)
+    with pytest.raises(ConfigError, match=r"rec/trajectory.tum: the recording's trajectory is used, and "
+                       r"ego_motion.t0_s \(2 s\) belongs to the constant-velocity motion"):
+        run_batch(load_config(None, ["ego_motion.t0_s=2"]), [rec], tmp_path / "out", workers=1)
+    assert not (tmp_path / "out").exists()
+    res = run_batch(load_config(None), [rec], tmp_path / "out", workers=1)
+    assert [r["frames"] for r in res] == [3] and res[0]["error"] is None
+
+
 def test_end_to_end_run_over_a_simulated_video(tmp_path):
     """CI's end-to-end check: simulator -> `fisheye-des run` (real front end and fusion) -> outputs."""
     pytest.importorskip("trackers.frontend")
