@@ -1282,13 +1282,6 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
             given = [o for o in overrides
                      if o.split("=", 1)[0].strip().split(".")[0] in ("detector", "tracker")]
             raise ConfigError(f"--override {' '.join(given)}: the front end refuses it: {e}") from None
-        if cfg.tracker.boxes:  # built by the front end only for a box detector: check the values anyway
-            from trackers.grouping import BoxTracker
-
-            try:
-                BoxTracker(iter(()), **cfg.tracker.boxes)
-            except ConfigError as e:
-                raise ConfigError(f"--override tracker.boxes: {e}") from None
     kw = {k: getattr(cfg.fusion, k) for k in cfg.fusion.model_fields_set}
     if max_speed_mps is not None:
         kw["max_speed_mps"] = max_speed_mps

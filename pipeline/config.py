@@ -248,14 +248,14 @@ class TrackerConfig(_Section):
     )
     boxes: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: BoxTracker keywords (detectors that give boxes: navlights, torch, composites such "
-        "as orb+navlights): gate_rad (rad, 3 deg), confirm_s (s, 0.1), max_missed_s (s, 1/3), "
-        "sigma_floor_rad (rad, 0.2 deg); durations at the frame rate seen, as the grouping's; with a "
-        "keypoint detector beside the boxes, a box is folded into a feature track on "
-        "it: link_margin_px (px, 3), link_min_members (2), link_s (s, 0.1), link_tol_px (px, 2), link_share "
-        "(0.75: the share of its members on the box a new link needs; a held link keeps half), "
-        "link_older_only (false; true: only to a feature track made before the box, so a drone found first "
-        "by its lights keeps its own id and report).",
+        description="dict: BoxTracker keywords (detectors that give boxes: navlights, torch, composites "
+        "such as orb+navlights; an error beside one that gives none, e.g. orb): gate_rad (rad, 3 deg), "
+        "confirm_s (s, 0.1), max_missed_s (s, 1/3), sigma_floor_rad (rad, 0.2 deg); durations at the frame "
+        "rate seen, as the grouping's; with a keypoint detector beside the boxes, a box is folded into a "
+        "feature track on it: link_margin_px (px, 3), link_min_members (2), link_s (s, 0.1), link_tol_px "
+        "(px, 2), link_share (0.75: the share of its members on the box a new link needs; a held link "
+        "keeps half), link_older_only (false; true: only to a feature track made before the box, so a "
+        "drone found first by its lights keeps its own id and report).",
     )
     association: dict[str, Any] = Field(
         default_factory=dict,
@@ -837,10 +837,12 @@ def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins:
     """Check the names in the free-form tracker groups (``tracker.features`` / ``grouping`` / ``boxes`` /
     ``association``) as the front end will take them (``trackers.frontend.option_problem``, the one
     check), at load time and where they were set, as unknown config keys are: with the closest valid
-    name. Every group is checked, also one the detector does not build (``boxes`` beside ``orb``)."""
+    name. Then ``tracker.boxes`` beside a detector that gives no boxes (``orb``: no BoxTracker is built,
+    so it would be ignored) is refused, naming the detectors that give boxes."""
     groups = {g: v for g, v in cfg.tracker.model_dump().items() if isinstance(v, dict)}  # the free-form ones
     if not any(groups.values()):
         return  # (the front end's import, cv2, only when there is something to check)
+    from trackers.detectors import box_detectors, gives_boxes
     from trackers.frontend import option_problem
 
     for group, given in groups.items():
@@ -848,6 +850,16 @@ def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins:
         if problem is not None:
             key, msg = problem
             raise ConfigError(f"{_where(('tracker', group, key), path, lines, origins)}: {msg}")
+    boxes = cfg.tracker.boxes
+    if boxes and gives_boxes(cfg.detector.name) is False:
+        first = next(iter(boxes))
+        raise ConfigError(
+            f"{_where(('tracker', 'boxes', first), path, lines, origins)}: tracker.boxes "
+            f"({', '.join(boxes)}) is set, and detector {cfg.detector.name!r} gives no boxes (no box tracker "
+            f"is built: it would be ignored); expected a detector that gives boxes "
+            f"({', '.join(box_detectors())} or another '<keypoint detector>+<box detector>' composite), or "
+            "no tracker.boxes"
+        )
 
 
 def _check_fusion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:

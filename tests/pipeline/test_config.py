@@ -90,6 +90,24 @@ def test_a_tracker_option_key_is_checked_when_the_config_loads(tmp_path, monkeyp
                                    f"did you mean '{close}'?"), str(e.value)
 
 
+@pytest.mark.parametrize("detector", ["orb", "kornia"])
+def test_box_settings_beside_a_detector_without_boxes_are_refused(tmp_path, detector):
+    """tracker.boxes with a detector that gives no boxes (no BoxTracker is built) was silently ignored:
+    refused when the config loads, where it was set, naming the detectors that give boxes."""
+    p = _write(tmp_path, f"detector: {{name: {detector}}}\ntracker:\n  boxes:\n    gate_rad: 0.1\n")
+    tail = (f"tracker.boxes (gate_rad) is set, and detector {detector!r} gives no boxes (no box tracker is "
+            "built: it would be ignored); expected a detector that gives boxes (navlights, orb+navlights, "
+            "torch or another '<keypoint detector>+<box detector>' composite), or no tracker.boxes")
+    with pytest.raises(ConfigError) as e:
+        load_config(p)
+    assert str(e.value) == f"{p}:4: {tail}"
+    with pytest.raises(ConfigError) as e:
+        load_config(None, [f"detector.name={detector}", "tracker.boxes.gate_rad=0.1"])
+    assert str(e.value) == f"--set tracker.boxes.gate_rad=0.1: {tail}"
+    for name in ("navlights", "orb+navlights", "orb+torch", "torch"):  # these build a BoxTracker
+        assert load_config(None, [f"detector.name={name}", "tracker.boxes.gate_rad=0.1"]).tracker.boxes
+
+
 def test_an_old_tracker_frame_count_key_names_its_replacement_when_the_config_loads(tmp_path):
     p = _write(tmp_path, "tracker:\n  features: {win_px: 11}\n  grouping:\n    min_age: 3\n")
     with pytest.raises(ConfigError, match=rf"^{p}:4: ObstacleGrouper: 'min_age' \(frames\) was replaced by "

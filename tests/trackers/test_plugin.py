@@ -95,3 +95,18 @@ def test_broken_plugins_are_config_errors(tmp_path, monkeypatch, target, match):
     install(tmp_path, monkeypatch, {"bad_plugin": target})
     with pytest.raises(ConfigError, match=match):
         make_detector("bad_plugin")
+
+
+def test_whether_a_plugin_gives_boxes_is_read_from_its_class_without_building_it(tmp_path, monkeypatch):
+    """gives_boxes (the config's check of tracker.boxes beside a detector): a plug-in class's own flag;
+    None (left to make_detector) for one that is no Detector class, does not load or is not installed."""
+    from trackers.detectors import gives_boxes
+
+    install(tmp_path, monkeypatch, {"gftt_plugin": "fdes_test_plugin:GfttPlugin",
+                                    "bad_plugin": "fdes_no_such_module:X",
+                                    "fn_plugin": "fdes_test_plugin:broken"})
+    assert gives_boxes("gftt_plugin") is False
+    assert gives_boxes("bad_plugin") is None and gives_boxes("fn_plugin") is None
+    assert gives_boxes("not_installed") is None
+    assert gives_boxes("orb") is False and gives_boxes("navlights") is True
+    assert gives_boxes("orb+torch") is True

@@ -221,6 +221,32 @@ def available_detectors() -> list[str]:
     return sorted(set(_REGISTRY) | set(_entry_points()))
 
 
+def gives_boxes(name: str) -> bool | None:
+    """Whether the detector named ``name`` reports boxes (``produces_boxes``: a BoxTracker is built for
+    it), found without building it: a registered class's flag; a ``"<keypoint>+<box>"`` composite gives
+    boxes (its second part must); a plug-in's class is loaded to read it. None when that cannot be told
+    (an unknown name, a plug-in that does not load or is no Detector class): ``make_detector`` reports it.
+    """
+    cls = _REGISTRY.get(name)
+    if cls is None and "+" in name and name not in _entry_points():
+        return True
+    if cls is None:
+        ep = _entry_points().get(name)
+        if ep is None:
+            return None
+        try:
+            cls = ep.load()
+        except Exception:  # a broken plug-in: make_detector names the failure
+            return None
+    return bool(cls.produces_boxes) if isinstance(cls, type) and issubclass(cls, Detector) else None
+
+
+def box_detectors() -> list[str]:
+    """The registered detectors that report boxes, sorted (``gives_boxes``; composites such as
+    ``orb+navlights`` beside them)."""
+    return sorted(n for n, c in _REGISTRY.items() if isinstance(c, type) and c.produces_boxes)
+
+
 def make_detector(name: str, **options: Any) -> Detector:
     """Build the detector registered as ``name`` with its keyword ``options``.
 
