@@ -10,6 +10,11 @@ sky that no obstacle claims, with a non-null ``range_m``, is a *false range*.
 
 Reports with ``status == "lost"`` are not scored (they are predictions without a measurement).
 
+A run is scored only against the scenario it ran on (:func:`check_run_inputs`): every input its
+``config.resolved.yaml`` names must be in the scenario folder or be a byte-identical copy of one of
+its videos; another scenario's truth is refused. An input that cannot be checked (an image folder
+elsewhere, a file no longer there, a camera, no resolved config) is scored with a note.
+
 Metrics (per group: overall, per scenario, per obstacle, stationary vs moving, by true-range bin):
 relative range error ``|r - r_true| / r_true`` (median, p90, signed median as bias), share within
 5% and 10%, coverage of ``[range_min_m, range_max_m]``, its median width (an interval without an
@@ -24,6 +29,7 @@ switches (the obstacle's associated track id changes between consecutive tracked
 
 from __future__ import annotations
 
+import filecmp
 import json
 import math
 from collections import defaultdict
@@ -145,6 +151,65 @@ class ScenarioTruth:
         scn = load_scenario(folder / "scene.yaml")
         gt = _read_jsonl(folder / "gt.jsonl")
         return cls(scn.name, scn, World(scn), TumTrajectory.load(folder / "trajectory.tum"), gt)
+
+
+def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:
+    """Check that the run in ``run_dir`` ran on the scenario of ``scen_dir``: each input its
+    ``config.resolved.yaml`` names (``inputs.videos`` / ``inputs.images``, or a live run's
+    ``live.cameras``) is in the scenario folder, or a file with the bytes of one of its videos.
+
+    No override: the truth describes exactly the frames rendered into that folder's videos; a variant
+    of them (a re-encoded copy, frames exported to images) is scored by putting it in (a copy of) the
+    scenario folder, where it counts as that scenario's.
+
+    Returns notes on inputs that cannot be checked (an image folder or file elsewhere that is no
+    copy, ...): scored as given.
+
+    Raises:
+        InputError: an input that exists and is not that scenario's, naming both.
+    """
+    from pipeline.run import VIDEO_SUFFIXES
+
+    run_dir, scen_dir = Path(run_dir), Path(scen_dir)
+    resolved = run_dir / "config.resolved.yaml"
+    if not resolved.is_file():
+        return [f"{run_dir}: no config.resolved.yaml, so the run's inputs cannot be checked against "
+                f"{scen_dir}'s videos; scored as given"]
+    import yaml
+
+    try:
+        cfg = yaml.safe_load(resolved.read_text()) or {}
+        inputs = cfg.get("inputs") or {}
+        given = [*(inputs.get("videos") or []), *(inputs.get("images") or [])]
+        if not given:  # a live run: its cameras (device indices, URLs or replayed files)
+            given = list((cfg.get("live") or {}).get("cameras") or [])
+    except (yaml.YAMLError, AttributeError) as e:
+        raise InputError(f"{resolved}: expected the run's resolved config (fisheye-des run): {e}") from None
+    videos = sorted(p for p in scen_dir.iterdir() if p.suffix.lower() in VIDEO_SUFFIXES)
+    notes, foreign = [], []
+    for item in given:
+        p = Path(str(item))
+        if isinstance(item, str) and p.parent.exists() and p.parent.samefile(scen_dir):
+            continue  # in the scenario folder
+        if isinstance(item, str) and p.is_file():
+            size = p.stat().st_size
+            if any(v.stat().st_size == size and filecmp.cmp(p, v, shallow=False) for v in videos):
+                continue  # a copy of one of its videos
+            if p.suffix.lower() in VIDEO_SUFFIXES:
+                foreign.append(str(item))
+                continue
+        kind = ("a camera" if not isinstance(item, str) or "://" in item else "an image folder" if p.is_dir()
+                else "not there any more" if not p.exists() else "a file")
+        notes.append(f"{run_dir}: input {item} ({kind}) cannot be checked against {scen_dir}'s videos; "
+                     "scored as given")
+    if foreign:
+        raise InputError(
+            f"{run_dir}: the run's video{'s' if len(foreign) > 1 else ''} {', '.join(foreign)} "
+            f"{'are' if len(foreign) > 1 else 'is'} not scenario {scen_dir}'s "
+            f"({', '.join(v.name for v in videos) or 'no videos'}), so its truth does not describe "
+            "them; expected the run of that scenario's videos (or a copy of them in its folder)"
+        )
+    return notes
 
 
 def _read_jsonl(path: Path) -> list[dict]:
@@ -500,6 +565,7 @@ class Evaluation:
     truths: list[ScenarioTruth]
     frames: list[list[dict]]
     keys: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # inputs check_run_inputs could not check
 
 
 def evaluate(
@@ -507,7 +573,7 @@ def evaluate(
 ) -> Evaluation:
     """Evaluate (RUN_DIR, SCENARIO_DIR) pairs. Returns metrics (the ``metrics.json`` mapping)."""
     all_rows: list[Row] = []
-    truths, frames_all, keys = [], [], []
+    truths, frames_all, keys, notes = [], [], [], []
     by_scenario, by_obstacle, sky_by = {}, {}, {}
     for run_dir, scen_dir in pairs:
         tracks = Path(run_dir) / "tracks.jsonl"
@@ -515,6 +581,7 @@ def evaluate(
             raise InputError(f"{run_dir}: expected a run folder with tracks.jsonl (fisheye-des run)")
         frames = _read_jsonl(tracks)
         truth = ScenarioTruth.load(scen_dir)
+        notes += check_run_inputs(run_dir, scen_dir)
         rows = score_reports(truth, frames, assoc_tol_deg)
         key = truth.name if truth.name not in by_scenario else f"{truth.name}#{len(by_scenario)}"
         for r in rows:
@@ -566,7 +633,7 @@ def evaluate(
             "range_bins_m": [b if math.isfinite(b) else None for b in RANGE_BINS_M],
         },
     }
-    return Evaluation(metrics, all_rows, truths, frames_all, keys)
+    return Evaluation(metrics, all_rows, truths, frames_all, keys, notes)
 
 
 # --------------------------------------------------------------------------------------- output

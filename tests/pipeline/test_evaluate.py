@@ -12,7 +12,9 @@ import math
 
 import numpy as np
 import pytest
+import yaml
 
+from estimators.errors import InputError
 from pipeline.evaluate import chi2_quantile, evaluate, format_table, write_outputs
 from pipeline.sim.scene import scenario_from_dict
 from pipeline.sim.writer import simulate
@@ -451,3 +453,58 @@ def test_a_narrow_miss_goes_to_the_obstacle_it_passes_not_to_a_big_bounding_sphe
     assert ang_pole < 0.0  # the premise: inside the pole's bounding-sphere cone
     tol = math.radians(2.0)
     assert _nearest_obstacle(placed, o, d, tol, world, 0.0) == 2
+
+
+def _resolved(run, **inputs):
+    doc = {"inputs": {"videos": [], "images": [], **inputs}}
+    (run / "config.resolved.yaml").write_text(yaml.safe_dump(doc))
+    return run
+
+
+def test_a_run_of_another_scenarios_video_is_refused_naming_both(scen_dir, tmp_path, capsys):
+    """The run's config.resolved.yaml names its videos; scored against another scenario's truth they gave
+    metrics without a word. Refused (exit 2, one line) unless each is in the scenario folder or a
+    byte-identical copy of one of its videos."""
+    from pipeline.cli import main
+
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "cam0.mkv").write_bytes((scen_dir / "cam0.mkv").read_bytes() + b"x")  # another render
+    run = _resolved(_write_run(tmp_path, [{"frame": 0, "t_s": 0.0, "tracks": []}]),
+                    videos=[str(other / "cam0.mkv")])
+    with pytest.raises(InputError) as e:
+        evaluate([(run, scen_dir)])
+    videos = ", ".join(sorted(p.name for p in scen_dir.glob("*.mkv")))
+    assert str(e.value) == (f"{run}: the run's video {other / 'cam0.mkv'} is not scenario {scen_dir}'s "
+                            f"({videos}), so its truth does not describe them; expected the run of that "
+                            "scenario's videos (or a copy of them in its folder)")
+    assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / "ev"), "--no-plots"]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"fisheye-des: error: {e.value}"]
+    assert not (tmp_path / "ev").exists()
+    # its own videos, by path or as a byte-identical copy elsewhere: scored, no note
+    (other / "cam0.mkv").write_bytes((scen_dir / "cam0.mkv").read_bytes())
+    for v in (scen_dir / "cam0.mkv", other / "cam0.mkv"):
+        assert evaluate([(_resolved(run, videos=[str(v)]), scen_dir)]).notes == []
+
+
+def test_inputs_that_cannot_be_checked_are_scored_with_a_note(scen_dir, tmp_path, capsys):
+    from pipeline.cli import main
+
+    run = _write_run(tmp_path, [{"frame": 0, "t_s": 0.0, "tracks": []}])
+    assert evaluate([(run, scen_dir)]).notes == [
+        f"{run}: no config.resolved.yaml, so the run's inputs cannot be checked against {scen_dir}'s videos; "
+        "scored as given"]
+    (tmp_path / "frames").mkdir()
+    _resolved(run, images=[str(tmp_path / "frames")])
+    assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / "ev"), "--no-plots"]) == 0
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"note: {run}: input {tmp_path / 'frames'} (an image folder) cannot be checked against {scen_dir}'s "
+        "videos; scored as given"]
+    # a live run: its cameras (a replayed file of the scenario is checked as a video, a device is noted)
+    doc = {"inputs": {"videos": [], "images": []}, "live": {"cameras": [str(scen_dir / "cam0.mkv")]}}
+    (run / "config.resolved.yaml").write_text(yaml.safe_dump(doc))
+    assert evaluate([(run, scen_dir)]).notes == []
+    doc["live"]["cameras"] = [0]
+    (run / "config.resolved.yaml").write_text(yaml.safe_dump(doc))
+    assert evaluate([(run, scen_dir)]).notes == [
+        f"{run}: input 0 (a camera) cannot be checked against {scen_dir}'s videos; scored as given"]
