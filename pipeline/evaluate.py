@@ -207,7 +207,8 @@ def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:
             f"{run_dir}: the run's video{'s' if len(foreign) > 1 else ''} {', '.join(foreign)} "
             f"{'are' if len(foreign) > 1 else 'is'} not scenario {scen_dir}'s "
             f"({', '.join(v.name for v in videos) or 'no videos'}), so its truth does not describe "
-            "them; expected the run of that scenario's videos (or a copy of them in its folder)"
+            f"{'them' if len(foreign) > 1 else 'it'}; expected the run of that scenario's videos (or a "
+            "copy of them in its folder)"
         )
     return notes
 

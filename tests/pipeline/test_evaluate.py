@@ -476,7 +476,7 @@ def test_a_run_of_another_scenarios_video_is_refused_naming_both(scen_dir, tmp_p
         evaluate([(run, scen_dir)])
     videos = ", ".join(sorted(p.name for p in scen_dir.glob("*.mkv")))
     assert str(e.value) == (f"{run}: the run's video {other / 'cam0.mkv'} is not scenario {scen_dir}'s "
-                            f"({videos}), so its truth does not describe them; expected the run of that "
+                            f"({videos}), so its truth does not describe it; expected the run of that "
                             "scenario's videos (or a copy of them in its folder)")
     assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / "ev"), "--no-plots"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"fisheye-des: error: {e.value}"]
