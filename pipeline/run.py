@@ -39,6 +39,7 @@ from pipeline.sinks import (
     write_json,
 )
 from pipeline.sources import (
+    VIDEO_SUFFIXES,
     ImageFolderSource,
     PrefetchSource,
     Source,
@@ -72,8 +73,6 @@ __all__ = [
     "frozen_gc",
 ]
 
-
-VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".ts")
 
 
 # ----------------------------------------------------------------------------------- frame loops

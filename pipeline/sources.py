@@ -48,9 +48,12 @@ __all__ = [
     "read_timestamps",
     "timestamps_path_for",
     "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
 ]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+# the file names taken as images and as videos, by every command (run, batch folders, evaluate, calibrate)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+VIDEO_SUFFIXES = (".mkv", ".mp4", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".ts", ".h264")
 
 
 @dataclass(frozen=True)

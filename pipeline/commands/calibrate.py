@@ -31,9 +31,6 @@ import typer
 
 from estimators.errors import CalibrationError, InputError, SourceError
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
-VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi", ".mov", ".webm", ".m4v", ".mpg", ".mpeg", ".h264", ".ts")
-
 
 @dataclass(frozen=True)
 class Board:
@@ -110,7 +107,7 @@ def expand_inputs(inputs: list[str]) -> list[Path]:
     Raises:
         SourceError: a path that does not exist, a folder without images, a pattern that matches nothing.
     """
-    from pipeline.sources import natural_key
+    from pipeline.sources import IMAGE_SUFFIXES, natural_key
 
     out: list[Path] = []
     for spec in inputs:
@@ -139,6 +136,8 @@ def iter_frames(inputs: list[str], every: int = 10) -> Iterator[tuple[str, np.nd
     """
     import cv2
 
+    from pipeline.sources import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+
     if every < 1:
         raise InputError(f"--every: expected an integer >= 1, got {every}")
     for f in expand_inputs(inputs):
@@ -163,6 +162,8 @@ def every_for(every: int | None, inputs: list[str]) -> int:
     """
     if every is None:
         return 10
+    from pipeline.sources import IMAGE_SUFFIXES
+
     files = expand_inputs(inputs)
     if all(f.suffix.lower() in IMAGE_SUFFIXES for f in files):
         raise InputError(f"--every {every}: takes every n-th frame of a video, and the inputs are "
