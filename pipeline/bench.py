@@ -759,6 +759,7 @@ def _task_live(task: Mapping[str, Any]) -> dict[str, Any]:
         "live": {"cameras": vids, "paced": True, "deferred_detection": bool(task.get("deferred"))},
         "outputs": {"progress": False},
     })
+    Path(task["out"]).mkdir(parents=True, exist_ok=True)  # latency.csv is opened before run_live makes it
     load0 = os.getloadavg() if hasattr(os, "getloadavg") else None
     c0 = time.process_time()
     res = run_live(cfg, task["out"], max_frames=int(task["frames"]), readers=[reader],

@@ -924,9 +924,8 @@ def run_live(
         for name, ref in zip(names, lv.cameras, strict=True):
             m = rig[name].model
             readers.append(make_reader_factory(ref, name, lv.paced, (int(m.width), int(m.height)), grey=grey))
-    out = make_output_dir(out_dir)  # once everything is built: a failed start leaves no folder (as `run`)
-    write_resolved(cfg, out)
     # the per-frame latency CSV is opened before any camera: a path that cannot be written fails here
+    # (its folder must exist: it is opened before the output folder is made)
     log = None
     log_stages = latency_log_stages() if latency_log is not None else ()
     if latency_log is not None:
@@ -940,14 +939,24 @@ def run_live(
     opened: list[Any] = []
     worker = writer = server = video = None
     # everything the set-up starts is stopped again when a later step fails (a camera that does not
-    # open, a detector the worker cannot take, a preview port in use): no worker process, grabber
-    # thread or open file outlives the error
+    # open, a detector the worker cannot take, a preview port in use, an --out that cannot be made): no
+    # worker process, grabber thread or open file outlives the error
     try:
         for factory in readers:
             opened.append(factory())  # open errors (no such camera) surface here, before the run
         if defer:  # the periodic re-detection off the frame's path (a worker process), before the grabbers
             worker = detection_worker(lv.detection_nice)
             frontend.defer_detection(worker)
+        server = MjpegServer(lv.preview_port) if lv.preview == "mjpeg" else None
+        # The output folder only once the cameras, the worker and the preview port are open: a start that
+        # fails on those leaves no folder and an earlier run's outputs in --out as they were. From here on
+        # the outputs are written (config.resolved.yaml; tracks.jsonl and preview.mp4 created, truncated
+        # when there); only a failure to write them (a full disk) or to start a grabber thread still
+        # stops the start after this point, and leaves what was written.
+        out = make_output_dir(out_dir)
+        write_resolved(cfg, out)
+        writer = TracksWriter(out / TRACKS_NAME)
+        video = VideoWriter(out / "preview.mp4", 30.0) if lv.preview == "file" else None
         # Replayed files of one rig share one schedule start, set once all are open: a camera that took
         # longer to open does not run behind the others (pairing is by the videos' own t_s).
         start_replays = time.monotonic()
@@ -965,9 +974,6 @@ def run_live(
                 skip_unwanted=not grabbers,  # the lead camera: frames the loop will not take stay undecoded
             )
             grabbers.append(g.start(first))
-        writer = TracksWriter(out / TRACKS_NAME)
-        server = MjpegServer(lv.preview_port) if lv.preview == "mjpeg" else None
-        video = VideoWriter(out / "preview.mp4", 30.0) if lv.preview == "file" else None
     except BaseException:
         for g in grabbers:
             g.stop()

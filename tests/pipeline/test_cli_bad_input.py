@@ -263,6 +263,39 @@ def test_a_preview_port_in_use_is_an_error_naming_it(tmp_path, monkeypatch, caps
     assert err[0].startswith(f"fisheye-des: error: live.preview_port {port}: the MJPEG preview cannot listen "
                              f"on 127.0.0.1:{port} (")
     assert err[0].endswith("give another --port (0: any free one), or --preview file / none")
+    assert not (tmp_path / "o").exists()  # the port is tried before the output folder is made
+
+
+def test_a_failed_live_start_keeps_an_earlier_runs_outputs(tmp_path, monkeypatch, capsys):
+    """--out holding a finished run: a preview port in use or a camera that does not open stops the
+    start before anything there is written (tracks.jsonl was truncated, config.resolved.yaml replaced)."""
+    import socket
+
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    out = tmp_path / "keep"
+    out.mkdir()
+    kept = {"tracks.jsonl": '{"frame": 0, "t_s": 0.0, "tracks": []}\n' * 30, "config.resolved.yaml": "x: 1\n"}
+    for name, text in kept.items():
+        (out / name).write_text(text)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        rc = main(["live", "--camera", str(v), "--speed-mps", "3", "--preview", "mjpeg", "--port", str(port),
+                   "--out", str(out)])
+    assert rc == 2 and "live.preview_port" in capsys.readouterr().err
+    rc = main(["live", "--camera", str(tmp_path / "missing.mkv"), "--speed-mps", "3", "--out", str(out)])
+    assert rc == 2 and "missing.mkv" in capsys.readouterr().err
+    assert {p.name: p.read_text() for p in out.iterdir()} == kept
+
+
+def test_a_camera_that_does_not_open_leaves_no_output_folder(tmp_path, monkeypatch, capsys):
+    _fake_stages(monkeypatch)
+    rc = main(["live", "--camera", str(tmp_path / "missing.mkv"), "--speed-mps", "3",
+               "--out", str(tmp_path / "o")])
+    assert rc == 2 and "missing.mkv" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
 
 
 def test_a_preview_port_without_the_mjpeg_preview_is_an_error(tmp_path, monkeypatch, capsys):
