@@ -883,7 +883,8 @@ def run_live(
             beside), as in summary.json's ``latency_parts``; then ``process_cpu_s`` (the loop thread's CPU
             time within process_s) and ``gc_s`` (garbage collection within process_s + write_s); then the
             frame's stage times, ``<stage>_s`` for each of :func:`latency_log_stages` (the front end's
-            and fusion's ``timings``; empty where a stage reported none).
+            and fusion's ``timings``; empty where a stage reported none). Its folder must exist (it is
+            opened before the cameras, and so before ``out_dir`` is made).
 
     Raises:
         SourceError: a camera that cannot be opened at start (index that does not exist, bad URL).
