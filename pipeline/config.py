@@ -644,9 +644,9 @@ def _read_yaml(path: Path) -> tuple[dict, dict[tuple, int]]:
     if data is None:
         return {}, {}
     if not isinstance(data, dict):
-        raise ConfigError(
-            f"{path}: expected a mapping of sections (rig, ego_motion, ...), got {type(data).__name__}"
-        )
+        raise ConfigError(f"{path}: not a YAML config (it reads as a {type(data).__name__}, not a mapping); "
+                          "expected a YAML file of sections (rig, ego_motion, ...), e.g. "
+                          "configs/mono_forward.yaml")
     return data, _line_map(node)
 
 

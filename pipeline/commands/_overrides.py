@@ -82,29 +82,27 @@ def _set_of(sets: list[str] | tuple[str, ...], key: tuple[str, ...]) -> str | No
 
 
 def check_config_argument(config: Path | None, flags: dict[str, list | None]) -> None:
-    """Refuse a CONFIG argument that is no YAML config but the second value of a repeatable flag: each
-    such flag takes one value (``--video a.mkv b.mkv`` makes b.mkv the CONFIG, ``--camera 0 1`` makes 1
-    it), so the message says to repeat the flag. A shipped preset's name (``mono_forward``) is a config.
+    """Refuse a CONFIG argument that clearly is the second value of a repeatable flag: each such flag
+    takes one value (``--video a.mkv b.mkv`` makes b.mkv the CONFIG, ``--camera 0 1`` makes 1 it), so the
+    message says to repeat the flag. Clearly: a folder, a file named as a video or an image (there or
+    not), or for ``--camera`` a device index. Anything else is left to load_config, which loads it (a YAML
+    config of any name) or says what it is: not found (with the presets), or a file that is not a YAML
+    config.
 
     Args:
         flags: the repeatable flags (``--video``, ...) and the values they got.
 
     Raises:
-        ConfigError: ``config`` is neither named .yaml/.yml/.json nor a preset, and one of ``flags`` got a
-            value.
+        ConfigError: ``config`` is such a value and one of ``flags`` got a value.
     """
     from estimators.errors import ConfigError
-    from pipeline.config import find_preset
+    from pipeline.run import VIDEO_SUFFIXES
+    from pipeline.sources import IMAGE_SUFFIXES
 
     if config is None:
         return
-    try:
-        config = find_preset(config)
-    except ConfigError:
-        pass
-    if config.suffix.lower() in (".yaml", ".yml", ".json"):
-        return  # a config, or a missing one: load_config says which
+    media = config.is_dir() or config.suffix.lower() in (*VIDEO_SUFFIXES, *IMAGE_SUFFIXES)
     for flag, values in flags.items():
-        if values:
+        if values and (media or (flag == "--camera" and str(config).isdigit())):
             raise ConfigError(f"{config}: not a YAML config (the first argument); {flag} takes one value per "
                               f"flag: {flag} {values[-1]} {flag} {config}")

@@ -338,6 +338,37 @@ def test_a_missing_yaml_config_beside_a_repeatable_flag_is_named_missing(tmp_pat
     assert _err_lines(capsys)[0].startswith(f"fisheye-des: error: {missing}: config file not found")
 
 
+def test_a_yaml_config_of_any_name_beside_a_repeatable_flag_loads(tmp_path, monkeypatch):
+    """CONFIG need not be named .yaml: `run my.cfg --video a.mkv` loads my.cfg (it was refused with the
+    repeat-the-flag hint)."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
+    cfg = tmp_path / "my.cfg"
+    cfg.write_text("ego_motion:\n  speed_mps: 3\n")
+    assert main(["run", str(cfg), "--video", str(v), "--out", str(tmp_path / "o"), "--no-progress"]) == 0
+    assert len((tmp_path / "o" / "tracks.jsonl").read_text().splitlines()) == 3
+
+
+def test_a_config_argument_that_is_no_media_is_left_to_the_config_loader(tmp_path, monkeypatch, capsys):
+    """Only a folder, a video or image name, or (live) a device index gets the repeat-the-flag hint; a
+    preset's typo is 'config file not found' with the presets, a text file that is no config 'not a
+    YAML config', a number after --video not found (it is no camera there)."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
+    notes = tmp_path / "notes.txt"
+    notes.write_text("0.0\n0.1\n")
+    for config, expected in (
+        ("mono_forwad", "mono_forwad: config file not found (neither a file nor a preset"),
+        ("1", "1: config file not found"),
+        (str(notes), f"{notes}: not a YAML config (it reads as a str, not a mapping)"),
+    ):
+        assert main(["run", config, "--video", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")]) == 2
+        err = _err_lines(capsys)
+        assert len(err) == 1 and err[0].startswith(f"fisheye-des: error: {expected}"), err
+        assert ("presets: " in err[0]) == (config != str(notes)), err
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_config_that_is_no_text_is_an_error_not_a_traceback(tmp_path, capsys):
     v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
     assert main(["run", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")]) == 2
