@@ -3,6 +3,8 @@ the registry's errors, ORB coverage of the rim, navlights' heading convention, t
 
 from __future__ import annotations
 
+import re
+
 import cv2
 import numpy as np
 import pytest
@@ -217,10 +219,17 @@ def test_a_misspelt_detector_option_names_the_closest_one(monkeypatch, request):
 
 
 def test_torch_missing_or_broken_model_file(tmp_path):
-    with pytest.raises(ConfigError, match="not a file"):
-        make_detector("torch", model_path=tmp_path / "nothing.onnx")
-    with pytest.raises(ConfigError, match="not a file"):
-        make_detector("torch")
+    """A model_path that is not a file, or none (was "model_path not given is not a file"): the message
+    names the config key, also a composite part's (detector.options.torch.model_path)."""
+    keys = (r"\(in a config: detector\.options\.model_path, or as a composite's part, e\.g\. orb\+torch: "
+            r"detector\.options\.torch\.model_path; nothing is downloaded\)$")
+    missing = tmp_path / "nothing.onnx"
+    shown = re.escape(repr(str(missing)))
+    with pytest.raises(ConfigError, match=rf"^detector 'torch': model_path {shown} is not a file; .*{keys}"):
+        make_detector("torch", model_path=missing)
+    for name, options in (("torch", {}), ("orb+torch", {"torch": {}})):
+        with pytest.raises(ConfigError, match=rf"^detector 'torch': no model_path given; expected .*{keys}"):
+            make_detector(name, **options)
     broken = tmp_path / "broken.onnx"
     broken.write_bytes(b"not an onnx model")
     with pytest.raises(ConfigError, match="ONNX"):

@@ -46,13 +46,14 @@ class TorchModelDetector(Detector):
         class_names: Sequence[str] = (),
         device: str = "auto",
     ) -> None:
-        path = Path(model_path) if model_path else None
-        if path is None or not path.is_file():
-            raise ConfigError(
-                f"detector 'torch': model_path {'not given' if path is None else repr(str(model_path))} is "
-                "not a file; expected the path of your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (in "
-                "a config: detector.options.model_path; nothing is downloaded)"
-            )
+        expected = ("expected the path of your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (in a "
+                    "config: detector.options.model_path, or as a composite's part, e.g. orb+torch: "
+                    "detector.options.torch.model_path; nothing is downloaded)")
+        if not model_path:
+            raise ConfigError(f"detector 'torch': no model_path given; {expected}")
+        path = Path(model_path)
+        if not path.is_file():
+            raise ConfigError(f"detector 'torch': model_path {str(model_path)!r} is not a file; {expected}")
         self.path = path
         self.input_size = None if input_size is None else (int(input_size[0]), int(input_size[1]))
         self.min_score = float(min_score)
