@@ -189,15 +189,17 @@ class DetectorConfig(_Section):
     )
     options: dict[str, Any] = Field(
         default_factory=dict,
-        description="dict: keyword options passed to the detector's constructor; a model file "
-        "(model_path, e.g. torch's, also in a composite's part: {torch: {model_path: ...}}) is relative to "
-        "the config file, as the config's other paths.",
+        description="dict: keyword options passed to the detector's constructor; torch's model file "
+        "(model_path, also as a composite's part: {torch: {model_path: ...}}) is relative to the config "
+        "file, as the config's other paths; any other detector's options (a plug-in's too) are passed as "
+        "written.",
     )
 
     @field_validator("options")
     @classmethod
-    def _model_paths_relative_to_the_config(cls, v: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
-        return _model_paths(v, lambda p: _resolve_path(p, info))
+    def _model_path_relative_to_the_config(cls, v: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        key = _model_path_key(info.data.get("name"))
+        return v if key is None else _with_model_path(v, key, lambda p: _resolve_path(p, info))
 
 
 class TrackerConfig(_Section):
@@ -701,18 +703,24 @@ def _check_override_key(parts: tuple[str, ...], origin: str) -> None:
         model = nxt
 
 
-MODEL_PATH_KEY = "model_path"  # a detector option naming a file (torch's model): a path, as the config's
+def _model_path_key(name: Any) -> tuple[str, ...] | None:
+    """Where detector ``name``'s model file is in its options, the one detector option that is a path:
+    ``("model_path",)`` for ``torch``, ``("torch", "model_path")`` for a composite with a torch part
+    (``orb+torch``); None for any other detector (a plug-in's options are its own, passed as written)."""
+    parts = [p.strip() for p in name.split("+")] if isinstance(name, str) else []
+    if parts == ["torch"]:
+        return ("model_path",)
+    return ("torch", "model_path") if len(parts) == 2 and "torch" in parts else None
 
 
-def _model_paths(value: Any, resolve) -> Any:
-    """``value`` (detector options, or a mapping holding them) with every relative ``model_path`` string,
-    at any depth (a composite's parts), passed through ``resolve``."""
-    if not isinstance(value, dict):
-        return value
-    return {
-        k: resolve(v) if k == MODEL_PATH_KEY and isinstance(v, str) and v else _model_paths(v, resolve)
-        for k, v in value.items()
-    }
+def _with_model_path(options: Any, key: tuple[str, ...], resolve) -> Any:
+    """``options`` with the non-empty string at ``key`` (if any) passed through ``resolve``."""
+    if not isinstance(options, dict) or key[0] not in options:
+        return options
+    v = options[key[0]]
+    if len(key) > 1:
+        return {**options, key[0]: _with_model_path(v, key[1:], resolve)}
+    return {**options, key[0]: resolve(v)} if isinstance(v, str) and v else options
 
 
 def _absolutize(value: Any) -> Any:
@@ -805,11 +813,17 @@ def load_config(
         _check_override_key(parts, origin)
         if _is_path_field(parts):
             value = _absolutize(value)
-        elif parts[0] == "detector":  # a model file in the detector's options (as the dict or in it)
-            value = (_absolutize(value) if parts[-1] == MODEL_PATH_KEY and isinstance(value, str) and value
-                     else _model_paths(value, _absolutize))
         _set_in(data, parts, value, origin)
         origins[parts] = origin
+    # torch's model file, when the command line gives it, is relative to the current directory (one in
+    # the config file is relative to that file: DetectorConfig); its key is known once the name is final
+    det = data.get("detector")
+    if isinstance(det, dict) and isinstance(det.get("options"), dict):
+        key = _model_path_key(det.get("name", DetectorConfig.model_fields["name"].default))
+        full = ("detector", "options", *key) if key is not None else None
+        # an item setting it or a section holding it: the value is the command line's, not the file's
+        if full is not None and any(full[: len(parts)] == parts for _, parts, _ in items):
+            det["options"] = _with_model_path(det["options"], key, _absolutize)
     try:
         cfg = PipelineConfig.model_validate(data, context={"base_dir": base_dir})
     except ValidationError as e:

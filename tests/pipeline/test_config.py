@@ -169,8 +169,23 @@ def test_a_detector_model_path_is_relative_to_the_config_file_or_on_the_command_
         "torch": {"model_path": str(tmp_path / "here.pt")}}
     assert load_config(p, ["detector.options.torch.model_path=/abs/x.pt"]).detector.options == {
         "torch": {"model_path": "/abs/x.pt"}}
-    assert load_config(None, ["detector.options.model_path=x.pt"]).detector.options == {
-        "model_path": str(tmp_path / "x.pt")}
+    sets = ["detector.options.model_path=x.pt", "detector.name=torch"]
+    assert load_config(None, sets).detector.options == {"model_path": str(tmp_path / "x.pt")}
+    p = _write(sub, "detector: {options: {torch: {model_path: boxes.pt}}}\n", "c3.yaml")  # torch by --set
+    assert load_config(p, ["detector.name=orb+torch"]).detector.options == {
+        "torch": {"model_path": str(sub / "boxes.pt")}}
+
+
+def test_a_plug_in_detectors_model_path_option_is_passed_as_written(tmp_path, monkeypatch):
+    """Only torch's model_path (and a composite's torch part's) is a path the config resolves: a plug-in's
+    option of that name may be a model id (org/model), not a file here (was made /cwd/org/model)."""
+    monkeypatch.chdir(tmp_path)
+    p = _write(tmp_path, "detector: {name: my_plugin, options: {model_path: org/model}}\n")
+    assert load_config(p).detector.options == {"model_path": "org/model"}
+    sets = ["detector.name=my_plugin", "detector.options.model_path=org/model"]
+    assert load_config(None, sets).detector.options == {"model_path": "org/model"}
+    sets = ["detector.name=orb+my_boxes", "detector.options={my_boxes: {model_path: org/model}}"]
+    assert load_config(None, sets).detector.options == {"my_boxes": {"model_path": "org/model"}}
 
 
 def test_set_overrides_are_typed_and_cli_paths_relative_to_cwd(tmp_path, monkeypatch):
