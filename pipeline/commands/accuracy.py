@@ -131,14 +131,15 @@ def register(app: typer.Typer) -> None:
                 not o.strip().startswith("fusion.") for o in overrides):
             raise ConfigError("accuracy --override: bearings mode runs only the fusion (fusion.* keys); "
                               f"got {', '.join(overrides)}; use --mode pipeline for front-end keys")
-        # options of one mode given in the other would be ignored: refused, as an unknown flag would be
-        other = {"bearings": {"--reuse-frontend": reuse_frontend or None, "--render-cache/--no-render-cache":
-                              render_cache},
+        # options of one mode have no effect in the other: refused there, as an unknown flag would be,
+        # each named as typed
+        cache_flag = "--render-cache" if render_cache else "--no-render-cache"
+        other = {"bearings": {"--reuse-frontend": reuse_frontend or None, cache_flag: render_cache},
                  "pipeline": {"--pixel-sigma": pixel_sigma, "--seed": seed, "--n-random": n_random}}[mode]
         given = [flag for flag, value in other.items() if value is not None]
         if given:
             needs = "pipeline" if mode == "bearings" else "bearings"
-            raise ConfigError(f"accuracy {', '.join(given)}: {needs} mode only, ignored in {mode} mode; "
+            raise ConfigError(f"accuracy {', '.join(given)}: {needs} mode only, no effect in {mode} mode; "
                               f"drop {'it' if len(given) == 1 else 'them'} or give --mode {needs}")
         chosen = {"pixel_sigma_px": pixel_sigma, "seed": seed, "render_cache": render_cache}
         opts = AccuracyOptions(

@@ -281,15 +281,18 @@ def test_bad_override_is_a_clear_error_before_anything_runs(monkeypatch, item, e
     "args, expect",
     [
         (["--mode", "pipeline", "--pixel-sigma", "1.0"],
-         "accuracy --pixel-sigma: bearings mode only, ignored in pipeline mode; drop it or give --mode "
+         "accuracy --pixel-sigma: bearings mode only, no effect in pipeline mode; drop it or give --mode "
          "bearings"),
         (["--mode", "pipeline", "--seed", "3", "--n-random", "2"],
-         "accuracy --seed, --n-random: bearings mode only, ignored in pipeline mode; drop them or give "
+         "accuracy --seed, --n-random: bearings mode only, no effect in pipeline mode; drop them or give "
          "--mode bearings"),
         (["--reuse-frontend"],
-         "accuracy --reuse-frontend: pipeline mode only, ignored in bearings mode; drop it or give --mode "
+         "accuracy --reuse-frontend: pipeline mode only, no effect in bearings mode; drop it or give --mode "
          "pipeline"),
-        (["--no-render-cache"], "accuracy --render-cache/--no-render-cache: pipeline mode only"),
+        (["--no-render-cache"], "accuracy --no-render-cache: pipeline mode only, no effect in bearings mode"),
+        (["--render-cache", "--reuse-frontend"],
+         "accuracy --reuse-frontend, --render-cache: pipeline mode only, no effect in bearings mode; drop "
+         "them"),
     ],
 )
 def test_an_option_of_the_other_mode_is_an_error_not_ignored(monkeypatch, capsys, args, expect):
