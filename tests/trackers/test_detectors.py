@@ -211,11 +211,14 @@ def test_a_misspelt_detector_option_names_the_closest_one(monkeypatch, request):
     torch = pytest.importorskip("torch")
     pytest.importorskip("kornia")
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
-    with pytest.raises(ConfigError, match=r"^kornia: device 'cuda', but this torch sees no CUDA device"):
-        make_detector("kornia", device="cuda")
     model = request.getfixturevalue("torchscript_model")
-    with pytest.raises(ConfigError, match=r"^detector 'torch': device 'cuda', but this torch sees no CUDA"):
-        make_detector("torch", model_path=model, device="cuda")
+    for name, options in (("kornia", {}), ("torch", {"model_path": model})):  # one check, one wording
+        with pytest.raises(ConfigError, match=rf"^detector '{name}': device 'cuda', but this torch sees no "
+                                              r"CUDA device \(or is a CPU build\); expected 'auto' or 'cpu'"):
+            make_detector(name, device="cuda", **options)
+        with pytest.raises(ConfigError, match=rf"^detector '{name}': device expected 'auto', 'cpu' or "
+                                              r"'cuda', got 'gpu'$"):
+            make_detector(name, device="gpu", **options)
 
 
 def test_torch_missing_or_broken_model_file(tmp_path):

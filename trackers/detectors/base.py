@@ -195,6 +195,24 @@ class Detector(ABC):
         """
 
 
+def torch_device(torch: Any, device: str, detector: str) -> str:
+    """The torch device detector ``detector`` runs on (``kornia``, ``torch``): ``"auto"`` is CUDA when
+    this torch sees a CUDA device, else the CPU.
+
+    Raises:
+        ConfigError: ``device`` is not ``"auto"``, ``"cpu"`` or ``"cuda"``, or is ``"cuda"`` on a torch
+            that sees no CUDA device (it failed at the first frame).
+    """
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device not in ("cpu", "cuda"):
+        raise ConfigError(f"detector {detector!r}: device expected 'auto', 'cpu' or 'cuda', got {device!r}")
+    if device == "cuda" and not torch.cuda.is_available():
+        raise ConfigError(f"detector {detector!r}: device 'cuda', but this torch sees no CUDA device (or is "
+                          "a CPU build); expected 'auto' or 'cpu' here")
+    return device
+
+
 _REGISTRY: dict[str, Callable[..., Detector]] = {}
 
 

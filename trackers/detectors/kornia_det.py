@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from estimators.errors import ConfigError
-from trackers.detectors.base import Detections, Detector, register_detector, to_grey
+from trackers.detectors.base import Detections, Detector, register_detector, to_grey, torch_device
 from trackers.detectors.orb import bucket
 
 RESPONSES = ("gftt", "harris", "hessian", "dog")
@@ -51,17 +51,10 @@ class KorniaDetector(Detector):
     ) -> None:
         if response not in RESPONSES:
             raise ConfigError(
-                f"kornia: unknown response {response!r}; expected one of {', '.join(RESPONSES)}"
+                f"detector 'kornia': unknown response {response!r}; expected one of {', '.join(RESPONSES)}"
             )
         self.torch, self.kornia = _import_torch()
-        if device == "auto":
-            device = "cuda" if self.torch.cuda.is_available() else "cpu"
-        if device not in ("cpu", "cuda"):
-            raise ConfigError(f"kornia: device expected 'auto', 'cpu' or 'cuda', got {device!r}")
-        if device == "cuda" and not self.torch.cuda.is_available():
-            raise ConfigError("kornia: device 'cuda', but this torch sees no CUDA device (or is a CPU "
-                              "build); expected 'auto' or 'cpu' here")
-        self.device = device
+        self.device = torch_device(self.torch, device, "kornia")
         self.response = response
         self.max_features = int(max_features)
         self.nms_radius_px = int(nms_radius_px)

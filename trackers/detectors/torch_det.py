@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError
-from trackers.detectors.base import Detections, Detector, register_detector
+from trackers.detectors.base import Detections, Detector, register_detector, torch_device
 
 
 @register_detector("torch")
@@ -73,10 +73,7 @@ class TorchModelDetector(Detector):
                     "detector 'torch' with a TorchScript model needs torch: pip install fisheye-des[kornia]"
                 ) from e
             self._torch = torch
-            self.device = ("cuda" if torch.cuda.is_available() else "cpu") if device == "auto" else device
-            if self.device == "cuda" and not torch.cuda.is_available():
-                raise ConfigError("detector 'torch': device 'cuda', but this torch sees no CUDA device (or "
-                                  "is a CPU build); expected 'auto' or 'cpu' here")
+            self.device = torch_device(torch, device, "torch")
             try:
                 self._module = torch.jit.load(str(path), map_location=self.device).eval()
             except Exception as e:
