@@ -65,7 +65,7 @@ def check_durations(
     TypeError."""
     for k in old:
         if k in renamed:
-            raise renamed_error(owner, renamed, k)
+            raise ConfigError(f"{owner}: {renamed_text(renamed, k)}")
     if old:
         raise TypeError(f"{owner}.__init__() got an unexpected keyword argument {next(iter(old))!r}")
     out = {}
@@ -77,11 +77,11 @@ def check_durations(
     return out
 
 
-def renamed_error(owner: str, renamed: dict[str, tuple[str, str]], key: str) -> ConfigError:
-    """The error for ``key``, a frame count of ``owner`` that ``renamed`` (old key -> (new key, its
-    default in frames at 30 fps)) replaced by a duration: it names the replacement."""
+def renamed_text(renamed: dict[str, tuple[str, str]], key: str, where: str = "") -> str:
+    """What is said of ``key``, a frame count that ``renamed`` (old key -> (new key, its default in frames
+    at 30 fps)) replaced by a duration: it names the replacement. ``where``: the key's place, as the
+    front end's option check names it (``" in grouping"``), or nothing (the class's own check, its name
+    before the message)."""
     new, hint = renamed[key]
-    return ConfigError(
-        f"{owner}: '{key}' (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
-        f"{hint}); set {new} instead"
-    )
+    return (f"'{key}'{where} (frames) was replaced by '{new}' (seconds, applied at the frame rate seen: "
+            f"{hint}); set {new} instead")

@@ -16,7 +16,7 @@ import weakref
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -466,13 +466,6 @@ def _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags=c
     return q, st.reshape(-1), err.reshape(-1)
 
 
-# the feature tracker's frame counts that are durations now: old key -> (new key, the old default in time)
-_FEATURES_RENAMED = {
-    "redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s"),
-    "reacquire_frames": ("reacquire_s", "8 frames at 30 fps = 8/30 s"),
-}
-
-
 class FeatureTracker:
     """KLT + ORB feature tracker of one camera (see the module docstring).
 
@@ -586,6 +579,13 @@ class FeatureTracker:
     stays right across dropped frames.
     """
 
+    # its frame counts that are durations now: old key -> (new key, the old default in time); the front
+    # end's option check (trackers.frontend.option_problem) names the replacement from it
+    RENAMED: ClassVar[dict[str, tuple[str, str]]] = {
+        "redetect_every": ("redetect_s", "every 4th frame at 30 fps = 4/30 s"),
+        "reacquire_frames": ("reacquire_s", "8 frames at 30 fps = 8/30 s"),
+    }
+
     def __init__(
         self,
         camera,
@@ -614,7 +614,7 @@ class FeatureTracker:
     ) -> None:
         d = check_durations(
             "FeatureTracker",
-            _FEATURES_RENAMED,
+            FeatureTracker.RENAMED,
             old,
             {"redetect_s": redetect_s, "reacquire_s": reacquire_s, "klt_step_s": klt_step_s},
         )

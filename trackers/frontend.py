@@ -37,10 +37,10 @@ from trackers.association import (
     stereo_klt,
     unheld,
 )
-from trackers.clock import check_durations, renamed_error
+from trackers.clock import check_durations, renamed_text
 from trackers.detectors import Detector, make_detector, to_grey
-from trackers.features import _FEATURES_RENAMED, KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
-from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, ObstacleGrouper, ObstacleTrack
+from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
+from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
 STAGES = ("resize", "detect", "track", "group", "associate", "report")
 _OPTION_GROUPS = (
@@ -64,14 +64,16 @@ _ASSOCIATION_OPTIONS = (
     "follow_levels",
     "reverse_views",
 )
-# the option groups built into a class per camera: group -> (class, its parameters the front end sets,
-# its old frame-count keys that are durations now: old key -> (new key, the old default in time))
+# the option groups built into a class per camera: group -> (class, its parameters the front end sets);
+# the class's RENAMED: its old frame-count keys that are durations now
 _CLASS_OPTIONS = {
-    "features": (FeatureTracker, ("camera", "detector", "ids"), _FEATURES_RENAMED),
-    "grouping": (ObstacleGrouper, ("ids", "label"), _GROUPER_RENAMED),
-    "boxes": (BoxTracker, ("ids",), _BOX_RENAMED),
+    "features": (FeatureTracker, ("camera", "detector", "ids")),
+    "grouping": (ObstacleGrouper, ("ids", "label")),
+    "boxes": (BoxTracker, ("ids",)),
 }
-_OPTION_DICTS = ("features", "grouping", "boxes", "association")  # the options given as dicts: option_problem
+# the options given as dicts, checked by option_problem; the config's tracker section has one dict
+# field for each (pipeline.config.TrackerConfig: a test holds the two equal)
+_OPTION_DICTS = ("features", "grouping", "boxes", "association")
 _FRONTEND_RENAMED = {"densify_every": ("densify_s", "every 2nd frame at 30 fps = 2/30 s")}
 DENSIFY_S = 2 / 30  # the front end's default densify_s: every 2nd frame at 30 fps, the count it was fitted as
 
@@ -111,10 +113,16 @@ def tracked_window(rig: Rig, features: Mapping[str, Any] | None = None) -> dict[
 
 def accepted_options(group: str) -> list[str]:
     """The option names the front end's ``group`` (features, grouping, boxes, association) accepts:
-    the keywords of the class it is built into (``_CLASS_OPTIONS``), or the association's."""
+    the keywords of the class it is built into (``_CLASS_OPTIONS``), or the association's.
+
+    Raises:
+        ConfigError: ``group`` is none of them.
+    """
     if group == "association":
         return list(_ASSOCIATION_OPTIONS)
-    cls, internal, _renamed = _CLASS_OPTIONS[group]
+    if group not in _CLASS_OPTIONS:
+        raise ConfigError(f"FrontEnd: no option group {group!r}; expected one of {', '.join(_OPTION_DICTS)}")
+    cls, internal = _CLASS_OPTIONS[group]
     return [
         n for n, p in inspect.signature(cls).parameters.items()
         if p.kind is not p.VAR_KEYWORD and n not in internal
@@ -127,18 +135,20 @@ def option_problem(
     """The one check of the names of a front-end option group (``_OPTION_DICTS``: features, grouping,
     boxes, association), made by ``FrontEnd`` and, with the config's key and line, when a config
     loads (``pipeline.config.load_config``): the first name in ``given`` that ``group`` does not take,
-    and the message: an old frame count that is a duration now names its replacement (its class's own
-    words, ``trackers.clock.renamed_error``); any other name is "unknown key 'x' in SECTION; did you
-    mean 'y'? Valid keys: ..." (``did_you_mean``, the config's wording). ``section``: how the message
-    names the group (default ``group``). None when every name is taken."""
+    and the message, which the caller prefixes with its own name or the config's place: an old frame
+    count that is a duration now is "'x' in SECTION (frames) was replaced by 'x_s' ..." (its class's
+    ``RENAMED``, ``trackers.clock.renamed_text``); any other name is "unknown key 'x' in SECTION; did
+    you mean 'y'? Valid keys: ..." (``did_you_mean``, the config's wording). ``section``: how the
+    message names the group (default ``group``). None when every name is taken."""
     accepted = accepted_options(group)
-    cls, _internal, renamed = _CLASS_OPTIONS.get(group, (None, (), {}))
+    renamed = _CLASS_OPTIONS[group][0].RENAMED if group in _CLASS_OPTIONS else {}
+    where = section or group
     for k in given:
         if k in accepted:
             continue
         if k in renamed:
-            return k, str(renamed_error(cls.__name__, renamed, k))
-        return k, f"unknown key '{k}' in {section or group}" + did_you_mean(str(k), accepted)
+            return k, renamed_text(renamed, k, f" in {where}")
+        return k, f"unknown key '{k}' in {where}" + did_you_mean(str(k), accepted)
     return None
 
 
@@ -287,9 +297,10 @@ class FrontEnd:
         self.densify_s = check_durations(
             "FrontEnd", _FRONTEND_RENAMED, old, {"densify_s": options.get("densify_s", DENSIFY_S)}
         )["densify_s"]
-        unknown = sorted(set(options) - set(_OPTION_GROUPS))
+        unknown = [k for k in options if k not in _OPTION_GROUPS]
         if unknown:
-            raise ConfigError(f"FrontEnd: unknown options {unknown}; expected any of {list(_OPTION_GROUPS)}")
+            raise ConfigError(f"FrontEnd: unknown key '{unknown[0]}' in its options"
+                              + did_you_mean(str(unknown[0]), list(_OPTION_GROUPS)))
         for group in _OPTION_DICTS:  # every group, also one this detector does not build (boxes for orb)
             problem = option_problem(group, options.get(group, {}))
             if problem is not None:

@@ -77,7 +77,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -184,28 +184,6 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit vectors a (..., 3) and b (..., 3), stable at 0 and pi:
     ``atan2(|a x b|, a . b)``."""
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
-
-
-# the grouper's frame counts that are durations now: old key -> (new key, the old default in time)
-_GROUPER_RENAMED = {
-    "flow_frames": ("flow_window_s", "5 frames at 30 fps = 1/6 s"),
-    "min_age": ("min_age_s", "3 frames at 30 fps = 0.1 s"),
-    "isolated_min_age": ("isolated_min_age_s", "12 frames at 30 fps = 0.4 s"),
-    "confirm_frames": ("confirm_s", "5 frames at 30 fps = 1/6 s"),
-    "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
-    "extended_frames": ("extended_s", "3 frames at 30 fps = 0.1 s"),
-    "split_frames": ("split_window_s", "10 frames at 30 fps = 1/3 s"),
-    "split_persist": ("split_persist_s", "3 frames at 30 fps = 0.1 s"),
-    "plane_every": ("plane_every_s", "every 2nd frame at 30 fps = 1/15 s"),
-}
-
-
-# the box tracker's frame counts that are durations now
-_BOX_RENAMED = {
-    "confirm_frames": ("confirm_s", "3 frames at 30 fps = 0.1 s"),
-    "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
-    "link_frames": ("link_s", "3 frames at 30 fps = 0.1 s"),
-}
 
 
 @dataclass
@@ -331,6 +309,20 @@ class ObstacleGrouper:
     max_missed, extended_frames, split_frames, split_persist, plane_every, bg_frames.
     """
 
+    # its frame counts that are durations now: old key -> (new key, the old default in time); the front
+    # end's option check (trackers.frontend.option_problem) names the replacement from it
+    RENAMED: ClassVar[dict[str, tuple[str, str]]] = {
+        "flow_frames": ("flow_window_s", "5 frames at 30 fps = 1/6 s"),
+        "min_age": ("min_age_s", "3 frames at 30 fps = 0.1 s"),
+        "isolated_min_age": ("isolated_min_age_s", "12 frames at 30 fps = 0.4 s"),
+        "confirm_frames": ("confirm_s", "5 frames at 30 fps = 1/6 s"),
+        "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
+        "extended_frames": ("extended_s", "3 frames at 30 fps = 0.1 s"),
+        "split_frames": ("split_window_s", "10 frames at 30 fps = 1/3 s"),
+        "split_persist": ("split_persist_s", "3 frames at 30 fps = 0.1 s"),
+        "plane_every": ("plane_every_s", "every 2nd frame at 30 fps = 1/15 s"),
+    }
+
     BG_S = 0.5  # time (s) a feature stays marked as extended texture (15 frames at 30 fps)
 
     def __init__(
@@ -366,7 +358,7 @@ class ObstacleGrouper:
     ) -> None:
         self.durations = check_durations(
             "ObstacleGrouper",
-            _GROUPER_RENAMED,
+            ObstacleGrouper.RENAMED,
             old,
             {
                 "flow_window_s": flow_window_s, "isolated_min_age_s": isolated_min_age_s,
@@ -1530,6 +1522,13 @@ class BoxTracker:
     confirm_frames, max_missed, link_frames hold the counts in effect.
     """
 
+    # its frame counts that are durations now (as ObstacleGrouper.RENAMED)
+    RENAMED: ClassVar[dict[str, tuple[str, str]]] = {
+        "confirm_frames": ("confirm_s", "3 frames at 30 fps = 0.1 s"),
+        "max_missed": ("max_missed_s", "10 frames at 30 fps = 1/3 s"),
+        "link_frames": ("link_s", "3 frames at 30 fps = 0.1 s"),
+    }
+
     def __init__(
         self,
         ids: Iterator[int],
@@ -1546,7 +1545,7 @@ class BoxTracker:
         **old: Any,
     ) -> None:
         self.durations = check_durations(
-            "BoxTracker", _BOX_RENAMED, old,
+            "BoxTracker", BoxTracker.RENAMED, old,
             {"confirm_s": confirm_s, "max_missed_s": max_missed_s, "link_s": link_s},
         )
         v = link_min_members

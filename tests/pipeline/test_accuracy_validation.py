@@ -545,10 +545,12 @@ def test_an_override_of_an_unknown_tracker_key_is_the_config_s_check_on_the_fron
     from estimators.errors import ConfigError
 
     class StubTracker:
+        RENAMED: dict = {}
+
         def __init__(self, camera=None, detector=None, ids=None, win_px=21):
             pass
 
-    monkeypatch.setitem(fe._CLASS_OPTIONS, "features", (StubTracker, ("camera", "detector", "ids"), {}))
+    monkeypatch.setitem(fe._CLASS_OPTIONS, "features", (StubTracker, ("camera", "detector", "ids")))
     assert not hasattr(acc, "_TRACKER_GROUPS")
     with pytest.raises(ConfigError, match=r"^--override tracker\.features\.max_features=5: unknown key "
                                           r"'max_features' in tracker\.features; valid keys: win_px$"):

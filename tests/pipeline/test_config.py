@@ -110,8 +110,8 @@ def test_box_settings_beside_a_detector_without_boxes_are_refused(tmp_path, dete
 
 def test_an_old_tracker_frame_count_key_names_its_replacement_when_the_config_loads(tmp_path):
     p = _write(tmp_path, "tracker:\n  features: {win_px: 11}\n  grouping:\n    min_age: 3\n")
-    with pytest.raises(ConfigError, match=rf"^{p}:4: ObstacleGrouper: 'min_age' \(frames\) was replaced by "
-                                          r"'min_age_s' \(seconds"):
+    with pytest.raises(ConfigError, match=rf"^{p}:4: 'min_age' in tracker\.grouping \(frames\) was replaced "
+                                          r"by 'min_age_s' \(seconds"):
         load_config(p)
 
 

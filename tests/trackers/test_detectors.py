@@ -12,6 +12,7 @@ import pytest
 from estimators.errors import ConfigError, InputError
 from tests.trackers.conftest import SphereScene, equidistant
 from trackers.detectors import Detections, Detector, available_detectors, make_detector
+from trackers.detectors.composite import CompositeDetector
 from trackers.detectors.navlights import heading_from_lights
 from trackers.features import lens_mask
 
@@ -202,12 +203,16 @@ def test_a_misspelt_detector_option_names_the_closest_one(monkeypatch, request):
     """As an unknown config key: the closest accepted option and all of them (was the TypeError and the
     constructor's whole signature), also for a composite's part; a CUDA device on a torch without one is a
     ConfigError when the detector is built (was an AssertionError traceback at the first frame)."""
-    with pytest.raises(ConfigError, match=r"^detector 'orb': unknown option 'max_featurs'; did you mean "
-                                          r"'max_features'\? Valid keys: max_features, grid, "):
+    with pytest.raises(ConfigError, match=r"^detector 'orb': unknown key 'max_featurs' in its options; did "
+                                          r"you mean 'max_features'\? Valid keys: max_features, grid, "):
         make_detector("orb", max_featurs=100)
-    with pytest.raises(ConfigError, match=r"^detector 'navlights': unknown option 'min_vale'; did you mean "
-                                          r"'min_value'\?"):
+    with pytest.raises(ConfigError, match=r"^detector 'navlights': unknown key 'min_vale' in its options; "
+                                          r"did you mean 'min_value'\?"):
         make_detector("orb+navlights", navlights={"min_vale": 3})
+    with pytest.raises(ConfigError, match=r"^detector 'orb\+navlights': unknown key 'max_features' in its "
+                                          r"options; options are given per part, under the part's name: "
+                                          r"\{'orb': \{\.\.\.\}, 'navlights': \{\.\.\.\}\}$"):
+        CompositeDetector("orb", "navlights", max_features=100)  # (was "unknown options ['max_features']")
     torch = pytest.importorskip("torch")
     pytest.importorskip("kornia")
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)

@@ -368,10 +368,11 @@ def test_the_old_frame_count_keys_are_errors_naming_their_replacement(model, rig
     the new key; a misspelt key is still the usual TypeError."""
     from trackers.frontend import FrontEnd
 
-    msg = f"FeatureTracker: '{old}' \\(frames\\) was replaced by '{new}' \\(seconds"
-    with pytest.raises(ConfigError, match=msg):
+    msg = f"'{old}' \\(frames\\) was replaced by '{new}' \\(seconds"
+    with pytest.raises(ConfigError, match=f"^FeatureTracker: {msg}"):
         make_tracker(model, **{old: 4})
-    with pytest.raises(ConfigError, match=msg):
+    with pytest.raises(ConfigError, match=f"^FrontEnd: '{old}' in features \\(frames\\) was replaced by "
+                                          f"'{new}'"):
         FrontEnd(rig, "orb", features={old: 4})
     with pytest.raises(TypeError, match="redetect_ss"):
         make_tracker(model, redetect_ss=0.1)

@@ -167,6 +167,30 @@ def test_every_option_group_is_checked_also_one_the_detector_does_not_build(rig)
     assert fe.option_problem("association", {"every": 5, "epipolar_deg": 1.0}) is None
 
 
+def test_an_unknown_front_end_option_is_worded_as_an_unknown_key(rig):
+    """The front end's own options in the words of every other unknown key (was "unknown options
+    ['groupin']; expected any of [...]"); a group it has none of is a ConfigError (was a KeyError)."""
+    import trackers.frontend as fe
+
+    with pytest.raises(ConfigError, match=r"^FrontEnd: unknown key 'groupin' in its options; did you mean "
+                                          r"'grouping'\? Valid keys: detector_options, features, grouping, "):
+        FrontEnd(rig, "orb", groupin={})
+    with pytest.raises(ConfigError, match=r"^FrontEnd: no option group 'tracks'; expected one of features, "
+                                          r"grouping, boxes, association$"):
+        fe.option_problem("tracks", {"a": 1})
+
+
+def test_the_configs_tracker_groups_are_the_front_ends_option_groups():
+    """The config checks (and passes on) one dict field of its tracker section per front-end option
+    group: the two lists are one set, so the config's check never asks the front end for a group it
+    has not got."""
+    import trackers.frontend as fe
+    from pipeline.config import TrackerConfig
+
+    groups = {g for g, v in TrackerConfig().model_dump().items() if isinstance(v, dict)}  # as _check_tracker
+    assert groups == set(fe._OPTION_DICTS)
+
+
 @pytest.mark.parametrize("bad", ["x", 2.7, -1, True, "2"])
 def test_follow_levels_must_be_a_non_negative_integer_or_null(rig, bad):
     """association.follow_levels is OpenCV's maxLevel: a string, a float (2.7 would be truncated

@@ -15,7 +15,7 @@ from tests.trackers.conftest import rot_axis
 from tests.trackers.test_grouping import PointFeatures, unit
 from tests.trackers.test_grouping_split import FLOW_ABS, grid
 from trackers.clock import FrameClock
-from trackers.grouping import _BOX_RENAMED, _GROUPER_RENAMED, BoxTracker, ObstacleGrouper
+from trackers.grouping import BoxTracker, ObstacleGrouper
 
 
 def test_the_clock_counts_a_duration_in_frames_at_the_rate_seen():
@@ -168,9 +168,9 @@ def test_flows_at_100_hz_are_derotated_beyond_the_front_end_s_rotations(model):
     assert len(seen) == 1 and set(seen[0].members.tolist()) == set(ids)
 
 
-@pytest.mark.parametrize("old", sorted(_GROUPER_RENAMED))
+@pytest.mark.parametrize("old", sorted(ObstacleGrouper.RENAMED))
 def test_an_old_frame_count_key_is_an_error_naming_its_replacement(old):
-    new = _GROUPER_RENAMED[old][0]
+    new = ObstacleGrouper.RENAMED[old][0]
     with pytest.raises(ConfigError, match=f"'{old}' \\(frames\\) was replaced by '{new}' \\(seconds"):
         ObstacleGrouper(iter(range(10)), **{old: 3})
 
@@ -178,7 +178,9 @@ def test_an_old_frame_count_key_is_an_error_naming_its_replacement(old):
 def test_the_front_end_names_the_replacement_and_bad_durations(rig):
     from trackers.frontend import FrontEnd
 
-    with pytest.raises(ConfigError, match="'min_age' \\(frames\\) was replaced by 'min_age_s'"):
+    # one prefix, the front end's (was "FrontEnd: ObstacleGrouper: 'min_age' ...")
+    with pytest.raises(ConfigError, match=r"^FrontEnd: 'min_age' in grouping \(frames\) was replaced by "
+                                          r"'min_age_s'"):
         FrontEnd(rig, "orb", grouping={"min_age": 3})
     with pytest.raises(ConfigError, match="unknown key 'min_agee' in grouping; did you mean 'min_age_s'"):
         FrontEnd(rig, "orb", grouping={"min_agee": 3})  # a misspelling: the accepted names listed
@@ -217,9 +219,9 @@ def test_a_box_track_is_confirmed_and_lost_after_the_same_seconds_at_30_and_100_
     assert _box_times(100.0) == pytest.approx((0.09, 0.83))
 
 
-@pytest.mark.parametrize("old", sorted(_BOX_RENAMED))
+@pytest.mark.parametrize("old", sorted(BoxTracker.RENAMED))
 def test_an_old_box_frame_count_key_is_an_error_naming_its_replacement(old):
-    new = _BOX_RENAMED[old][0]
+    new = BoxTracker.RENAMED[old][0]
     with pytest.raises(ConfigError, match=f"BoxTracker: '{old}' \\(frames\\) was replaced by '{new}'"):
         BoxTracker(iter(range(10)), **{old: 3})
 

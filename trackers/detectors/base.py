@@ -304,8 +304,8 @@ def make_detector(name: str, **options: Any) -> Detector:
         named = [n for n, p in sig.parameters.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
         takes_any = any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
         unknown = [k for k in options if k not in named]
-        if unknown and not takes_any:  # a misspelt option: named as an unknown config key is
-            raise ConfigError(f"detector {name!r}: unknown option '{unknown[0]}'"
+        if unknown and not takes_any:  # a misspelt option: in the words of an unknown config key
+            raise ConfigError(f"detector {name!r}: unknown key '{unknown[0]}' in its options"
                               + did_you_mean(str(unknown[0]), named)) from e
         raise ConfigError(f"detector {name!r}: bad options {sorted(options)}: {e}; accepted: {sig}") from e
     except ValueError:

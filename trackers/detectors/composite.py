@@ -48,12 +48,12 @@ class CompositeDetector(Detector):
     def __init__(self, keypoints: str | Detector = "orb", boxes: str | Detector = "navlights",
                  **options: Any) -> None:
         names = [p if isinstance(p, str) else p.name for p in (keypoints, boxes)]
-        bad = sorted(set(options) - {n for n, p in zip(names, (keypoints, boxes), strict=True)
-                                     if isinstance(p, str)})
+        named = [n for n, p in zip(names, (keypoints, boxes), strict=True) if isinstance(p, str)]
+        bad = [k for k in options if k not in named]
         if bad:
             raise ConfigError(
-                f"detector {'+'.join(names)!r}: unknown options {bad}; options are given per part, "
-                f"under the part's name: {{{names[0]!r}: {{...}}, {names[1]!r}: {{...}}}}"
+                f"detector {'+'.join(names)!r}: unknown key '{bad[0]}' in its options; options are given per "
+                f"part, under the part's name: {{{names[0]!r}: {{...}}, {names[1]!r}: {{...}}}}"
             )
         for k, v in options.items():
             if not isinstance(v, dict):
