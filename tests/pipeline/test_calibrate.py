@@ -145,7 +145,9 @@ def test_the_board_s_angular_coverage_is_reported_beside_the_lens_field():
     uv = np.concatenate([v.corners for v in views])
     b, _ = TRUE.pixel_to_bearing(uv, within_image=False)
     assert seen == pytest.approx(np.degrees(np.arccos(b[:, 2])).max(), abs=1e-6)
-    assert lens == pytest.approx(np.degrees(res.model.max_angle_rad))
+    assert seen < 90 and lens == pytest.approx(180.0, abs=1e-3)  # no --max-angle-deg: the lens's 180 deg
+    res = calibrate_views(views, BOARD, (640, 480), max_angle_rad=np.radians(100.0))  # --max-angle-deg 100
+    assert board_coverage_deg(res) == pytest.approx((seen, 100.0), abs=1e-6)
 
 
 def test_calibration_with_noise_and_bad_views():
