@@ -12,6 +12,7 @@ import pytest
 from estimators.errors import ConfigError, InputError
 from tests.trackers.conftest import SphereScene, equidistant
 from trackers.detectors import Detections, Detector, available_detectors, make_detector
+from trackers.detectors.base import torch_device
 from trackers.detectors.composite import CompositeDetector
 from trackers.detectors.navlights import heading_from_lights
 from trackers.features import lens_mask
@@ -221,9 +222,17 @@ def test_a_misspelt_detector_option_names_the_closest_one(monkeypatch, request):
         with pytest.raises(ConfigError, match=rf"^detector '{name}': device 'cuda', but this torch sees no "
                                               r"CUDA device \(or is a CPU build\); expected 'auto' or 'cpu'"):
             make_detector(name, device="cuda", **options)
-        with pytest.raises(ConfigError, match=rf"^detector '{name}': device expected 'auto', 'cpu' or "
-                                              r"'cuda', got 'gpu'$"):
+        with pytest.raises(ConfigError, match=rf"^detector '{name}': device expected 'auto', 'cpu', 'cuda' "
+                                              r"or 'cuda:N', got 'gpu'$"):
             make_detector(name, device="gpu", **options)
+    # a CUDA device by index, as torch names it ('cuda:1'), is taken when this torch sees it
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)
+    assert torch_device(torch, "cuda:1", "torch") == "cuda:1"
+    assert torch_device(torch, "cuda", "torch") == "cuda"
+    with pytest.raises(ConfigError, match=r"^detector 'torch': device 'cuda:2', but this torch sees 2 CUDA "
+                                          r"devices \(cuda:0 to cuda:1\)$"):
+        torch_device(torch, "cuda:2", "torch")
 
 
 def test_torch_missing_or_broken_model_file(tmp_path):

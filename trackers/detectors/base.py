@@ -11,6 +11,7 @@ finds both. An unknown name is a ConfigError that lists the installed ones.
 from __future__ import annotations
 
 import inspect
+import re
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -197,19 +198,27 @@ class Detector(ABC):
 
 def torch_device(torch: Any, device: str, detector: str) -> str:
     """The torch device detector ``detector`` runs on (``kornia``, ``torch``): ``"auto"`` is CUDA when
-    this torch sees a CUDA device, else the CPU.
+    this torch sees a CUDA device, else the CPU; ``"cuda:N"`` is the N-th CUDA device.
 
     Raises:
-        ConfigError: ``device`` is not ``"auto"``, ``"cpu"`` or ``"cuda"``, or is ``"cuda"`` on a torch
-            that sees no CUDA device (it failed at the first frame).
+        ConfigError: ``device`` is not ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:N"``, or names a CUDA
+            device this torch does not see (it failed at the first frame).
     """
     if device == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
-    if device not in ("cpu", "cuda"):
-        raise ConfigError(f"detector {detector!r}: device expected 'auto', 'cpu' or 'cuda', got {device!r}")
-    if device == "cuda" and not torch.cuda.is_available():
-        raise ConfigError(f"detector {detector!r}: device 'cuda', but this torch sees no CUDA device (or is "
-                          "a CPU build); expected 'auto' or 'cpu' here")
+    if device == "cpu":
+        return device
+    m = re.fullmatch(r"cuda(?::(\d+))?", device) if isinstance(device, str) else None
+    if m is None:
+        raise ConfigError(f"detector {detector!r}: device expected 'auto', 'cpu', 'cuda' or 'cuda:N', "
+                          f"got {device!r}")
+    n = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    if not n:
+        raise ConfigError(f"detector {detector!r}: device {device!r}, but this torch sees no CUDA device (or "
+                          "is a CPU build); expected 'auto' or 'cpu' here")
+    if m.group(1) is not None and int(m.group(1)) >= n:
+        raise ConfigError(f"detector {detector!r}: device {device!r}, but this torch sees {n} CUDA "
+                          f"device{'s' if n != 1 else ''} (cuda:0 to cuda:{n - 1})")
     return device
 
 

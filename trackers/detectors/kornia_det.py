@@ -37,7 +37,7 @@ class KorniaDetector(Detector):
         nms_radius_px: suppression radius (a keypoint is the maximum of its (2r+1)^2 window).
         min_response: relative threshold: keep responses above ``min_response * max response``.
         grid: (cols, rows) bucketing grid.
-        device: ``"auto"`` (CUDA when available), ``"cpu"`` or ``"cuda"``.
+        device: ``"auto"`` (CUDA when available), ``"cpu"``, ``"cuda"`` or ``"cuda:N"``.
     """
 
     def __init__(

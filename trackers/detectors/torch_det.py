@@ -32,7 +32,7 @@ class TorchModelDetector(Detector):
         input_size: (W, H) the model expects, or None to feed the frame's own size.
         min_score: drop boxes scored below this.
         class_names: labels by class index; default ``"object"`` / ``"class<k>"``.
-        device: ``"auto"``, ``"cpu"`` or ``"cuda"`` (TorchScript only).
+        device: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (TorchScript only).
     """
 
     produces_keypoints = False
