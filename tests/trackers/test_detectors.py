@@ -186,6 +186,28 @@ def test_navlights_rejects_grey_frames():
 
 
 # ---------------------------------------------------------------------------------------- torch
+def test_exported_program_boxes_scaled_and_its_input_shape_named(tmp_path):
+    """A torch.export program (.pt2, the successor of TorchScript, which torch 2.13 deprecates): its boxes
+    scaled from its 64x48 input to the frame as TorchScript's are; a frame of another shape fed without
+    input_size is bad input naming input_size (the program's shape guard), not a traceback."""
+    torch = pytest.importorskip("torch")
+
+    class Box(torch.nn.Module):
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return torch.tensor([[8.0, 12.0, 32.0, 24.0, 0.8, 0.0]]) + x.mean() * 0.0
+
+    p = tmp_path / "box.pt2"
+    torch.export.save(torch.export.export(Box(), (torch.zeros(1, 3, 48, 64),)), str(p))
+    det = make_detector("torch", model_path=p, input_size=(64, 48))
+    d = det.detect(np.zeros((240, 320, 3), np.uint8))
+    np.testing.assert_allclose(d.boxes, [[40, 60, 160, 120]])  # x5 from 64x48 to 320x240
+    assert d.labels == ("class0",)
+    with pytest.raises(InputError, match=r"^detector 'torch': model box\.pt2 failed on a float32 input of "
+                                         r"shape \(1, 3, 240, 320\): .*Guard failed.*give its \(W, H\) as "
+                                         r"detector\.options\.input_size$"):
+        make_detector("torch", model_path=p).detect(np.zeros((240, 320, 3), np.uint8))
+
+
 def test_torchscript_boxes_scaled_filtered_and_labelled(torchscript_model):
     det = make_detector(
         "torch",

@@ -1,13 +1,16 @@
-"""``torch``: a user's own box detector, a TorchScript (``.pt``/``.pth``/``.ts``) or ONNX (``.onnx``)
-file given by path. Nothing is downloaded.
+"""``torch``: a user's own box detector, a ``torch.export`` program (``.pt2``), a TorchScript
+(``.pt``/``.pth``/``.ts``) or an ONNX (``.onnx``) file given by path. Nothing is downloaded.
 
 Model contract: input a float32 tensor (1, 3, H, W), BGR->RGB, values in [0, 1] (``input_size`` =
 (W, H) resizes first); output a tensor (M, 4..6) or (1, M, 4..6) of rows
-``[x1, y1, x2, y2, score?, class?]`` (TorchScript: or a tuple or list whose first item is that tensor)
+``[x1, y1, x2, y2, score?, class?]`` (torch models: or a tuple or list whose first item is that tensor)
 in the input's pixels (scaled back to the frame here). Rows below ``min_score`` are dropped;
 ``class_names`` maps class indices to labels. A model that fails, or returns anything else, is an
 InputError naming the model and what was expected.
-TorchScript needs torch (``pip install fisheye-des[kornia]``); ONNX runs on cv2.dnn.
+An exported program is specialised to the input shape it was exported with unless exported with dynamic
+shapes: give that shape as ``input_size``. torch 2.13 deprecates TorchScript (``torch.jit``) in favour of
+``torch.export``; both load. Torch models need torch (``pip install fisheye-des[kornia]``); ONNX runs on
+cv2.dnn.
 """
 
 from __future__ import annotations
@@ -25,14 +28,15 @@ from trackers.detectors.base import Detections, Detector, register_detector, tor
 
 @register_detector("torch")
 class TorchModelDetector(Detector):
-    """Boxes from a user's TorchScript or ONNX model (see the module docstring for the contract).
+    """Boxes from a user's exported (``.pt2``), TorchScript or ONNX model (see the module docstring for
+    the contract).
 
     Args:
-        model_path: path of the ``.onnx`` or TorchScript file.
+        model_path: path of the ``.pt2``, TorchScript or ``.onnx`` file.
         input_size: (W, H) the model expects, or None to feed the frame's own size.
         min_score: drop boxes scored below this.
         class_names: labels by class index; default ``"object"`` / ``"class<k>"``.
-        device: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (TorchScript only).
+        device: ``"auto"``, ``"cpu"``, ``"cuda"`` or ``"cuda:N"`` (torch models only).
     """
 
     produces_keypoints = False
@@ -46,9 +50,9 @@ class TorchModelDetector(Detector):
         class_names: Sequence[str] = (),
         device: str = "auto",
     ) -> None:
-        expected = ("expected the path of your TorchScript (.pt/.pth/.ts) or ONNX (.onnx) model (in a "
-                    "config: detector.options.model_path, or as a composite's part, e.g. orb+torch: "
-                    "detector.options.torch.model_path; nothing is downloaded)")
+        expected = ("expected the path of your torch.export (.pt2), TorchScript (.pt/.pth/.ts) or ONNX "
+                    "(.onnx) model (in a config: detector.options.model_path, or as a composite's part, e.g. "
+                    "orb+torch: detector.options.torch.model_path; nothing is downloaded)")
         if not model_path:
             raise ConfigError(f"detector 'torch': no model_path given; {expected}")
         path = Path(model_path)
@@ -70,14 +74,19 @@ class TorchModelDetector(Detector):
                 import torch
             except ImportError as e:
                 raise ConfigError(
-                    "detector 'torch' with a TorchScript model needs torch: pip install fisheye-des[kornia]"
+                    "detector 'torch' with a torch model needs torch: pip install fisheye-des[kornia]"
                 ) from e
             self._torch = torch
             self.device = torch_device(torch, device, "torch")
+            exported = path.suffix.lower() == ".pt2"
+            loader = "torch.export.load" if exported else "torch.jit.load"
             try:
-                self._module = torch.jit.load(str(path), map_location=self.device).eval()
+                if exported:  # an ExportedProgram: its module runs as exported (eval mode is fixed then)
+                    self._module = torch.export.load(str(path)).module().to(self.device)
+                else:
+                    self._module = torch.jit.load(str(path), map_location=self.device).eval()
             except Exception as e:
-                raise ConfigError(f"detector 'torch': torch.jit.load cannot read {path}: {e}") from e
+                raise ConfigError(f"detector 'torch': {loader} cannot read {path}: {e}") from e
 
     def _run(self, rgb01: np.ndarray) -> np.ndarray:
         blob = np.ascontiguousarray(rgb01.transpose(2, 0, 1)[None], dtype=np.float32)
@@ -94,9 +103,14 @@ class TorchModelDetector(Detector):
             with torch.no_grad():
                 try:
                     out = self._module(torch.from_numpy(blob).to(self.device))
-                except Exception as e:  # TorchScript's message: its traceback, then "RuntimeError: ..."
+                except Exception as e:  # TorchScript's message: its traceback, then "RuntimeError: ..."; an
+                    # exported program's shape guard: "Guard failed: x.size()[2] == 48" (see input_size)
                     lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
                     why = lines[-1] if len(lines) > 1 else f"{type(e).__name__}: {''.join(lines)}"
+                    if self.path.suffix.lower() == ".pt2":
+                        why += ("; an exported program takes the input shape it was exported with unless "
+                                "exported with dynamic shapes: give its (W, H) as "
+                                "detector.options.input_size")
                     raise InputError(f"{failed}: {why}") from e
                 if isinstance(out, (tuple, list)) and out:
                     out = out[0]  # (boxes, ...) as many detection models return
