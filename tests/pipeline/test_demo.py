@@ -44,6 +44,9 @@ def test_demo_on_a_tiny_scenario(tmp_path, capsys):
         "report.json",
     ):
         assert (out / f).is_file(), f
+    from test_conventions import camchain_names, check_run_folder
+
+    check_run_folder(out / "run", camchain_names(out / "sim" / "camchain.yaml"))
     lines = (out / "run" / "tracks.jsonl").read_text().splitlines()
     assert len(lines) == 15  # 0.5 s at 30 frames/s
     rep = json.loads((out / "report.json").read_text())
