@@ -461,6 +461,9 @@ class FrontEnd:
         self._pid: dict[str, dict[int, int]] = {c.name: {} for c in rig.cameras[1:]}
         self._claim: dict[str, dict[int, int]] = {c.name: {} for c in rig.cameras[1:]}
         self._reported: set[int] = set()  # global ids reported at least once
+        # global ids reported lost: none is reported again (CONVENTIONS: an id is stable over the
+        # track's life, lost reported once when it ends); _observations gives a track under one a fresh id
+        self._ended: set[int] = set()
         self._R_W_B: deque[np.ndarray] = deque(maxlen=8)
         self._n = 0
         self.last_features: dict[str, Any] = {}
@@ -1536,6 +1539,15 @@ class FrontEnd:
         t_s: float,
     ) -> list[ObstacleObservation]:
         gid_of = self._gid.get
+        # an id once reported lost is never reported again: tracks that would be reported under one (a
+        # give-back of _box_keeps_id / _box_hands_id: an id lent or handed, and merged away, comes back
+        # to its own tracks) take a fresh id together; the fusion sees a new track (a new filter)
+        back = {gid_of(tr.id, tr.id) for trs in seen.values() for tr in trs} & self._ended
+        for g in sorted(back):
+            lids = {tr.id for trs in seen.values() for tr in trs if gid_of(tr.id, tr.id) == g}
+            for d in (*self.groupers.values(), *self.boxers.values()):
+                lids.update(lid for lid in d.tracks if gid_of(lid, lid) == g)
+            self._merge_gids(next(self._track_ids), g, tuple(sorted(lids)), absorbed)
         groups: dict[int, list[ObstacleTrack]] = {}
         for name in self.cams:
             for tr in seen.get(name, ()):
@@ -1609,4 +1621,10 @@ class FrontEnd:
                 extra = {"merged_into": into} if gid in absorbed and into != gid else {}
                 out.append(ObstacleObservation(gid, frame, t_s, "lost", (), label=lbl, attributes=extra))
                 self._reported.discard(gid)
+                self._ended.add(gid)
+        if len(self._ended) > 4096:  # keep the ended ids a track may still come back under
+            refs = set(self._gid.values()).union(*(h.values() for h in self._box_handed.values()))
+            for d in (*self.groupers.values(), *self.boxers.values()):
+                refs.update(d.tracks)
+            self._ended &= refs
         return out

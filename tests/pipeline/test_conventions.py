@@ -260,16 +260,7 @@ def _simulate_and_run(tmp_path: Path, scenario: str, resolution: str | None, cam
     [
         pytest.param("ci_small", None, 1, id="mono"),
         pytest.param("stereo_flying", "640x360", 2, id="stereo"),
-        pytest.param(
-            "wide_angle_beyond90", "640x360", 1,
-            marks=pytest.mark.xfail(
-                strict=True, raises=AssertionError,
-                reason="an id reported lost comes back: the drone's feature track 2 lends itself to box 1's "
-                "id (FrontEnd._box_keeps_id: 2 reported lost at frame 5, its view reported as 1) and "
-                "takes 2 back when the box is seen again (frame 17, confirmed, ranged); docs/OUTPUTS.md "
-                "has lost reported once when the track ends"),
-            id="mono-wide-angle",
-        ),
+        pytest.param("wide_angle_beyond90", "640x360", 1, id="mono-wide-angle"),
     ],
 )
 def test_run_outputs_keep_the_conventions(tmp_path, scenario, resolution, cams):

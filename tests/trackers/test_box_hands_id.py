@@ -59,13 +59,51 @@ def test_when_the_lights_go_unseen_the_body_track_carries_the_box_id():
     assert all(on == {"orb": box_id} for on in out[16:]), out[16:]
 
 
-def test_when_the_lights_come_back_each_track_takes_back_its_own_id():
+def test_when_the_lights_come_back_each_track_reports_on_its_own():
     """As above, the lights gone in frames 16-19 only (the box track coasts) and back from frame 20:
-    the box reports under its id again and the body's track under the id it had."""
+    the box reports under its id again and the body's track on its own again, under a fresh id (the
+    id it had was reported lost when the box's id took it over: an id never comes back after its
+    lost report), one id from then on."""
     out = _run(26, lambda k: k < 16 or k >= 20)
     box_id, body_id = out[0]["drone"], out[10]["orb"]
     assert all(on == {"orb": box_id} for on in out[16:20]), out[16:20]
-    assert all(on == {"drone": box_id, "orb": body_id} for on in out[20:]), out[20:]
+    fresh = out[20].get("orb")
+    assert fresh not in (None, box_id, body_id), out[20]
+    assert all(on == {"drone": box_id, "orb": fresh} for on in out[20:]), out[20:]
+
+
+def test_an_id_reported_lost_is_never_reported_again(monkeypatch):
+    """A feature track (local id 5) merged into an id 3 (as when a box lends its id) is reported lost
+    under 5 with ``merged_into`` 3; when it is given its own id back (``_box_keeps_id`` /
+    ``_box_hands_id`` give-backs set ``_gid[5] = 5``) it is reported under a fresh id, not 5 again and
+    not 3, keeps that id, and is reported lost once under it when it ends."""
+    model = equidistant()
+    fe = FrontEnd(mono_forward_rig(model), detector="orb+navlights")
+    b = np.array([0.0, 0.0, 1.0])
+    tr = ObstacleTrack(5, "cam0", np.zeros(0, np.int64), b, sigma_rad=0.005, status="confirmed", hits=9)
+    gr = fe.groupers["cam0"]
+    gr.tracks[5] = tr
+    step = {"seen": [tr], "lost": [], "ids": lambda absorbed: None}
+    monkeypatch.setattr(fe, "_has_texture", lambda *a: True)
+    monkeypatch.setattr(gr, "update", lambda *a, **k: (step["seen"], step["lost"]))
+    monkeypatch.setattr(fe, "_box_keeps_id", lambda absorbed: step["ids"](absorbed))
+    img = np.zeros((model.height, model.width, 3), np.uint8)
+
+    def frame(k):
+        return [(o.track_id, o.status, o.attributes) for o in fe.process({"cam0": img}, k, k / 30)]
+
+    assert frame(0) == [(5, "confirmed", {})]
+    step["ids"] = lambda absorbed: fe._merge_gids(3, 5, (5,), absorbed)
+    assert frame(1) == [(3, "confirmed", {}), (5, "lost", {"merged_into": 3})]
+    step["ids"] = lambda absorbed: fe._gid.__setitem__(5, 5)  # the give-back
+    (fresh, status, _), = frame(2)
+    assert fresh not in (3, 5) and status == "confirmed"
+    step["ids"] = lambda absorbed: None
+    assert frame(3) == [(fresh, "confirmed", {})]
+    del gr.tracks[5]
+    step["seen"], step["lost"] = [], [tr]
+    assert frame(4) == [(fresh, "lost", {})]
+    assert frame(5) == []
 
 
 def _stereo_drone(run0: int = 3, run1: int = 3, feature_hits: int = 14):
