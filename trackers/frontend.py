@@ -931,7 +931,8 @@ class FrontEnd:
         reported id does not change at the link. While the box is seen, a feature track of its
         camera under its id that is not linked to it (the link moved to another track, or ended
         ``link_frames`` frames in a row: a link re-forms only after as many, so a shorter break
-        keeps the id) takes its own id back; with none linked the box reports under its id again
+        keeps the id) takes its own id back (reported under a fresh id when that one was reported lost
+        at the merge: ``_observations``); with none linked the box reports under its id again
         (other cameras' tracks under it follow the track they were associated with). A box unseen
         (coasting) keeps lending its id; one that ends while lending it leaves its id with the
         feature track. A box another camera sees too lends no id: its obstacle is ranged from the
@@ -990,7 +991,8 @@ class FrontEnd:
         keeps the id it had while the box, the track that carried it, coasts and after it ends
         (stereo_flying's near drone, noisy_1080p's drone: the box went unseen for good in the drone's
         last frames in view, the ORB tracks on it since 13 and 3 frames carried on under their own
-        ids). When a box track of that id is seen again, the handed tracks take back the ids they had.
+        ids). When a box track of that id is seen again, the handed tracks take back the ids they had
+        (reported under a fresh id when that one was reported lost: ``_observations``).
         The feature track's id is reported lost with ``merged_into`` the box's id: the fusion continues
         the feature track's filter under the box's id when it was ranged more recently than the box's
         (``ObstacleFusion._continued``; stereo_flying's drone: the box's filter bounds only since

@@ -225,3 +225,15 @@ def test_an_id_is_handed_once_and_given_back_only_to_the_tracks_the_box_does_not
     fe._gid[12] = 20
     fe._box_hands_id([])
     assert fe._global(20) == fe._global(21) == 20 and not fe._box_handed
+
+
+def test_ended_ids_no_track_can_come_back_under_are_forgotten():
+    """Past 4096 ended ids the front end keeps only those a track may still be reported under (a
+    local track's id or global id, an id ``_box_handed`` saved): a long live run's memory stays
+    bounded."""
+    model = equidistant()
+    fe = FrontEnd(mono_forward_rig(model), detector="orb+navlights")
+    fe._ended = set(range(100, 5100))
+    fe._gid[7] = 150
+    fe.process({"cam0": np.zeros((model.height, model.width, 3), np.uint8)}, 0, 0.0)
+    assert fe._ended == {150}
