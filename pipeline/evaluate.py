@@ -168,7 +168,7 @@ def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:
     Raises:
         InputError: an input that exists and is not that scenario's, naming both.
     """
-    from pipeline.run import VIDEO_SUFFIXES
+    from pipeline.sources import VIDEO_SUFFIXES
 
     run_dir, scen_dir = Path(run_dir), Path(scen_dir)
     resolved = run_dir / "config.resolved.yaml"

@@ -66,7 +66,6 @@ __all__ = [
     "error_text",
     "stopped_error",
     "find_recording",
-    "VIDEO_SUFFIXES",
     "GREY_DETECTORS",
     "wants_grey",
     "cpus_allowed",

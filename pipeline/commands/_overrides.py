@@ -96,8 +96,7 @@ def check_config_argument(config: Path | None, flags: dict[str, list | None]) ->
         ConfigError: ``config`` is such a value and one of ``flags`` got a value.
     """
     from estimators.errors import ConfigError
-    from pipeline.run import VIDEO_SUFFIXES
-    from pipeline.sources import IMAGE_SUFFIXES
+    from pipeline.sources import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 
     if config is None:
         return
