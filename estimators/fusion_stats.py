@@ -7,15 +7,20 @@ and the recurrence of the regularised incomplete gamma function
     P(k + 2, x) = P(k, x) - (x / 2)^(k / 2) exp(-x / 2) / Gamma(k / 2 + 1),
 evaluated in log space. For large ``k`` (> 200) the Wilson-Hilferty cube-root normal approximation
 is used (relative quantile error < 1e-4 there). ``chi2_ppf`` inverts the CDF by bisection.
+``cluster_mean_interval`` is a cluster (whole-track) bootstrap interval of a pooled mean.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable, Sequence
+
+import numpy as np
 
 from estimators.errors import InputError
 
-__all__ = ["chi2_cdf", "chi2_ppf", "median_variance_factor", "nees_interval", "normal_ppf"]
+__all__ = ["chi2_cdf", "chi2_ppf", "cluster_mean_interval", "median_variance_factor", "nees_interval",
+           "normal_ppf"]
 
 _WH_MIN_DOF = 200
 
@@ -98,6 +103,56 @@ def nees_interval(dof: int, n_runs: int, prob: float = 0.95) -> tuple[float, flo
     a = 0.5 * (1.0 - prob)
     kk = _check_dof(dof) * int(n_runs)
     return chi2_ppf(a, kk) / n_runs, chi2_ppf(1.0 - a, kk) / n_runs
+
+
+CLUSTER_RESAMPLES = 100_000  # the ends' spread over seeds < 0.005 on a heavy-tailed set of 150 tracks (tests)
+_RESAMPLE_CHUNK = 1000
+
+
+def cluster_mean_interval(values: Sequence[float], clusters: Sequence[Hashable], prob: float = 0.95,
+                          n_resamples: int = CLUSTER_RESAMPLES,
+                          seed: int = 0) -> tuple[float, float] | None:
+    """Two-sided ``prob`` interval of the pooled mean of ``values`` that respects correlation
+    within clusters: ``clusters[i]`` names the cluster (e.g. the (scene, track) of a report) of
+    ``values[i]``; values of one cluster may be correlated, clusters are taken as independent.
+
+    Cluster bootstrap (Davison and Hinkley 1997, Bootstrap Methods and their Application, sec. 3.8:
+    resample the top-level units; Field and Welsh 2007, JRSS B 69(3), "Bootstrapping clustered
+    data"): ``n_resamples`` times, draw as many clusters as there are, with replacement, and take the
+    pooled mean of every value of the drawn clusters (sum of their values / their count, so a long
+    cluster weighs as much as its values do in the mean itself); the interval is the
+    (1 - prob) / 2 and (1 + prob) / 2 quantiles of those means (percentile interval, Efron and
+    Tibshirani 1993, ch. 13). Seeded: the same input gives the same interval.
+
+    None with fewer than two clusters (no spread between clusters to resample); InputError for
+    values and clusters of different lengths, a non-finite value or ``prob`` outside (0, 1). With few
+    clusters (Cameron, Gelbach and Miller 2008: below ~30) the interval tends to be too narrow."""
+    v = np.asarray(values, dtype=float).ravel()
+    if len(v) != len(clusters):
+        raise InputError(f"cluster_mean_interval: expected one cluster per value, got {len(v)} values "
+                         f"and {len(clusters)} clusters")
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"cluster_mean_interval: expected finite values, got {int((~np.isfinite(v)).sum())} "
+                         "NaN or infinite")
+    if not 0.0 < prob < 1.0:
+        raise InputError(f"cluster_mean_interval: expected a probability in (0, 1), got {prob!r}")
+    if int(n_resamples) != n_resamples or n_resamples < 1:
+        raise InputError(f"cluster_mean_interval: expected n_resamples >= 1, got {n_resamples!r}")
+    ids: dict = {}
+    idx = np.array([ids.setdefault(c, len(ids)) for c in clusters], dtype=np.int64)
+    k = len(ids)
+    if k < 2:
+        return None
+    sums = np.bincount(idx, weights=v, minlength=k)
+    counts = np.bincount(idx, minlength=k).astype(float)
+    rng = np.random.default_rng(seed)
+    means = np.empty(int(n_resamples))
+    for i in range(0, len(means), _RESAMPLE_CHUNK):
+        pick = rng.integers(0, k, size=(min(_RESAMPLE_CHUNK, len(means) - i), k))
+        means[i:i + len(pick)] = sums[pick].sum(axis=1) / counts[pick].sum(axis=1)
+    a = 0.5 * (1.0 - prob)
+    lo, hi = np.quantile(means, [a, 1.0 - a])
+    return float(lo), float(hi)
 
 
 # n Var(median) / sigma^2 of n independent normal samples (even n: the mean of the two middle ones,
