@@ -186,3 +186,29 @@ def test_reuse_frontend_rerecords_a_stale_recording_instead_of_replaying(tmp_pat
     (sc / "ci_small.yaml").write_text((sc / "ci_small.yaml").read_text().replace("seed: ", "seed: 1", 1))
     acc._run_pipeline(opts, out, msgs.append, names=("ci_small",))
     assert any("rendering" in m for m in msgs), msgs
+
+
+def test_range_nees_track_interval_is_an_informational_row_beside_the_verdict_row():
+    # two stationary tracks of 4 reports, sigma 0.1: track 1 off by 0.05 m (z^2 0.25), track 2 by
+    # 0.25 m (z^2 6.25), mean 3.25. Whole tracks resampled: a resample holds track 1 twice (mean 0.25,
+    # p 1/4), one of each (3.25, p 1/2) or track 2 twice (6.25, p 1/4), so the 2.5 % and 97.5 %
+    # quantiles are 0.25 and 6.25, and 1.0 lies inside. The per-report row keeps its own interval
+    # (chi-square(8) / 8: [0.27, 2.19]) and its FAIL
+    samples = [_s(moving=False, track=t, t_s=0.1 * k, range_m=5.0 + dr)
+               for t, dr in ((1, 0.05), (2, 0.25)) for k in range(4)]
+    m = summarize(samples)
+    assert m["range_nees_mean"] == pytest.approx(3.25)
+    assert m["range_nees_n_tracks"] == 2
+    assert m["range_nees_track_interval95"] == pytest.approx([0.25, 6.25])
+    assert m["range_nees_track_interval_has_1"] is True
+    assert m["range_nees_interval95"] == pytest.approx([0.273, 2.192], abs=1e-3)
+    table = format_table(m)
+    assert "in int.  FAIL  (median" in _row(table, "range NEES mean (1 dof, per report), [0.27, 2.19]")
+    row = _row(table, "range NEES mean, tracks resampled, [0.25, 6.25]")
+    assert "informational, no verdict: 1.0 inside (2 tracks, 8 reports)" in row
+    assert "PASS" not in row and "FAIL" not in row
+    # one track: no interval to resample (None, no row), the per-report row as before
+    m1 = summarize([s for s in samples if s.track == 2])
+    assert m1["range_nees_n_tracks"] == 1
+    assert m1["range_nees_track_interval95"] is None and m1["range_nees_track_interval_has_1"] is None
+    assert "tracks resampled" not in format_table(m1)
