@@ -834,17 +834,22 @@ def load_config(
     return cfg
 
 
+def t0_beside_trajectory(where: str, t0_s: float) -> ConfigError:
+    """The one error for ``ego_motion.t0_s`` beside a trajectory (the config's, a flag's or a batch
+    recording's ``trajectory.tum``), ``where``: the place it was set or found."""
+    return ConfigError(
+        f"{where}: ego_motion.t0_s ({t0_s:g} s) belongs to the constant-velocity motion "
+        "(ego_motion.speed_mps) and is not used with a trajectory (its timestamps place the body in time); "
+        "expected no ego_motion.t0_s beside a trajectory"
+    )
+
+
 def _check_ego_motion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
     """Refuse ``ego_motion.t0_s`` beside ``ego_motion.trajectory``: it belongs to the constant-velocity
     motion (``speed_mps``) and a trajectory would silently ignore it; named where it was set."""
     em = cfg.ego_motion
     if em.trajectory is not None and em.t0_s != 0.0:
-        raise ConfigError(
-            f"{_where(('ego_motion', 't0_s'), path, lines, origins)}: ego_motion.t0_s ({em.t0_s:g} s) "
-            "belongs to the constant-velocity motion (ego_motion.speed_mps) and is not used with "
-            "ego_motion.trajectory (its timestamps place the body in time); expected no ego_motion.t0_s "
-            "beside ego_motion.trajectory"
-        )
+        raise t0_beside_trajectory(_where(("ego_motion", "t0_s"), path, lines, origins), em.t0_s)
 
 
 def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from estimators.errors import ConfigError, FisheyeDesError, SourceError
-from pipeline.config import PipelineConfig, write_resolved
+from pipeline.config import PipelineConfig, t0_beside_trajectory, write_resolved
 from pipeline.sinks import (
     SUMMARY_NAME,
     TRACKS_NAME,
@@ -71,7 +71,6 @@ __all__ = [
     "cpus_allowed",
     "frozen_gc",
 ]
-
 
 
 # ----------------------------------------------------------------------------------- frame loops
@@ -657,11 +656,8 @@ def run_batch(
             em = d["ego_motion"]
             if em["trajectory"] is None and em["speed_mps"] is None and (folder / "trajectory.tum").is_file():
                 if em["t0_s"]:  # as load_config refuses it beside a trajectory
-                    raise ConfigError(
-                        f"{folder / 'trajectory.tum'}: the recording's trajectory is used, and "
-                        f"ego_motion.t0_s ({em['t0_s']:g} s) belongs to the constant-velocity motion "
-                        "(ego_motion.speed_mps); expected no ego_motion.t0_s beside a trajectory"
-                    )
+                    raise t0_beside_trajectory(f"{folder / 'trajectory.tum'} (the recording's trajectory)",
+                                               em["t0_s"])
                 em["trajectory"] = folder / "trajectory.tum"
         name = stem
         k = 1

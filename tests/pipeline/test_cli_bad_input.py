@@ -166,9 +166,9 @@ def test_t0_s_beside_a_trajectory_is_refused_naming_both_keys(tmp_path, monkeypa
     err = _err_lines(capsys)
     assert rc == 2 and len(err) == 1, err
     assert err[0] == (f"fisheye-des: error: {cfg}:3: ego_motion.t0_s (2 s) belongs to the constant-velocity "
-                      "motion (ego_motion.speed_mps) and is not used with ego_motion.trajectory (its "
+                      "motion (ego_motion.speed_mps) and is not used with a trajectory (its "
                       "timestamps place the body in time); expected no ego_motion.t0_s beside "
-                      "ego_motion.trajectory")
+                      "a trajectory")
     assert not (tmp_path / "o").exists()
     cfg.write_text("ego_motion:\n  speed_mps: 3.0\n  t0_s: 2.0\n")
     rc = main(["run", str(cfg), "--video", str(v), "--trajectory", str(tmp_path / "traj.tum"),

@@ -236,7 +236,7 @@ def test_batch_refuses_t0_s_beside_a_recordings_trajectory(tmp_path, monkeypatch
     write_video(rec / "cam0.mkv", 3, times=[0.0, 0.1, 0.2])
     (rec / "trajectory.tum").write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
     _fake_stages(monkeypatch)
-    with pytest.raises(ConfigError, match=r"rec/trajectory.tum: the recording's trajectory is used, and "
+    with pytest.raises(ConfigError, match=r"rec/trajectory.tum \(the recording's trajectory\): "
                        r"ego_motion.t0_s \(2 s\) belongs to the constant-velocity motion"):
         run_batch(load_config(None, ["ego_motion.t0_s=2"]), [rec], tmp_path / "out", workers=1)
     assert not (tmp_path / "out").exists()
