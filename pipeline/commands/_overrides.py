@@ -3,6 +3,7 @@ CONFIG argument checked against the repeatable flags."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 
@@ -100,8 +101,12 @@ def check_config_argument(config: Path | None, flags: dict[str, list | None]) ->
 
     if config is None:
         return
-    media = config.is_dir() or config.suffix.lower() in (*VIDEO_SUFFIXES, *IMAGE_SUFFIXES)
+    # a URL reaches us as a Path, its '//' folded to '/' (rtsp://cam/b -> rtsp:/cam/b): shown unfolded
+    text = re.sub(r"^([A-Za-z][A-Za-z0-9+.-]*):/(?!/)", r"\1://", str(config))
+    url = text != str(config) or "://" in text
+    device = config.exists() and not config.is_file() and not config.is_dir()  # /dev/video1
+    media = url or device or config.is_dir() or config.suffix.lower() in (*VIDEO_SUFFIXES, *IMAGE_SUFFIXES)
     for flag, values in flags.items():
-        if values and (media or (flag == "--camera" and str(config).isdigit())):
-            raise ConfigError(f"{config}: not a YAML config (the first argument); {flag} takes one value per "
-                              f"flag: {flag} {values[-1]} {flag} {config}")
+        if values and (media or (flag == "--camera" and text.isdigit())):
+            raise ConfigError(f"{text}: not a YAML config (the first argument); {flag} takes one value per "
+                              f"flag: {flag} {values[-1]} {flag} {text}")

@@ -331,6 +331,22 @@ def test_a_second_value_after_a_repeatable_flag_is_named_as_such_not_as_a_config
     assert not (tmp_path / "o").exists()
 
 
+def test_a_second_camera_url_or_device_after_one_flag_gets_the_repeat_hint_unfolded(tmp_path, capsys):
+    """A URL (its '//' folded to '/' on the way in as a path) or a device node as the stray second value
+    of --camera / --video: the repeat-the-flag hint, with the URL as typed (it was 'config file not
+    found' with the URL garbled)."""
+    for command, flag, first, second in (
+        ("live", "--camera", "rtsp://cam/a", "rtsp://cam/b"),
+        ("run", "--video", str(tmp_path / "a.mkv"), "http://host/b.mkv?s=1"),
+        ("live", "--camera", "/dev/null", "/dev/zero"),
+    ):
+        rc = main([command, flag, first, second, "--speed-mps", "3", "--out", str(tmp_path / "o")])
+        assert rc == 2 and _err_lines(capsys) == [
+            f"fisheye-des: error: {second}: not a YAML config (the first argument); {flag} takes one value "
+            f"per flag: {flag} {first} {flag} {second}"], (command, second)
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_missing_yaml_config_beside_a_repeatable_flag_is_named_missing(tmp_path, capsys):
     v = write_video(tmp_path / "a.mkv", 3, times=[0, 0.1, 0.2])
     assert main(["run", str(tmp_path / "my.yaml"), "--video", str(v), "--speed-mps", "3"]) == 2
