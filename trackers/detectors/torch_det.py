@@ -81,8 +81,11 @@ class TorchModelDetector(Detector):
             exported = path.suffix.lower() == ".pt2"
             loader = "torch.export.load" if exported else "torch.jit.load"
             try:
-                if exported:  # an ExportedProgram: its module runs as exported (eval mode is fixed then)
-                    self._module = torch.export.load(str(path)).module().to(self.device)
+                if exported:  # an ExportedProgram: its module runs as exported (eval mode is fixed then);
+                    # moved by torch's pass, which rewrites the graph's device constants too (.to() does not)
+                    from torch.export.passes import move_to_device_pass
+
+                    self._module = move_to_device_pass(torch.export.load(str(path)), self.device).module()
                 else:
                     self._module = torch.jit.load(str(path), map_location=self.device).eval()
             except Exception as e:
