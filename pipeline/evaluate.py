@@ -198,7 +198,9 @@ def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:
             if p.suffix.lower() in VIDEO_SUFFIXES:
                 foreign.append(str(item))
                 continue
-        kind = ("a camera" if not isinstance(item, str) or "://" in item else "an image folder" if p.is_dir()
+        kind = ("a camera" if not isinstance(item, str) or "://" in item
+                or (p.exists() and not p.is_file() and not p.is_dir())  # a device node, /dev/video0
+                else "an image folder" if p.is_dir()
                 else "not there any more" if not p.exists() else "a file")
         notes.append(f"{run_dir}: input {item} ({kind}) cannot be checked against {scen_dir}'s videos; "
                      "scored as given")
@@ -207,8 +209,9 @@ def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:
             f"{run_dir}: the run's video{'s' if len(foreign) > 1 else ''} {', '.join(foreign)} "
             f"{'are' if len(foreign) > 1 else 'is'} not scenario {scen_dir}'s "
             f"({', '.join(v.name for v in videos) or 'no videos'}), so its truth does not describe "
-            f"{'them' if len(foreign) > 1 else 'it'}; expected the run of that scenario's videos (or a "
-            "copy of them in its folder)"
+            f"{'them' if len(foreign) > 1 else 'it'}; expected a run of that scenario's videos or of "
+            "byte-identical copies of them (a re-encoded variant counts as the scenario's once it is put in "
+            "a copy of its folder)"
         )
     return notes
 

@@ -476,8 +476,9 @@ def test_a_run_of_another_scenarios_video_is_refused_naming_both(scen_dir, tmp_p
         evaluate([(run, scen_dir)])
     videos = ", ".join(sorted(p.name for p in scen_dir.glob("*.mkv")))
     assert str(e.value) == (f"{run}: the run's video {other / 'cam0.mkv'} is not scenario {scen_dir}'s "
-                            f"({videos}), so its truth does not describe it; expected the run of that "
-                            "scenario's videos (or a copy of them in its folder)")
+                            f"({videos}), so its truth does not describe it; expected a run of that "
+                            "scenario's videos or of byte-identical copies of them (a re-encoded variant "
+                            "counts as the scenario's once it is put in a copy of its folder)")
     assert main(["evaluate", str(run), str(scen_dir), "--out", str(tmp_path / "ev"), "--no-plots"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"fisheye-des: error: {e.value}"]
     assert not (tmp_path / "ev").exists()
@@ -508,3 +509,7 @@ def test_inputs_that_cannot_be_checked_are_scored_with_a_note(scen_dir, tmp_path
     (run / "config.resolved.yaml").write_text(yaml.safe_dump(doc))
     assert evaluate([(run, scen_dir)]).notes == [
         f"{run}: input 0 (a camera) cannot be checked against {scen_dir}'s videos; scored as given"]
+    doc["live"]["cameras"] = ["/dev/null"]  # a device node is a camera (it was 'a file')
+    (run / "config.resolved.yaml").write_text(yaml.safe_dump(doc))
+    assert evaluate([(run, scen_dir)]).notes == [
+        f"{run}: input /dev/null (a camera) cannot be checked against {scen_dir}'s videos; scored as given"]
