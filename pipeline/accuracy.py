@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from estimators.fusion import FusionSettings, ObstacleFusion
-from estimators.fusion_stats import cluster_mean_interval, nees_interval
+from estimators.fusion_stats import CLUSTER_MIN, cluster_mean_interval, nees_interval
 from estimators.records import CameraView, ObstacleObservation
 from estimators.thesis import eq_3_8_mono_Y
 from pipeline.config import scenarios_dir
@@ -493,7 +493,9 @@ def summarize(samples: list[Sample]) -> dict:
     iv = cluster_mean_interval(e1, clusters, 0.95)
     m["range_nees_n_tracks"] = len(set(clusters))
     m["range_nees_track_interval95"] = list(iv) if iv else None
-    m["range_nees_track_interval_has_1"] = iv[0] <= 1.0 <= iv[1] if iv else None
+    # whether 1.0 lies inside, read only from CLUSTER_MIN tracks on (fewer: the interval is too narrow)
+    m["range_nees_track_interval_has_1"] = (iv[0] <= 1.0 <= iv[1]
+                                            if iv and len(set(clusters)) >= CLUSTER_MIN else None)
     m["n_samples"] = len(samples)
     return m
 
@@ -587,10 +589,13 @@ def format_table(m: dict, title: str = "") -> str:
                      f"{_fmt(m.get('range_nees_median'))}; chi2(1) median 0.45)")
     ivt = m.get("range_nees_track_interval95")
     if ivt is not None:
-        inside = "inside" if m.get("range_nees_track_interval_has_1") else "outside"
+        k = m.get("range_nees_n_tracks") or 0
+        has_1 = m.get("range_nees_track_interval_has_1")
+        inside = ("inside" if has_1 else "outside") if has_1 is not None else (
+            f"not judged: fewer than {CLUSTER_MIN} tracks, too few for the interval to hold")
         lines.append(f"{f'range NEES mean, tracks resampled, [{ivt[0]:.2f}, {ivt[1]:.2f}]':52s} "
                      f"{_fmt(n1):>10s} {'':>10s} {'info':>10s}  informational, no verdict: 1.0 {inside} "
-                     f"({m.get('range_nees_n_tracks')} tracks, {m.get('range_nees_n')} reports)")
+                     f"({k} tracks, {m.get('range_nees_n')} reports)")
     lines.append(
         f"samples: {m.get('n_samples')}  mono {m.get('mono_n')} "
         f"(ranged {_fmt(m.get('mono_ranged_share'), True)})  stereo<=3m {m.get('stereo_3m_n')}  "

@@ -200,12 +200,15 @@ def test_range_nees_track_interval_is_an_informational_row_beside_the_verdict_ro
     assert m["range_nees_mean"] == pytest.approx(3.25)
     assert m["range_nees_n_tracks"] == 2
     assert m["range_nees_track_interval95"] == pytest.approx([0.25, 6.25])
-    assert m["range_nees_track_interval_has_1"] is True
+    assert m["range_nees_track_interval_has_1"] is None  # 1.0 is inside, but 2 tracks are too few to say
     assert m["range_nees_interval95"] == pytest.approx([0.273, 2.192], abs=1e-3)
     table = format_table(m)
     assert "in int.  FAIL  (median" in _row(table, "range NEES mean (1 dof, per report), [0.27, 2.19]")
     row = _row(table, "range NEES mean, tracks resampled, [0.25, 6.25]")
-    assert "informational, no verdict: 1.0 inside (2 tracks, 8 reports)" in row
+    # two tracks are far too few for the interval to hold (below ~30 it comes out too narrow): shown,
+    # its "1.0 inside" not claimed
+    assert "informational, no verdict: 1.0 not judged: fewer than 30 tracks" in row
+    assert "(2 tracks, 8 reports)" in row
     assert "PASS" not in row and "FAIL" not in row
     # one track: no interval to resample (None, no row), the per-report row as before
     m1 = summarize([s for s in samples if s.track == 2])
