@@ -861,7 +861,7 @@ def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins:
     groups = {g: v for g, v in cfg.tracker.model_dump().items() if isinstance(v, dict)}  # the free-form ones
     if not any(groups.values()):
         return  # (the front end's import, cv2, only when there is something to check)
-    from trackers.detectors import box_detectors, gives_boxes
+    from trackers.detectors import boxes_unused, gives_boxes
     from trackers.frontend import option_problem
 
     for group, given in groups.items():
@@ -871,13 +871,9 @@ def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins:
             raise ConfigError(f"{_where(('tracker', group, key), path, lines, origins)}: {msg}")
     boxes = cfg.tracker.boxes
     if boxes and gives_boxes(cfg.detector.name) is False:
-        first = next(iter(boxes))
         raise ConfigError(
-            f"{_where(('tracker', 'boxes', first), path, lines, origins)}: tracker.boxes "
-            f"({', '.join(boxes)}) is set, and detector {cfg.detector.name!r} gives no boxes (no box tracker "
-            f"is built: it would be ignored); expected a detector that gives boxes "
-            f"({', '.join(box_detectors())} or another '<keypoint detector>+<box detector>' composite), or "
-            "no tracker.boxes"
+            f"{_where(('tracker', 'boxes', next(iter(boxes))), path, lines, origins)}: tracker."
+            + boxes_unused(cfg.detector.name, boxes)
         )
 
 

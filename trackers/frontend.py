@@ -38,7 +38,7 @@ from trackers.association import (
     unheld,
 )
 from trackers.clock import check_durations, renamed_text
-from trackers.detectors import Detector, make_detector, to_grey
+from trackers.detectors import Detector, boxes_unused, make_detector, to_grey
 from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
 from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
 
@@ -311,6 +311,8 @@ class FrontEnd:
             if isinstance(detector, Detector)
             else make_detector(detector, **options.get("detector_options", {}))
         )
+        if options.get("boxes") and not self.detector.produces_boxes:
+            raise ConfigError(f"FrontEnd: {boxes_unused(self.detector.name, options['boxes'])}")
         # feature tracks are labelled by the keypoint detector (``orb`` also inside ``orb+navlights``)
         self.label = self.detector.keypoint_part.name or self.detector.name or "detector"
         self._feature_ids = itertools.count(1)

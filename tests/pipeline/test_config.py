@@ -95,9 +95,9 @@ def test_box_settings_beside_a_detector_without_boxes_are_refused(tmp_path, dete
     """tracker.boxes with a detector that gives no boxes (no BoxTracker is built) was silently ignored:
     refused when the config loads, where it was set, naming the detectors that give boxes."""
     p = _write(tmp_path, f"detector: {{name: {detector}}}\ntracker:\n  boxes:\n    gate_rad: 0.1\n")
-    tail = (f"tracker.boxes (gate_rad) is set, and detector {detector!r} gives no boxes (no box tracker is "
-            "built: it would be ignored); expected a detector that gives boxes (navlights, orb+navlights, "
-            "torch or another '<keypoint detector>+<box detector>' composite), or no tracker.boxes")
+    tail = (f"tracker.boxes (gate_rad) set, and detector {detector!r} gives no boxes (no box tracker is "
+            "built: they would be ignored); expected a detector that gives boxes (navlights, orb+navlights, "
+            "torch or another '<keypoint detector>+<box detector>' composite), or no boxes options")
     with pytest.raises(ConfigError) as e:
         load_config(p)
     assert str(e.value) == f"{p}:4: {tail}"

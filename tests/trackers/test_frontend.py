@@ -167,6 +167,19 @@ def test_every_option_group_is_checked_also_one_the_detector_does_not_build(rig)
     assert fe.option_problem("association", {"every": 5, "epipolar_deg": 1.0}) is None
 
 
+def test_box_options_beside_a_detector_without_boxes_are_refused_from_code_too(rig):
+    """FrontEnd(rig, "orb", boxes=...) built no BoxTracker and dropped the options without a word (a config
+    was already refused at load); now the same refusal; a detector that gives boxes takes them."""
+    with pytest.raises(ConfigError) as e:
+        FrontEnd(rig, "orb", boxes={"gate_rad": 0.1})
+    assert str(e.value) == (
+        "FrontEnd: boxes (gate_rad) set, and detector 'orb' gives no boxes (no box tracker is built: they "
+        "would be ignored); expected a detector that gives boxes (navlights, orb+navlights, torch or another "
+        "'<keypoint detector>+<box detector>' composite), or no boxes options")
+    assert FrontEnd(rig, "navlights", boxes={"gate_rad": 0.1}).boxers
+    assert not FrontEnd(rig, "orb", boxes={}).boxers
+
+
 def test_an_unknown_front_end_option_is_worded_as_an_unknown_key(rig):
     """The front end's own options in the words of every other unknown key (was "unknown options
     ['groupin']; expected any of [...]"); a group it has none of is a ConfigError (was a KeyError)."""

@@ -274,6 +274,16 @@ def box_detectors() -> list[str]:
     return sorted(n for n, c in _REGISTRY.items() if isinstance(c, type) and c.produces_boxes)
 
 
+def boxes_unused(detector: str, keys) -> str:
+    """The refusal of box-tracker options (``keys``) beside ``detector``, a detector that gives no boxes:
+    one wording for a config (``tracker.boxes``, checked at load) and for ``FrontEnd(..., boxes=...)``."""
+    return (
+        f"boxes ({', '.join(keys)}) set, and detector {detector!r} gives no boxes (no box tracker is "
+        f"built: they would be ignored); expected a detector that gives boxes ({', '.join(box_detectors())} "
+        "or another '<keypoint detector>+<box detector>' composite), or no boxes options"
+    )
+
+
 def make_detector(name: str, **options: Any) -> Detector:
     """Build the detector registered as ``name`` with its keyword ``options``.
 
