@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import os
 import re
 import types
@@ -168,10 +169,20 @@ class EgoMotionConfig(_Section):
         "with `trajectory` an error: the trajectory's own timestamps place the body).",
     )
 
+    time_offset_s: float = Field(
+        0.0,
+        description="float, s: the trajectory's clock minus the frames' clock: frame time t_s is looked up "
+        "in the trajectory at t_s + time_offset_s (e.g. 0.015 when the flight log stamps an instant 15 ms "
+        "later than the camera; the sign of Kalibr's timeshift_cam_imu). With `trajectory` only: the "
+        "constant-velocity motion has `t0_s`.",
+    )
+
     @model_validator(mode="after")
     def _one_of(self) -> EgoMotionConfig:
         if self.speed_mps is not None and self.trajectory is not None:
             raise ValueError("give either 'speed_mps' or 'trajectory', not both")
+        if not math.isfinite(self.time_offset_s):
+            raise ValueError(f"time_offset_s must be a finite number of seconds, got {self.time_offset_s}")
         return self
 
 
@@ -845,11 +856,19 @@ def t0_beside_trajectory(where: str, t0_s: float) -> ConfigError:
 
 
 def _check_ego_motion(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:
-    """Refuse ``ego_motion.t0_s`` beside ``ego_motion.trajectory``: it belongs to the constant-velocity
-    motion (``speed_mps``) and a trajectory would silently ignore it; named where it was set."""
+    """Refuse ``ego_motion.t0_s`` beside ``ego_motion.trajectory`` (it belongs to the constant-velocity
+    motion, ``speed_mps``) and ``ego_motion.time_offset_s`` beside ``speed_mps`` (it belongs to a
+    trajectory's clock): either would be silently ignored; named where it was set."""
     em = cfg.ego_motion
     if em.trajectory is not None and em.t0_s != 0.0:
         raise t0_beside_trajectory(_where(("ego_motion", "t0_s"), path, lines, origins), em.t0_s)
+    if em.speed_mps is not None and em.time_offset_s != 0.0:
+        raise ConfigError(
+            f"{_where(('ego_motion', 'time_offset_s'), path, lines, origins)}: ego_motion.time_offset_s "
+            f"({em.time_offset_s:g} s) shifts a trajectory's clock and is not used with the "
+            "constant-velocity motion (ego_motion.speed_mps; its ego_motion.t0_s places the body in time); "
+            "expected ego_motion.trajectory beside it, or no ego_motion.time_offset_s"
+        )
 
 
 def _check_tracker(cfg: PipelineConfig, path: Path | None, lines: dict, origins: dict) -> None:

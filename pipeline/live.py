@@ -48,6 +48,7 @@ from pipeline.run import (
     build_rig,
     error_text,
     frozen_gc,
+    on_frame_clock,
     reads_grey,
     stopped_error,
 )
@@ -900,7 +901,7 @@ def run_live(
     names = list(rig.names)
     if egomotion is None:
         if cfg.ego_motion.trajectory is not None:
-            egomotion = GrowingTrajectory(cfg.ego_motion.trajectory)
+            egomotion = on_frame_clock(GrowingTrajectory(cfg.ego_motion.trajectory), cfg)
         else:
             egomotion = build_egomotion(cfg)
     if not isinstance(egomotion, FramePoseCache):  # one pose per frame for the loop and fusion

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from estimators.errors import ConfigError, FisheyeDesError, SourceError
+from estimators.errors import ConfigError, FisheyeDesError, InputError, SourceError
 from pipeline.config import PipelineConfig, t0_beside_trajectory, write_resolved
 from pipeline.sinks import (
     SUMMARY_NAME,
@@ -53,6 +53,8 @@ __all__ = [
     "RunningStats",
     "StageTimings",
     "FramePoseCache",
+    "ClockOffset",
+    "on_frame_clock",
     "RunResult",
     "build_rig",
     "build_egomotion",
@@ -207,6 +209,51 @@ class FramePoseCache:
         return getattr(self.inner, name)
 
 
+class ClockOffset:
+    """A trajectory on another clock than the frames': frame time ``t_s`` is looked up at ``t_s +
+    offset_s`` (``ego_motion.time_offset_s``: the trajectory's clock minus the frames'). ``pose_at``,
+    ``velocity_at`` and ``covers`` take frame times; an error outside the trajectory's span names both
+    times. Anything else goes to the wrapped source.
+
+    Args:
+        inner: an ``estimators.egomotion.EgoMotion`` on the trajectory's clock.
+        offset_s: seconds added to a frame time, finite.
+    """
+
+    def __init__(self, inner: Any, offset_s: float):
+        self.inner = inner
+        self.offset_s = float(offset_s)
+
+    def _ask(self, what: str, t_s: float) -> Any:
+        try:
+            return getattr(self.inner, what)(t_s + self.offset_s)
+        except InputError as e:
+            raise InputError(
+                f"frame time {t_s:.6f} s + ego_motion.time_offset_s {self.offset_s:g} s: {e}"
+            ) from None
+
+    def pose_at(self, t_s: float) -> Any:
+        return self._ask("pose_at", t_s)
+
+    def velocity_at(self, t_s: float) -> np.ndarray:
+        return self._ask("velocity_at", t_s)
+
+    def covers(self, t_s: float) -> bool:
+        return self.inner.covers(t_s + self.offset_s)
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+
+def on_frame_clock(trajectory: Any, cfg: PipelineConfig) -> Any:
+    """``trajectory`` as frame times see it: wrapped in :class:`ClockOffset` when the config gives
+    ``ego_motion.time_offset_s``, itself otherwise."""
+    off = cfg.ego_motion.time_offset_s
+    return ClockOffset(trajectory, off) if off else trajectory
+
+
 # -------------------------------------------------------------------------------------- factories
 def build_rig(cfg: PipelineConfig) -> Any:
     """The ``estimators.rig.Rig`` of the config: from the calibration file, or the inline cameras."""
@@ -231,12 +278,13 @@ def build_rig(cfg: PipelineConfig) -> Any:
 
 
 def build_egomotion(cfg: PipelineConfig) -> Any:
-    """``TumTrajectory`` from ``ego_motion.trajectory`` or ``ConstantVelocity`` from ``speed_mps``."""
+    """``TumTrajectory`` from ``ego_motion.trajectory`` (on the frames' clock: ``time_offset_s``) or
+    ``ConstantVelocity`` from ``speed_mps``."""
     from estimators.egomotion import ConstantVelocity, TumTrajectory
 
     em = cfg.ego_motion
     if em.trajectory is not None:
-        return TumTrajectory.load(em.trajectory)
+        return on_frame_clock(TumTrajectory.load(em.trajectory), cfg)
     if em.speed_mps is not None:
         return ConstantVelocity(speed_mps=em.speed_mps, t0_s=em.t0_s)
     raise ConfigError(

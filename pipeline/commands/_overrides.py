@@ -18,7 +18,8 @@ def rig_and_motion_overrides(
 
     A calibration file replaces cameras written into the config; a trajectory and a constant speed
     exclude each other, so setting one clears the other's value from the config (a trajectory also
-    clears ``ego_motion.t0_s``, which belongs to the constant speed).
+    clears ``ego_motion.t0_s``, which belongs to the constant speed; a constant speed clears
+    ``ego_motion.time_offset_s``, which belongs to a trajectory's clock).
 
     Args:
         sets: the ``--set section.key=value`` items, checked against the flags.
@@ -26,7 +27,7 @@ def rig_and_motion_overrides(
     Raises:
         ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair), or one of
             them with a ``--set`` of the other's key (``ego_motion.speed_mps`` or ``ego_motion.t0_s`` /
-            ``ego_motion.trajectory``),
+            ``ego_motion.trajectory`` or ``ego_motion.time_offset_s``),
             or ``--calibration`` with a ``--set`` of ``rig.cameras``: the flag would silently replace it.
     """
     from estimators.errors import ConfigError
@@ -39,6 +40,7 @@ def rig_and_motion_overrides(
         ("--trajectory", trajectory, ("ego_motion", "speed_mps"), motion),
         ("--trajectory", trajectory, ("ego_motion", "t0_s"), motion),
         ("--speed-mps", speed_mps, ("ego_motion", "trajectory"), motion),
+        ("--speed-mps", speed_mps, ("ego_motion", "time_offset_s"), motion),
         ("--calibration", calibration, ("rig", "cameras"), "the cameras from a calibration file, or inline"),
     ):
         item = _set_of(sets, key) if value is not None else None
@@ -57,6 +59,7 @@ def rig_and_motion_overrides(
     if speed_mps is not None:
         cli["ego_motion.speed_mps"] = speed_mps
         cli["ego_motion.trajectory"] = None
+        cli["ego_motion.time_offset_s"] = 0.0
     if out is not None:
         cli["outputs.dir"] = str(out)
     return cli

@@ -177,6 +177,43 @@ def test_t0_s_beside_a_trajectory_is_refused_naming_both_keys(tmp_path, monkeypa
     assert "t0_s: 0.0" in (tmp_path / "o" / "config.resolved.yaml").read_text()
 
 
+def test_a_trajectory_clock_offset_beside_a_constant_speed_is_refused(tmp_path, monkeypatch, capsys):
+    """ego_motion.time_offset_s shifts a trajectory's clock; beside speed_mps it would be ignored: refused
+    where it was set. --speed-mps clears a config's offset (it replaces the trajectory), a --set of it beside
+    --speed-mps is refused, and a non-finite offset is refused at load."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 3, times=[0, 0.1, 0.2])
+    (tmp_path / "traj.tum").write_text("0.0 0 0 0 0 0 0 1\n1.0 1 0 0 0 0 0 1\n")
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("ego_motion:\n  speed_mps: 3.0\n  time_offset_s: 0.2\n")
+    rc = main(["run", str(cfg), "--video", str(v), "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert err[0] == (f"fisheye-des: error: {cfg}:3: ego_motion.time_offset_s (0.2 s) shifts a trajectory's "
+                      "clock and is not used with the constant-velocity motion (ego_motion.speed_mps; its "
+                      "ego_motion.t0_s places the body in time); expected ego_motion.trajectory beside it, "
+                      "or no ego_motion.time_offset_s")
+    assert not (tmp_path / "o").exists()
+    cfg.write_text("ego_motion:\n  trajectory: traj.tum\n  time_offset_s: 0.05\n")
+    rc = main(["run", str(cfg), "--video", str(v), "--speed-mps", "3", "--out", str(tmp_path / "o"),
+               "--no-progress"])
+    done = capsys.readouterr().err
+    assert rc == 0, done
+    resolved = (tmp_path / "o" / "config.resolved.yaml").read_text()
+    assert "time_offset_s: 0.0" in resolved and "trajectory: null" in resolved
+    rc = main(["run", "--video", str(v), "--speed-mps", "3", "--set", "ego_motion.time_offset_s=0.05",
+               "--out", str(tmp_path / "o2")])
+    err = _err_lines(capsys)
+    assert rc == 2 and err == ["fisheye-des: error: --speed-mps 3 and --set ego_motion.time_offset_s=0.05 "
+                               "are alternatives (the body's motion from a TUM file, or a constant forward "
+                               "speed); give one of them, not both"]
+    rc = main(["run", "--video", str(v), "--trajectory", str(tmp_path / "traj.tum"), "--set",
+               "ego_motion.time_offset_s=nan", "--out", str(tmp_path / "o3")])
+    err = _err_lines(capsys)
+    assert rc == 2 and len(err) == 1 and "time_offset_s must be a finite number of seconds, got nan" in err[0]
+    assert not (tmp_path / "o3").exists()
+
+
 @pytest.mark.parametrize("command", ["run", "live"])
 def test_a_bad_trajectory_line_is_one_line_naming_it_and_leaves_no_folder(
     tmp_path, monkeypatch, capsys, command

@@ -233,18 +233,20 @@ def test_cli_live_replays_a_video_with_stub_stages(tmp_path, monkeypatch, capsys
     assert "latency median" in capsys.readouterr().err
 
 
-def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch):
-    """Poses arrive while the run goes: frames wait for them (bounded) and fusion sees the right pose."""
+@pytest.mark.parametrize("offset_s", [0.0, 50.0])
+def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch, offset_s):
+    """Poses arrive while the run goes: frames wait for them (bounded) and fusion sees the right pose;
+    also from a file stamped on another clock (ego_motion.time_offset_s: frame time + 50 s)."""
     from pipeline import live as live_mod
 
     traj = tmp_path / "live.tum"
-    traj.write_text("0.00 0 0 0 0 0 0 1\n0.10 0.1 0 0 0 0 0 1\n")  # x = t (1 m/s) so far up to 0.1 s
+    traj.write_text(f"{offset_s:.2f} 0 0 0 0 0 0 1\n{0.1 + offset_s:.2f} 0.1 0 0 0 0 0 1\n")  # x = t (1 m/s)
 
     def writer():
         for k in range(2, 11):
             time.sleep(0.05)
             with traj.open("a") as f:
-                f.write(f"{k / 10:.2f} {k / 10:.2f} 0 0 0 0 0 1\n")
+                f.write(f"{k / 10 + offset_s:.2f} {k / 10:.2f} 0 0 0 0 0 1\n")
 
     class PoseRecordingFusion(FakeFusion):
         def __init__(self, ego):
@@ -256,7 +258,8 @@ def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch):
             return super().step(observations, frame, t_s)
 
     v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
-    cfg = load_config(None, ["live.trajectory_wait_s=1.0"], cli={"ego_motion.trajectory": str(traj)})
+    cfg = load_config(None, ["live.trajectory_wait_s=1.0", f"ego_motion.time_offset_s={offset_s}"],
+                      cli={"ego_motion.trajectory": str(traj)})
     rig = mono_rig()
     made = []
     monkeypatch.setattr(
@@ -275,9 +278,10 @@ def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch):
     fusion = made[0]
     ego = fusion.ego
     # live mode re-reads a trajectory file as it grows (behind the one-pose-per-frame cache)
-    assert isinstance(ego, FramePoseCache) and isinstance(ego.inner, GrowingTrajectory)
+    growing = ego.inner.inner if offset_s else ego.inner  # (ClockOffset around it)
+    assert isinstance(ego, FramePoseCache) and isinstance(growing, GrowingTrajectory)
     assert r.summary["frames_without_pose"] == 0 and r.frames >= 5
-    assert ego.inner.reloads >= 2
+    assert growing.reloads >= 2
     for t_s, x in fusion.x:
         assert x == pytest.approx(t_s)  # x = 1 m/s * t in the file
 

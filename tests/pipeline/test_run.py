@@ -592,3 +592,64 @@ def test_two_unlike_lenses_each_take_their_own_tracked_scale(max_width, scales, 
     assert fe.trackers["cam0"].win == fe.trackers["cam1"].win == (w, w)
     fusion = run_mod.build_fusion(cfg, rig, ConstantVelocity(5.0))
     assert math.degrees(fusion._window_rad) == pytest.approx(want_deg * w / 11)
+
+
+def test_a_trajectory_on_another_clock_is_read_at_frame_time_plus_the_offset():
+    """ego_motion.time_offset_s: frame time t is the trajectory's t + offset. A trajectory stamped
+    100-101 s (90 deg of yaw and 2 m along x, hand-made) read at frame time 0.5 s with offset 100 s is the
+    halfway pose; outside its span the error names the frame time, the offset and the trajectory's."""
+    from estimators.egomotion import TumTrajectory
+
+    s = np.sqrt(0.5)
+    traj = TumTrajectory(np.array([100.0, 101.0]), np.array([[0.0, 0, 0], [2.0, 0, 0]]),
+                         np.array([[0, 0, 0, 1.0], [0, 0, s, s]]))
+    cfg = load_config(None, ["ego_motion.trajectory=t.tum", "ego_motion.time_offset_s=100"])
+    ego = run_mod.on_frame_clock(traj, cfg)
+    p = ego.pose_at(0.5)
+    assert np.arctan2(p.R[1, 0], p.R[0, 0]) == pytest.approx(np.pi / 4) and p.t == pytest.approx([1.0, 0, 0])
+    assert ego.velocity_at(0.25) == pytest.approx([2.0, 0, 0])
+    assert ego.covers(0.0) and ego.covers(1.0) and not ego.covers(1.5) and not ego.covers(100.5)
+    with pytest.raises(InputError) as e:
+        ego.pose_at(1.5)
+    assert str(e.value) == ("frame time 1.500000 s + ego_motion.time_offset_s 100 s: trajectory: time "
+                            "101.500000 s is outside the trajectory's span [100.000000, 101.000000] s")
+    assert run_mod.on_frame_clock(traj, load_config(None, ["ego_motion.trajectory=t.tum"])) is traj
+
+
+def test_run_over_a_trajectory_stamped_on_another_clock(tmp_path):
+    """The simulator's trajectory re-stamped 1000 s later (a flight log on its own clock): without an
+    offset the run stops at the first frame, naming it; with ego_motion.time_offset_s=1000 its tracks
+    are the run's over the original trajectory."""
+    pytest.importorskip("trackers.frontend")
+    sim_writer = pytest.importorskip("pipeline.sim.writer")
+    from pipeline.cli import main
+    from pipeline.sim.scene import load_scenario
+
+    scn = load_scenario(
+        run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "ci_small.yaml"
+    )
+    sim = tmp_path / "sim"
+    sim_writer.simulate(scn, sim, frames=12)
+    late = tmp_path / "late.tum"
+    rows = [ln.split() for ln in (sim / "trajectory.tum").read_text().splitlines() if ln and ln[0] != "#"]
+    late.write_text("".join(f"{float(r[0]) + 1000.0!r} {' '.join(r[1:])}\n" for r in rows))
+
+    def go(traj, out, *sets):
+        return main(["run", "--video", str(sim / "cam0.mkv"), "--calibration", str(sim / "camchain.yaml"),
+                     "--trajectory", str(traj), *sets, "--out", str(tmp_path / out), "--no-progress"])
+
+    assert go(sim / "trajectory.tum", "base") == 0
+    assert go(late, "shifted", "--set", "ego_motion.time_offset_s=1000") == 0
+    base, shifted = _lines(tmp_path / "base" / "tracks.jsonl"), _lines(tmp_path / "shifted" / "tracks.jsonl")
+    assert len(base) == len(shifted) == 12
+    for a, b in zip(base, shifted, strict=True):
+        assert a["t_s"] == b["t_s"] and [t["id"] for t in a["tracks"]] == [t["id"] for t in b["tracks"]]
+        for ta, tb in zip(a["tracks"], b["tracks"], strict=True):
+            assert tb["bearing_body"] == pytest.approx(ta["bearing_body"], abs=1e-9)
+            assert (tb["range_m"] is None) == (ta["range_m"] is None)
+            if ta["range_m"] is not None:
+                assert tb["range_m"] == pytest.approx(ta["range_m"], rel=1e-6)
+    assert any(t["range_m"] is not None for x in base for t in x["tracks"])
+    assert go(late, "unshifted") == 2
+    s = json.loads((tmp_path / "unshifted" / "summary.json").read_text())
+    assert "outside the trajectory's span [1000.000000" in s["error"] and s["frames"] == 0
