@@ -73,6 +73,7 @@ Its sigma is ``sqrt(spread^2 / n + floor^2)``, spread = RMS angle of the members
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -422,6 +423,9 @@ class ObstacleGrouper:
         # the frame-to-frame rotations, as far back as step 3c's window and the flow's reach (their
         # cap, the feature history's; set at the first update)
         self._R1_hist: deque[np.ndarray] = deque(maxlen=1)
+        # their products R_C(t)_C(t-k), k = 1, 2, ..., as far as this frame's windows asked for
+        # (``_window_rotations``: the flow's and step 3c's windows share the chain's start)
+        self._R1_chain: list[np.ndarray] = []
         self.label = label
         self.tracks: dict[int, ObstacleTrack] = {}
         # features judged to be on extended texture: ids (sorted) and the frame their mark expires
@@ -1204,6 +1208,7 @@ class ObstacleGrouper:
         """Keep this frame's R_C_Cprev[1] (3,3) (the rotation from the previous frame's camera
         frame into this one's) for step 3c's window and the flow's (``_window_rotations``); a
         frame without it breaks the chain."""
+        self._R1_chain = []
         if R1 is None:
             self._R1_hist.clear()
         else:
@@ -1219,10 +1224,15 @@ class ObstacleGrouper:
         if not R or not self._R1_hist:
             return {}
         out = {k: v for k, v in R.items() if 0 < k <= frames}
-        acc = np.eye(3)
-        for k, R1 in enumerate(list(self._R1_hist)[:frames], start=1):
-            acc = acc @ R1
-            out.setdefault(k, acc)
+        n = min(frames, len(self._R1_hist))
+        chain = self._R1_chain  # (this frame's products so far: the same numbers, each made once)
+        if len(chain) < n:
+            acc = chain[-1] if chain else np.eye(3)
+            for R1 in itertools.islice(self._R1_hist, len(chain), n):
+                acc = acc @ R1
+                chain.append(acc)
+        for k in range(1, n + 1):
+            out.setdefault(k, chain[k - 1])
         return out
 
     @staticmethod

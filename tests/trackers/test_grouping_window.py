@@ -11,6 +11,8 @@ over 5-7 frames has none: a jump step 3c would cut (the code before this test di
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from tests.trackers.conftest import rot_axis
@@ -76,3 +78,31 @@ def test_the_same_with_every_rotation_given(model):
     gr, ids_old, ids_late, held = _turning_wall(model, 31)
     assert gr.splits == 0
     assert len(held[-1]) == 1 and held[-1][0] == ids_old | ids_late
+
+
+def test_window_rotations_are_the_chained_products_whatever_the_window_order():
+    """``_window_rotations`` keeps one frame's chain of products for both windows (the flow's and
+    step 3c's): each window gets the products ``R1[1] R1[2] ... R1[k]`` made in that order (the
+    same numbers as multiplying them out for that window alone), the given rotations where they
+    exist, and a new frame's rotation starts a new chain."""
+    rng = np.random.default_rng(3)
+    gr = ObstacleGrouper(iter(range(1, 1000)))
+    gr._R1_hist = deque(maxlen=30)
+    given = {1: rng.standard_normal((3, 3)), 2: rng.standard_normal((3, 3))}
+
+    def expected(frames):
+        out = {k: v for k, v in given.items() if k <= frames}
+        acc = np.eye(3)
+        for k, R1 in enumerate(list(gr._R1_hist)[:frames], start=1):
+            acc = acc @ R1
+            out.setdefault(k, acc)
+        return out
+
+    for _ in range(25):
+        gr._remember_rotation(rng.standard_normal((3, 3)))
+        for frames in (rng.integers(1, 30), rng.integers(1, 30), 20, 10):
+            got, want = gr._window_rotations(given, int(frames)), expected(int(frames))
+            assert sorted(got) == sorted(want)
+            assert all(np.array_equal(got[k], want[k]) for k in want)
+    gr._remember_rotation(None)  # a frame without a rotation breaks the chain
+    assert gr._window_rotations(given, 10) == {}
