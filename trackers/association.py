@@ -118,6 +118,12 @@ def match_features(
     return np.stack([i[good], j[good]], axis=1)
 
 
+#: Inverse ranges times the baseline (w |t|, ~ the angle a point at range r = |t| / (w |t|) is seen off
+#: its infinite-depth projection) at which a new stereo row's epipolar curve is sampled for the part
+#: its search runs on (``stereo_klt``; beyond the last one the search's reach ends first)
+EPIPOLAR_STEPS = (0.0, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+
+
 class StereoKLT(NamedTuple):
     """Result of ``stereo_klt``: the rows found and where.
 
@@ -195,11 +201,21 @@ def stereo_klt(
     own = np.zeros(n, bool) if guess_b is None else np.isfinite(np.asarray(guess_b, float)).all(axis=1)
     if own.any():
         start[own] = np.asarray(guess_b, float)[own]
+    curve = np.full((n, len(EPIPOLAR_STEPS), 2), np.nan)  # each new row's epipolar curve in b
     if not own.all():
         inf = np.flatnonzero(~own)
-        g, ok_inf = model_b.bearing_to_pixel(b_a[inf] @ np.asarray(R_b_a).T)
+        d = b_a[inf] @ np.asarray(R_b_a).T
+        g, ok_inf = model_b.bearing_to_pixel(d)
         start[inf] = g
         ok[inf] = ok_inf
+        # where the point projects nearer than infinity: R b_a + w t at inverse ranges w (1/m)
+        t = np.asarray(t_b_a, float).reshape(3)
+        base = float(np.linalg.norm(t))
+        if crop and base > 0:
+            w = np.asarray(EPIPOLAR_STEPS) / base
+            c, ok_c = model_b.bearing_to_pixel((d[:, None, :] + w[:, None] * t).reshape(-1, 3))
+            c[~ok_c] = np.nan
+            curve[inf] = c.reshape(len(inf), len(w), 2)
     idx = np.flatnonzero(ok)
     if not len(idx):
         return empty
@@ -216,8 +232,12 @@ def stereo_klt(
             continue
         # on the parts of the images the search reads (_lk_part, its reach what the coarsest
         # level's window covers): a followed row starts within a pixel or two of its answer, a new
-        # one anywhere along its epipolar curve within that reach
-        q, s_q, _ = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit) if crop else (
+        # one anywhere along its epipolar curve within that reach (the part: around the curves,
+        # ``band``, when the call holds new rows only)
+        band = None
+        if crop and not own[idx[rows]].any():
+            band = np.concatenate([p1[rows].reshape(-1, 2), curve[idx[rows]].reshape(-1, 2) - ob])
+        q, s_q, _ = _lk_part(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit, band=band) if crop else (
             _lk_whole(grey_a, grey_b, p0[rows], p1[rows], win_px, lv, crit)
         )
         p1[rows] = q
@@ -240,8 +260,11 @@ def stereo_klt(
     if len(ci):
         # backward: from the forward result in b, starting at the same pixel in a (in the parts of
         # the images all rows to check would read: the same numbers as a call on all of them)
+        # (its part: around the straight paths from those starts to the rows' own pixels in a, where
+        # a good match returns)
         p0r, st2, _ = _lk_part(
-            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, box_prev=p1[box]
+            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, box_prev=p1[box],
+            band=np.concatenate([p1[box], p0[box]]).reshape(-1, 2),
         ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
         good[ci] &= (st2 == 1) & (
             _norm_rows((p0r - p0[ci]).reshape(-1, 2)) <= fb_max_px

@@ -371,6 +371,11 @@ def klt_window_px(win_px=KLT_WIN_PX) -> int:
     return int(win_px)
 
 
+#: ``_lk_part``'s slack (coarsest-level px) around a search's expected path (``band``): how far its
+#: coarse steps may stray from it and still read the pixels the whole image has there
+BAND_SLACK = 2
+
+
 def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) -> tuple[int, int, int, int]:
     """(x0, y0, x1, y1) px of an image of ``shape`` (H, W, ...) holding every point of ``pts`` (K, 2)
     px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
@@ -396,6 +401,7 @@ def _lk_part(
     crit: tuple,
     box_prev: np.ndarray | None = None,
     flags: int = cv2.OPTFLOW_USE_INITIAL_FLOW,
+    band: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``cv2.calcOpticalFlowPyrLK`` from ``p_prev`` (K, 1, 2) float32 in grey_prev, starting at
     ``p_next`` (K, 1, 2) float32 in grey_next, on the parts of the two images the search can read.
@@ -421,6 +427,11 @@ def _lk_part(
     numbers of a call on all of them (None: the boxes of ``p_prev`` and ``p_next``).
     ``flags``: LK's (``cv2.OPTFLOW_USE_INITIAL_FLOW`` and optionally
     ``cv2.OPTFLOW_LK_GET_MIN_EIGENVALS``; p_next is the start either way).
+    ``band``: (J, 2) float points in grey_next (the starts among them) along the paths the searches
+    are expected to take (the stereo search's epipolar curves): the next image's box is then their
+    box with the windows' margin and ``BAND_SLACK`` coarsest-level px around, within the reach box
+    above (a search that strays farther from its path reads the part's edge, as one beyond the reach
+    does). None: the reach in every direction.
 
     Returns:
         (p_next (K, 1, 2) float32 result in grey_next, status (K,) uint8, err (K,) float32: LK's
@@ -433,6 +444,9 @@ def _lk_part(
     al = 2**level
     a = _lk_box((p_prev if box_prev is None else box_prev).reshape(-1, 2), m, grey_prev.shape, al)
     b = _lk_box((p_next if box_prev is None else box_prev).reshape(-1, 2), m + reach_px, grey_next.shape, al)
+    if band is not None:
+        c = _lk_box(band.reshape(-1, 2), m + BAND_SLACK * al, grey_next.shape, al)
+        b = (max(b[0], c[0]), max(b[1], c[1]), min(b[2], c[2]), min(b[3], c[3]))
     # one box for both (LK's two images have one size): the union
     x0, y0, x1, y1 = min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])
     if x1 <= x0 or y1 <= y0:  # every point and start beyond one edge: no part (LK hangs on an empty image)

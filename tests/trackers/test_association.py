@@ -564,6 +564,48 @@ def test_stereo_klt_on_the_parts_it_reads_equals_the_whole_images():
         assert np.median(err) < 0.3
 
 
+def test_stereo_klt_searches_new_rows_on_a_part_around_their_epipolar_curves(monkeypatch):
+    """A new row's search (from its infinite-depth projection, at ``levels``) and the backward check
+    run on a part around where they can end up: the epipolar curves (``EPIPOLAR_STEPS``), and the
+    straight paths back to the rows' own pixels, with the windows' margin and ``BAND_SLACK``
+    coarsest-level px, not the search's whole reach in every direction. On a horizontal baseline
+    over a world at infinity (the answers are the starts) the parts are less tall and less wide than
+    the reach's box, and the matches are the whole images' rows at the same pixels."""
+    import cv2
+
+    from trackers.association import stereo_klt
+    from trackers.features import BAND_SLACK
+
+    model, R_b_a, img_a, img_b, ft = _rotated_sphere_pair()
+    cv2.setNumThreads(1)
+    uv_a, b_a = ft.uv.astype(float), ft.b_C
+    t = np.array([-0.3, 0.0, 0.0])
+    rows = np.flatnonzero(np.linalg.norm(uv_a - [320.0, 240.0], axis=1) < 40)
+    assert len(rows) >= 5
+    shapes = []
+    lk = cv2.calcOpticalFlowPyrLK
+
+    def spy(prev, nxt, *a, **k):
+        shapes.append((prev.shape, k["maxLevel"]))
+        return lk(prev, nxt, *a, **k)
+
+    levels = 2
+    whole = stereo_klt(img_a, img_b, b_a[rows], uv_a[rows], model, R_b_a, t, levels=levels, crop=False)
+    monkeypatch.setattr(cv2, "calcOpticalFlowPyrLK", spy)
+    part = stereo_klt(img_a, img_b, b_a[rows], uv_a[rows], model, R_b_a, t, levels=levels)
+    assert len(part.idx) >= 0.9 * len(rows)
+    np.testing.assert_array_equal(whole.idx, part.idx)
+    np.testing.assert_allclose(whole.uv_b, part.uv_b, atol=1e-3)
+    assert [lv for _, lv in shapes] == [levels, levels]  # forward, backward
+    m, reach = (11 // 2 + 6) * 2**levels, (11 // 2) * 2 ** (levels + 1)
+    spread = np.ptp(uv_a[rows, 1]) + 4
+    for (h, w), _ in shapes:
+        assert h <= spread + 2 * (m + BAND_SLACK * 2**levels) + 2**levels  # around the curves
+        assert h < spread + 2 * (m + reach) - 2**levels  # (the reach box's height)
+        # (and narrower: a nearer point is seen on one side of its infinite-depth projection only)
+        assert w < np.ptp(uv_a[rows, 0]) + 2 * (m + reach) - 2**levels
+
+
 def test_stereo_klt_checks_a_followed_match_that_lands_off_its_guess():
     """A followed row whose forward result lands more than recheck_px from its guess gets the
     backward check (and most such rows pass it); one that lands on its guess is kept unchecked.
