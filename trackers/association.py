@@ -205,17 +205,23 @@ def stereo_klt(
     if not own.all():
         inf = np.flatnonzero(~own)
         d = b_a[inf] @ np.asarray(R_b_a).T
-        g, ok_inf = model_b.bearing_to_pixel(d)
-        start[inf] = g
-        ok[inf] = ok_inf
-        # where the point projects nearer than infinity: R b_a + w t at inverse ranges w (1/m)
         t = np.asarray(t_b_a, float).reshape(3)
         base = float(np.linalg.norm(t))
         if crop and base > 0:
-            w = np.asarray(EPIPOLAR_STEPS) / base
-            c, ok_c = model_b.bearing_to_pixel((d[:, None, :] + w[:, None] * t).reshape(-1, 3))
+            # the start and where the point projects nearer than infinity, in one call (each row is
+            # projected on its own): R b_a + w t at the inverse ranges w (1/m) of EPIPOLAR_STEPS
+            k = len(EPIPOLAR_STEPS)
+            X = np.empty((len(inf), k, 3))
+            X[:, 0] = d  # (w = 0: the start, R b_a itself)
+            X[:, 1:] = d[:, None, :] + (np.asarray(EPIPOLAR_STEPS[1:]) / base)[:, None] * t
+            c, ok_c = model_b.bearing_to_pixel(X.reshape(-1, 3))
+            g, ok_inf = c[::k].copy(), ok_c[::k].copy()
             c[~ok_c] = np.nan
-            curve[inf] = c.reshape(len(inf), len(w), 2)
+            curve[inf] = c.reshape(len(inf), k, 2)
+        else:
+            g, ok_inf = model_b.bearing_to_pixel(d)
+        start[inf] = g
+        ok[inf] = ok_inf
     idx = np.flatnonzero(ok)
     if not len(idx):
         return empty
