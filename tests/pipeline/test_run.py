@@ -244,18 +244,23 @@ def test_batch_refuses_t0_s_beside_a_recordings_trajectory(tmp_path, monkeypatch
     assert [r["frames"] for r in res] == [3] and res[0]["error"] is None
 
 
-def test_end_to_end_run_over_a_simulated_video(tmp_path):
-    """CI's end-to-end check: simulator -> `fisheye-des run` (real front end and fusion) -> outputs."""
+def _simulated_ci_small(folder, frames):
+    """The ci_small scenario rendered by the simulator into ``folder`` (cam0.mkv, camchain.yaml,
+    trajectory.tum): the real front end and fusion's input; skips without the front end."""
     pytest.importorskip("trackers.frontend")
     sim_writer = pytest.importorskip("pipeline.sim.writer")
-    from pipeline.cli import main
     from pipeline.sim.scene import load_scenario
 
-    scn = load_scenario(
-        run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "ci_small.yaml"
-    )
-    sim = tmp_path / "sim"
-    sim_writer.simulate(scn, sim, frames=20)
+    scenarios = run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios"
+    sim_writer.simulate(load_scenario(scenarios / "ci_small.yaml"), folder, frames=frames)
+    return folder
+
+
+def test_end_to_end_run_over_a_simulated_video(tmp_path):
+    """CI's end-to-end check: simulator -> `fisheye-des run` (real front end and fusion) -> outputs."""
+    from pipeline.cli import main
+
+    sim = _simulated_ci_small(tmp_path / "sim", 20)
     out = tmp_path / "run"
     rc = main(
         [
@@ -620,16 +625,9 @@ def test_run_over_a_trajectory_stamped_on_another_clock(tmp_path):
     """The simulator's trajectory re-stamped 1000 s later (a flight log on its own clock): without an
     offset the run stops at the first frame, naming it; with ego_motion.time_offset_s=1000 its tracks
     are the run's over the original trajectory."""
-    pytest.importorskip("trackers.frontend")
-    sim_writer = pytest.importorskip("pipeline.sim.writer")
     from pipeline.cli import main
-    from pipeline.sim.scene import load_scenario
 
-    scn = load_scenario(
-        run_mod.Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "ci_small.yaml"
-    )
-    sim = tmp_path / "sim"
-    sim_writer.simulate(scn, sim, frames=12)
+    sim = _simulated_ci_small(tmp_path / "sim", 12)
     late = tmp_path / "late.tum"
     rows = [ln.split() for ln in (sim / "trajectory.tum").read_text().splitlines() if ln and ln[0] != "#"]
     late.write_text("".join(f"{float(r[0]) + 1000.0!r} {' '.join(r[1:])}\n" for r in rows))
