@@ -1131,12 +1131,16 @@ class FrontEnd:
 
         A global id that was reported and has no local track seen this frame (none lost yet: an id
         reported lost never comes back, ``_observations``) and a track first seen this frame under
-        its own id, in a tracker with no track of that id, are one obstacle when the newborn's bearing
-        lies within the coasting track's reach and the newborn's own (``_reach``, the larger one) of
-        the coasting track's predicted bearing: in one camera by angle, across cameras by the
-        epipolar constraint with the rays meeting ahead (``box_pairs``, ``association.epipolar_deg``
-        added), each the other's only candidate. The newborn then takes the old id (``_merge_gids``;
-        it was never reported, so nothing is reported lost)."""
+        its own id, in a tracker with no track of that id, one of the two a box track, are one
+        obstacle when the two bearings, seen from the body, lie within the coasting track's reach
+        or the newborn's (``_reach``, the larger one) and, across cameras, satisfy the epipolar
+        constraint with the rays meeting ahead (``box_pairs``, ``association.epipolar_deg`` added),
+        each the other's only candidate. The newborn then takes the old id (``_merge_gids``; it
+        was never reported, so nothing is reported lost). No parallax is allowed beyond the reach:
+        a near obstacle seen from two cameras far apart is not revived. Two feature tracks are left
+        to the stereo association (their shared features; across cameras, the rule revived
+        feature tracks whose id had lain on the ground onto obstacles and back, demo and
+        heldout_stereo_flying: docs/ARCHITECTURE.md)."""
         gid = self._global
         by_g: dict[int, list[tuple[str, bool, ObstacleTrack]]] = {}  # (camera, is a box, track)
         for is_box, ds in ((False, self.groupers), (True, self.boxers)):
@@ -1163,7 +1167,9 @@ class FrontEnd:
             for j, (nb, bb, tn) in enumerate(born):
                 if any(n == nb and b == bb for n, b, _t in by_g[g]):
                     continue  # that tracker had its own chance to revive it
-                for na, _ba, ta in by_g[g]:
+                for na, ba, ta in by_g[g]:
+                    if not (ba or bb):
+                        continue  # (two feature tracks: the stereo association's, by their features)
                     tol = max(self._reach(na, ta), self._reach(nb, tn))
                     # (the bearings as seen from the body: no parallax allowed beyond the reach)
                     ok = float((ta.b_C @ self._R_C_B[na]) @ (tn.b_C @ self._R_C_B[nb])) > np.cos(tol)

@@ -88,3 +88,17 @@ def test_two_coasting_obstacles_at_the_newborn_revive_neither():
     fe._reported.add(12)
     fe._revive_across(seen, [])
     assert fe._global(20) == 20
+
+
+def test_two_feature_tracks_are_left_to_the_stereo_association():
+    """The coasting track a feature track of cam0 (not a box): cam1's newborn feature track keeps its
+    id (two feature tracks of two cameras are linked by the features they share, ``_associate``)."""
+    fe, seen = _drone()
+    box = fe.boxers["cam0"].tracks.pop(10)
+    feat = ObstacleTrack(10, "cam0", NONE, box.b_C, sigma_rad=0.002, status="confirmed", hits=5)
+    feat.seen = False
+    fe.groupers["cam0"].tracks[10] = feat
+    for gr in fe.groupers.values():
+        gr.link_rad = np.radians(5.0)  # (set at a grouper's first update)
+    fe._revive_across(seen, [])
+    assert fe._global(20) == 20
