@@ -1141,6 +1141,8 @@ class FrontEnd:
         to the stereo association (their shared features; across cameras, the rule revived
         feature tracks whose id had lain on the ground onto obstacles and back, demo and
         heldout_stereo_flying: docs/ARCHITECTURE.md)."""
+        if not any(bx.tracks for bx in self.boxers.values()):
+            return  # (every pair has a box track)
         gid = self._global
         by_g: dict[int, list[tuple[str, bool, ObstacleTrack]]] = {}  # (camera, is a box, track)
         for is_box, ds in ((False, self.groupers), (True, self.boxers)):
@@ -1164,8 +1166,9 @@ class FrontEnd:
             return
         pairs: list[tuple[int, int]] = []  # (coasting id, index into born)
         for g in coasting:
+            boxed = any(b for _n, b, _t in by_g[g])
             for j, (nb, bb, tn) in enumerate(born):
-                if any(n == nb and b == bb for n, b, _t in by_g[g]):
+                if not (boxed or bb) or any(n == nb and b == bb for n, b, _t in by_g[g]):
                     continue  # that tracker had its own chance to revive it
                 for na, ba, ta in by_g[g]:
                     if not (ba or bb):
