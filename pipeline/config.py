@@ -865,7 +865,7 @@ def _check_ego_motion(cfg: PipelineConfig, path: Path | None, lines: dict, origi
     if em.speed_mps is not None and em.time_offset_s != 0.0:
         raise ConfigError(
             f"{_where(('ego_motion', 'time_offset_s'), path, lines, origins)}: ego_motion.time_offset_s "
-            f"({em.time_offset_s:g} s) shifts a trajectory's clock and is not used with the "
+            f"({em.time_offset_s!r} s) shifts a trajectory's clock and is not used with the "
             "constant-velocity motion (ego_motion.speed_mps; its ego_motion.t0_s places the body in time); "
             "expected ego_motion.trajectory beside it, or no ego_motion.time_offset_s"
         )

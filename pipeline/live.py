@@ -638,6 +638,10 @@ class GrowingTrajectory(EgoMotion):
             self.reloads += 1
 
     @property
+    def start_s(self) -> float | None:
+        return None if self._traj is None else float(self._traj.t_s[0])
+
+    @property
     def end_s(self) -> float | None:
         return None if self._traj is None else float(self._traj.t_s[-1])
 
@@ -1011,6 +1015,7 @@ def run_live(
     timings = StageTimings()
     frames = 0
     no_pose = 0
+    before_start = 0  # of no_pose: frames before the trajectory's first pose (another clock?)
     interrupted = False
     failed: Exception | None = None
     # The grabber threads need the GIL for a moment between frames; while the pipeline runs Python, a
@@ -1062,6 +1067,11 @@ def run_live(
                 if t_s <= last_t_s:
                     continue
                 if not egomotion.covers(t_s):
+                    start = getattr(egomotion, "start_s", None)
+                    if start is not None and t_s < start:  # a file that grows never reaches back to it
+                        no_pose += 1
+                        before_start += 1
+                        continue
                     wait_until = time.monotonic() + lv.trajectory_wait_s
                     while not egomotion.covers(t_s) and time.monotonic() < wait_until:
                         time.sleep(0.01)
@@ -1180,6 +1190,7 @@ def run_live(
                 "deferred_detection": deferred,
                 "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
                 "frames_without_pose": no_pose,
+                "frames_before_trajectory": before_start,
                 "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},
                 "timings": timings.summary(),
                 "parameters": cfg.model_dump(mode="json"),

@@ -210,27 +210,43 @@ class FramePoseCache:
 
 
 class ClockOffset:
-    """A trajectory on another clock than the frames': frame time ``t_s`` is looked up at ``t_s +
-    offset_s`` (``ego_motion.time_offset_s``: the trajectory's clock minus the frames'). ``pose_at``,
-    ``velocity_at`` and ``covers`` take frame times; an error outside the trajectory's span names both
-    times. Anything else goes to the wrapped source.
+    """A trajectory read at frame times: frame time ``t_s`` is its time ``t_s + offset_s``
+    (``ego_motion.time_offset_s``, the trajectory's clock minus the frames'; 0 when they share one).
+    ``pose_at``, ``velocity_at``, ``covers`` and ``start_s`` are in frame times. An error outside the
+    trajectory's span names the frame time (and, with an offset, the trajectory's); for a frame before the
+    first pose it says how long before, and names ``ego_motion.time_offset_s``: a trajectory on another
+    clock (a flight log's) is the usual cause.
 
     Args:
-        inner: an ``estimators.egomotion.EgoMotion`` on the trajectory's clock.
+        inner: an ``estimators.egomotion.TumTrajectory`` (first pose ``t_s[0]``) or a
+            ``pipeline.live.GrowingTrajectory`` (``start_s``), on the trajectory's clock.
         offset_s: seconds added to a frame time, finite.
     """
 
-    def __init__(self, inner: Any, offset_s: float):
+    def __init__(self, inner: Any, offset_s: float = 0.0):
         self.inner = inner
         self.offset_s = float(offset_s)
+
+    @property
+    def start_s(self) -> float | None:
+        """The frame time of the trajectory's first pose; None before it has two poses."""
+        t = getattr(self.inner, "t_s", None)
+        first = float(t[0]) if t is not None else self.inner.start_s
+        return None if first is None else first - self.offset_s
 
     def _ask(self, what: str, t_s: float) -> Any:
         try:
             return getattr(self.inner, what)(t_s + self.offset_s)
         except InputError as e:
-            raise InputError(
-                f"frame time {t_s:.6f} s + ego_motion.time_offset_s {self.offset_s:g} s: {e}"
-            ) from None
+            msg = str(e)
+            if self.offset_s:
+                msg = f"frame time {t_s:.6f} s + ego_motion.time_offset_s {self.offset_s!r} s: {msg}"
+            start = self.start_s
+            if start is not None and t_s < start:
+                msg += (f"; the frame is {start - t_s:.6f} s before the trajectory's first pose: a "
+                        "trajectory on another clock needs ego_motion.time_offset_s (its time minus the "
+                        "frame's)")
+            raise InputError(msg) from None
 
     def pose_at(self, t_s: float) -> Any:
         return self._ask("pose_at", t_s)
@@ -241,17 +257,10 @@ class ClockOffset:
     def covers(self, t_s: float) -> bool:
         return self.inner.covers(t_s + self.offset_s)
 
-    def __getattr__(self, name: str) -> Any:
-        if name == "inner":
-            raise AttributeError(name)
-        return getattr(self.inner, name)
 
-
-def on_frame_clock(trajectory: Any, cfg: PipelineConfig) -> Any:
-    """``trajectory`` as frame times see it: wrapped in :class:`ClockOffset` when the config gives
-    ``ego_motion.time_offset_s``, itself otherwise."""
-    off = cfg.ego_motion.time_offset_s
-    return ClockOffset(trajectory, off) if off else trajectory
+def on_frame_clock(trajectory: Any, cfg: PipelineConfig) -> ClockOffset:
+    """``trajectory`` read at frame times (:class:`ClockOffset` by ``ego_motion.time_offset_s``)."""
+    return ClockOffset(trajectory, cfg.ego_motion.time_offset_s)
 
 
 # -------------------------------------------------------------------------------------- factories

@@ -27,7 +27,7 @@ def rig_and_motion_overrides(
     Raises:
         ConfigError: both ``--trajectory`` and ``--speed-mps`` given (alternatives, not a pair), or one of
             them with a ``--set`` of the other's key (``ego_motion.speed_mps`` or ``ego_motion.t0_s`` /
-            ``ego_motion.trajectory`` or ``ego_motion.time_offset_s``),
+            ``ego_motion.trajectory``), ``--speed-mps`` with a ``--set`` of ``ego_motion.time_offset_s``,
             or ``--calibration`` with a ``--set`` of ``rig.cameras``: the flag would silently replace it.
     """
     from estimators.errors import ConfigError
@@ -40,7 +40,6 @@ def rig_and_motion_overrides(
         ("--trajectory", trajectory, ("ego_motion", "speed_mps"), motion),
         ("--trajectory", trajectory, ("ego_motion", "t0_s"), motion),
         ("--speed-mps", speed_mps, ("ego_motion", "trajectory"), motion),
-        ("--speed-mps", speed_mps, ("ego_motion", "time_offset_s"), motion),
         ("--calibration", calibration, ("rig", "cameras"), "the cameras from a calibration file, or inline"),
     ):
         item = _set_of(sets, key) if value is not None else None
@@ -48,6 +47,11 @@ def rig_and_motion_overrides(
             shown = f"{value:g}" if isinstance(value, float) else str(value)
             raise ConfigError(f"{flag} {shown} and --set {item} are alternatives ({what}); give one of them, "
                               "not both")
+    offset = _set_of(sets, ("ego_motion", "time_offset_s")) if speed_mps is not None else None
+    if offset is not None:
+        raise ConfigError(f"--set {offset} shifts a trajectory's clock, and --speed-mps {speed_mps:g} "
+                          "replaces the trajectory by a constant speed, which has no clock to shift; give "
+                          "--trajectory with it, or drop it")
     cli: dict = {}
     if calibration is not None:
         cli["rig.calibration"] = str(calibration)

@@ -71,11 +71,14 @@ def register(app: typer.Typer) -> None:
 
             raise interrupted(f"stopped; tracks.jsonl and summary.json are in {out_dir}") from None
         lat = r.latency
-        no_pose = r.summary.get("frames_without_pose", 0)
+        before = r.summary.get("frames_before_trajectory", 0)
+        late = r.summary.get("frames_without_pose", 0) - before
         print(
             f"{r.frames} frames, {r.stale} stale frames dropped"
-            + (f", {no_pose} skipped without a pose (the trajectory did not reach their time within "
-               f"live.trajectory_wait_s)" if no_pose else "")
+            + (f", {late} skipped without a pose (the trajectory did not reach their time within "
+               f"live.trajectory_wait_s)" if late else "")
+            + (f", {before} skipped before the trajectory's first pose (a trajectory on another clock needs "
+               "ego_motion.time_offset_s, its time minus the frame's, or live.clock)" if before else "")
             + f", latency median {1000 * lat.get('median_s', 0):.1f} ms p99 "
             f"{1000 * lat.get('p99_s', 0):.1f} ms -> {r.out_dir / 'tracks.jsonl'}",
             file=sys.stderr,

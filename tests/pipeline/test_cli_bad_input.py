@@ -4,6 +4,7 @@ nothing already written lost (run, live, evaluate)."""
 from __future__ import annotations
 
 import json
+import time
 
 import pytest
 from test_run_support import FakeFrontEnd, FakeFusion, mono_rig, write_video
@@ -204,9 +205,9 @@ def test_a_trajectory_clock_offset_beside_a_constant_speed_is_refused(tmp_path, 
     rc = main(["run", "--video", str(v), "--speed-mps", "3", "--set", "ego_motion.time_offset_s=0.05",
                "--out", str(tmp_path / "o2")])
     err = _err_lines(capsys)
-    assert rc == 2 and err == ["fisheye-des: error: --speed-mps 3 and --set ego_motion.time_offset_s=0.05 "
-                               "are alternatives (the body's motion from a TUM file, or a constant forward "
-                               "speed); give one of them, not both"]
+    assert rc == 2 and err == ["fisheye-des: error: --set ego_motion.time_offset_s=0.05 shifts a "
+                               "trajectory's clock, and --speed-mps 3 replaces the trajectory by a constant "
+                               "speed, which has no clock to shift; give --trajectory with it, or drop it"]
     rc = main(["run", "--video", str(v), "--trajectory", str(tmp_path / "traj.tum"), "--set",
                "ego_motion.time_offset_s=nan", "--out", str(tmp_path / "o3")])
     err = _err_lines(capsys)
@@ -444,6 +445,35 @@ def test_live_says_how_many_frames_it_skipped_for_want_of_a_pose(tmp_path, monke
     assert rc == 0 and skipped >= 1  # (4 unless the loaded machine dropped some as stale)
     assert f" stale frames dropped, {skipped} skipped without a pose (the trajectory did not reach their " \
         "time within live.trajectory_wait_s), latency median " in err[-1], err
+
+
+def test_live_skips_frames_before_a_trajectorys_first_pose_without_waiting_and_names_the_offset(
+    tmp_path, monkeypatch, capsys
+):
+    """A trajectory stamped on another clock (its first pose after every frame): no frame can ever get a
+    pose, since a growing file adds poses at its end. They are skipped at once (they waited
+    live.trajectory_wait_s each), counted as frames_before_trajectory, and the closing line names
+    ego_motion.time_offset_s (it said the trajectory 'did not reach their time')."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 6, times=[k / 10 for k in range(6)])
+    traj = tmp_path / "later.tum"
+    traj.write_text("500.0 0 0 0 0 0 0 1\n501.0 1 0 0 0 0 0 1\n")
+    t0 = time.monotonic()
+    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=5",
+               "--out", str(tmp_path / "o")])
+    took = time.monotonic() - t0
+    err = _err_lines(capsys)
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert rc == 0 and s["frames"] == 0 and took < 5, (took, err)  # (6 frames x 5 s before)
+    before = s["frames_before_trajectory"]
+    assert before >= 1 and s["frames_without_pose"] == before  # (6 unless dropped as stale)
+    assert (f" stale frames dropped, {before} skipped before the trajectory's first pose (a trajectory on "
+            "another clock needs ego_motion.time_offset_s, its time minus the frame's, or live.clock), "
+            "latency median ") in err[-1], err
+    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=5",
+               "--set", "ego_motion.time_offset_s=500", "--out", str(tmp_path / "o2")])
+    s = json.loads((tmp_path / "o2" / "summary.json").read_text())
+    assert rc == 0 and s["frames_without_pose"] == 0 and s["frames"] >= 1, _err_lines(capsys)
 
 
 def test_run_batch_refuses_zero_workers(tmp_path):

@@ -278,7 +278,7 @@ def test_live_with_a_trajectory_file_that_grows(tmp_path, monkeypatch, offset_s)
     fusion = made[0]
     ego = fusion.ego
     # live mode re-reads a trajectory file as it grows (behind the one-pose-per-frame cache)
-    growing = ego.inner.inner if offset_s else ego.inner  # (ClockOffset around it)
+    growing = ego.inner.inner  # (read at frame times: ClockOffset)
     assert isinstance(ego, FramePoseCache) and isinstance(growing, GrowingTrajectory)
     assert r.summary["frames_without_pose"] == 0 and r.frames >= 5
     assert growing.reloads >= 2

@@ -616,9 +616,22 @@ def test_a_trajectory_on_another_clock_is_read_at_frame_time_plus_the_offset():
     assert ego.covers(0.0) and ego.covers(1.0) and not ego.covers(1.5) and not ego.covers(100.5)
     with pytest.raises(InputError) as e:
         ego.pose_at(1.5)
-    assert str(e.value) == ("frame time 1.500000 s + ego_motion.time_offset_s 100 s: trajectory: time "
+    assert str(e.value) == ("frame time 1.500000 s + ego_motion.time_offset_s 100.0 s: trajectory: time "
                             "101.500000 s is outside the trajectory's span [100.000000, 101.000000] s")
-    assert run_mod.on_frame_clock(traj, load_config(None, ["ego_motion.trajectory=t.tum"])) is traj
+    with pytest.raises(InputError) as e:  # before the first pose: how long before, and the key to set
+        ego.pose_at(-0.25)
+    assert str(e.value).endswith("] s; the frame is 0.250000 s before the trajectory's first pose: a "
+                                 "trajectory on another clock needs ego_motion.time_offset_s (its time minus "
+                                 "the frame's)")
+    same = run_mod.on_frame_clock(traj, load_config(None, ["ego_motion.trajectory=t.tum"]))
+    with pytest.raises(InputError) as e:  # one clock: the trajectory's own words, and the hint
+        same.pose_at(99.0)
+    assert str(e.value) == ("trajectory: time 99.000000 s is outside the trajectory's span [100.000000, "
+                            "101.000000] s; the frame is 1.000000 s before the trajectory's first pose: a "
+                            "trajectory on another clock needs ego_motion.time_offset_s (its time minus the "
+                            "frame's)")
+    assert same.pose_at(100.5).t == pytest.approx([1.0, 0, 0])
+    assert same.start_s == 100.0 and ego.start_s == 0.0
 
 
 def test_run_over_a_trajectory_stamped_on_another_clock(tmp_path):
