@@ -134,7 +134,7 @@ from estimators.records import ObstacleObservation, TrackReport
 from estimators.rig import Rig
 from estimators.se3 import Pose
 
-__all__ = ["STAGES", "FusionSettings", "ObstacleFusion", "tangent_basis"]
+__all__ = ["STAGES", "FusionSettings", "ObstacleFusion"]
 
 # the stages ``ObstacleFusion.timings`` gives each step (seconds): see ``ObstacleFusion.__init__``
 STAGES: tuple[str, ...] = ("estimate", "fuse")
@@ -687,7 +687,9 @@ def _per_camera(rig: Rig, what: str, values, ok, expected: str) -> dict[str, flo
 
 
 def _ttangent_basis(u: tuple[float, float, float]) -> tuple[tuple, tuple]:
-    """``tangent_basis`` of a unit 3-tuple: the columns (e1, e2) as 3-tuples of floats."""
+    """The fusion's basis of the plane orthogonal to a unit 3-tuple u, as 3-tuples of floats:
+    e1 = u x e / |u x e| (e the axis least along u, the first of equal ones), e2 = u x e1 (the
+    batched code's ray frames take the same basis)."""
     a0, a1, a2 = abs(u[0]), abs(u[1]), abs(u[2])
     e = (1.0, 0.0, 0.0) if a0 <= a1 and a0 <= a2 else (0.0, 1.0, 0.0) if a1 <= a2 else (0.0, 0.0, 1.0)
     e1 = _tcross(u, e)
@@ -724,16 +726,6 @@ def _new_ekf() -> ExtendedKalmanFilter:
 
 
 _CHI2_PPF: dict[tuple[float, int], float] = {}  # (probability, dof) -> chi2_ppf, ``_chi2_gate``
-
-
-def tangent_basis(u: np.ndarray) -> np.ndarray:
-    """Orthonormal basis E (3, 2) of the plane orthogonal to the unit vector ``u`` (3,)."""
-    u = np.asarray(u, dtype=float)
-    e = np.zeros(3)
-    e[int(np.argmin(np.abs(u)))] = 1.0
-    e1 = _cross(u, e)
-    e1 /= np.linalg.norm(e1)
-    return np.stack([e1, _cross(u, e1)], axis=1)
 
 
 def _nearest_per_group(g: np.ndarray, cos: np.ndarray, G: int, n: int) -> np.ndarray:
@@ -906,13 +898,13 @@ class _FeatureRays:
         """Bind the running sums S (capacity, 18), each row's side by side (``add`` gathers and
         scatters a row once), and their views: A (cap, 3, 3), y (cap, 3), bc (cap, 3) = sum_i b_i
         (b_i . c_i) (for the rays' depths), cc (cap,) = sum_i c_i^T (I - b_i b_i^T) c_i (for the
-        residual), bcc (cap,) = sum_i (b_i . c_i)^2, n (cap,) = rays so far."""
+        residual), n (cap,) = rays so far; column 16 (no view, read as S[:, 16] by ``_depth2``) =
+        sum_i (b_i . c_i)^2."""
         self.S = S
         self.A = S[:, 0:9].reshape(len(S), 3, 3)
         self.y = S[:, 9:12]
         self.bc = S[:, 12:15]
         self.cc = S[:, 15]
-        self.bcc = S[:, 16]
         self.n = S[:, 17]
 
     def _grow(self, need: int) -> None:
@@ -1089,13 +1081,12 @@ def _largest_depth_cluster(g: np.ndarray, r: np.ndarray, m: np.ndarray, gap_frac
     return out
 
 
-def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = None) -> np.ndarray:
+def _outline_flags(b_W: np.ndarray, view: np.ndarray) -> np.ndarray:
     """Mask (M,) of the member features on the outline of their view's features: the vertices of
     the convex hull of each view's feature bearings.
 
     b_W (M, 3): unit feature bearings in W; view (M,) int: the view (track and camera) of each,
-    one view's entries consecutive; todo (number of views,) bool, optional: the views to test
-    (the others' entries are returned False). Each view's bearings are projected onto the plane
+    one view's entries consecutive. Each view's bearings are projected onto the plane
     tangent to their mean direction m (gnomonic, p = (b.e1, b.e2) / b.m: straight lines stay
     straight, so the hull is the image's up to the lens's local distortion) and cv2.convexHull
     gives the hull's vertices. Views of at most 3 features are all outline. Model (occlusion
@@ -1115,10 +1106,8 @@ def _outline_flags(b_W: np.ndarray, view: np.ndarray, todo: np.ndarray | None = 
         return out
     start = np.diff(view, prepend=view[0] - 1).nonzero()[0]
     cnt = np.diff(np.append(start, M))
-    if todo is None:
-        todo = np.ones(len(start), dtype=bool)
-    out[(todo & (cnt <= 3)).repeat(cnt)] = True
-    big = todo & (cnt > 3)
+    out[(cnt <= 3).repeat(cnt)] = True
+    big = cnt > 3
     if not big.any():
         return out
     idx = big.repeat(cnt).nonzero()[0]  # the rows of the views to test
@@ -1161,16 +1150,6 @@ def _polar_enclosed(ang: np.ndarray, grp: np.ndarray, n: int) -> np.ndarray:
     last = start + cnt - 1  # (an empty group's -1 or len: clamped below, masked by cnt > 0)
     wrap = a_s[np.minimum(start, len(a_s) - 1)] + 2.0 * math.pi - a_s[np.minimum(last, len(a_s) - 1)]
     return (cnt > 0) & (np.maximum(gmax, wrap) < math.pi)
-
-
-def _median_rows(X: np.ndarray) -> np.ndarray:
-    """np.median(X, axis=0) of X (n >= 1, k), the same values (the middle row of the column-sorted X,
-    or the mean of the two middle ones for even n), without np.median's overhead on small arrays."""
-    Xs = np.sort(X, axis=0)
-    n = len(Xs)
-    if n % 2:
-        return Xs[n // 2]
-    return (Xs[n // 2 - 1] + Xs[n // 2]) / 2.0
 
 
 def _unique_first(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -2650,7 +2629,7 @@ class ObstacleFusion:
         v_i = (p_i(t) - p_i(t_ref)) / (t - t_ref) (the thesis's binocular speed, sec. 3.2.2: two
         stereo fixes 0.1 s apart, here per physical point).
         They are reduced in the track's ray frame Q = [a, e1, e2] (a the mean viewing direction,
-        E = tangent_basis(a)), where C is nearly diagonal:
+        [e1, e2] = _ttangent_basis(a)'s basis), where C is nearly diagonal:
             w_i = Q^T v_i,   w = per-axis median of the w_i,
             s2_ik = q_k^T (C_i(t_ref) + C_i(t)) q_k / dt^2,   s2_k = median_i s2_ik,
             R_Q = diag(s2_k c_n / n + q dt / 3)
@@ -2757,7 +2736,7 @@ class ObstacleFusion:
         dt = np.array([t_s - ref[0] for _tr, ref, _a0, _a1 in due])
         kb = now[kb]
         N_P, N_S, N_T, N_U = P_s[kb], S_s[kb], T_s[kb], U_s[kb]
-        # the ray frame Q = [a, e1, e2] of each track (a the mean viewing direction, tangent_basis)
+        # the ray frame Q = [a, e1, e2] of each track (a the mean viewing direction, _ttangent_basis's)
         a = np.add.reduceat(N_U, start, axis=0)
         a /= np.sqrt(_dot_rows(a, a))[:, None]
         e = np.zeros_like(a)
@@ -2773,7 +2752,7 @@ class ObstacleFusion:
         lo_i, hi_i = (n - 1) // 2, n // 2
         rg = np.arange(G)
 
-        def group_median_cols(X: np.ndarray) -> np.ndarray:  # (rows, 3) -> (G, 3), as _median_rows
+        def group_median_cols(X: np.ndarray) -> np.ndarray:  # (rows, 3) -> (G, 3), np.median per track
             pad = np.full((G, m, 3), np.inf)
             pad[dk, pos] = X
             pad.sort(axis=1)

@@ -3,8 +3,9 @@
 Several tracks at once (a mix of the cases: one due with many shared ids in shuffled order, one with
 exactly two, one whose first frame lists a single id (no reference), one not yet due, one fresh): each track's
 velocity and covariance must equal the per-track formulas of its docstring, written out here with
-np.median per track (the reduction in the track's ray frame Q = [a, tangent_basis(a)]), to rounding;
-tracks must not mix (a batching bug that takes another track's rows fails here).
+np.median per track (the reduction in the track's ray frame Q = [a, e1, e2], the fusion's basis
+``_ttangent_basis``), to rounding; tracks must not mix (a batching bug that takes another track's
+rows fails here).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 
 from estimators.cameras import Equidistant
 from estimators.egomotion import ConstantVelocity
-from estimators.fusion import FusionSettings, ObstacleFusion, _Track, tangent_basis
+from estimators.fusion import FusionSettings, ObstacleFusion, _Track, _ttangent_basis
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
 from estimators.rig import stereo_forward_rig
 
@@ -31,7 +32,7 @@ def _expected(s: FusionSettings, ref, now, dt: float):
     n = len(common)
     a = U_n[ib].sum(axis=0)
     a /= np.linalg.norm(a)
-    Q = np.column_stack([a, tangent_basis(a)])
+    Q = np.column_stack([a, *_ttangent_basis(tuple(a.tolist()))])
     W = ((P_n[ib] - P_r[ia]) / dt) @ Q
     w = np.median(W, axis=0)
     var = np.zeros((n, 3))
