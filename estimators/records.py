@@ -185,17 +185,6 @@ class ObstacleObservation:
         return tuple(v.camera for v in self.views)
 
 
-def azimuth_elevation_deg(b_B: np.ndarray) -> tuple[float, float]:
-    """Azimuth and elevation in degrees of a body-frame bearing (FLU).
-
-    azimuth = atan2(y, x): 0 straight ahead, +90 to the left, +-180 behind;
-    elevation = asin(z): +90 straight up.
-    """
-    x, y, z = (float(v) for v in np.asarray(b_B, dtype=float).reshape(3))
-    n = float(np.sqrt(x * x + y * y + z * z))
-    return float(np.degrees(np.arctan2(y, x))), float(np.degrees(np.arcsin(np.clip(z / n, -1.0, 1.0))))
-
-
 def _opt_list(a: np.ndarray | None) -> list[float] | None:
     if a is None:
         return None
@@ -255,8 +244,9 @@ def _null_nonfinite(d: dict[str, Any]) -> dict[str, Any]:
 def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True) -> list[dict[str, Any]]:
     """The JSON objects of CONVENTIONS.md for several reports at once (one frame's ``tracks``).
 
-    The (N, 3) body bearings go through numpy together: azimuth = atan2(y, x), elevation =
-    asin(z / |b|), in degrees, as :func:`azimuth_elevation_deg`. Values are plain Python.
+    The (N, 3) body bearings go through numpy together: azimuth = atan2(y, x) (FLU: 0 straight
+    ahead, +90 to the left, +-180 behind), elevation = asin(z / |b|) (+90 straight up), in degrees.
+    Values are plain Python.
 
     Args:
         reports: N ``TrackReport``s.

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from estimators.errors import InputError
-from estimators.records import CameraView, ObstacleObservation, TrackReport, azimuth_elevation_deg
+from estimators.records import CameraView, ObstacleObservation, TrackReport
 
 
 @pytest.mark.parametrize(
@@ -15,8 +15,9 @@ from estimators.records import CameraView, ObstacleObservation, TrackReport, azi
      ([1, -1, 0], -45.0, 0.0)],
 )
 def test_azimuth_elevation_flu(b_B, az, el):
-    a, e = azimuth_elevation_deg(np.array(b_B, float))
-    assert a == pytest.approx(az) and e == pytest.approx(el)
+    b = np.array(b_B, float)
+    d = TrackReport(id=1, status="confirmed", camera="cam0", bearing_body=b / np.linalg.norm(b)).to_json()
+    assert d["azimuth_deg"] == pytest.approx(az) and d["elevation_deg"] == pytest.approx(el)
 
 
 @pytest.mark.parametrize(
