@@ -104,51 +104,6 @@ class Stats:
         return asdict(self)
 
 
-class StageClock:
-    """Per-frame durations of named stages, collected frame by frame.
-
-    ``add(stage, seconds)`` accumulates into the current frame (a stage may be entered several
-    times per frame, e.g. once per camera); ``end_frame()`` closes it. Stages never entered in a
-    frame count as 0 for that frame once the stage has been seen at all.
-    """
-
-    def __init__(self) -> None:
-        self._frames: list[dict[str, float]] = []
-        self._current: dict[str, float] = {}
-
-    def add(self, stage: str, seconds: float) -> None:
-        self._current[stage] = self._current.get(stage, 0.0) + float(seconds)
-
-    def add_all(self, timings: Mapping[str, float] | None) -> None:
-        for k, v in (timings or {}).items():
-            self.add(k, v)
-
-    def end_frame(self) -> None:
-        self._frames.append(self._current)
-        self._current = {}
-
-    @property
-    def n_frames(self) -> int:
-        return len(self._frames)
-
-    def stages(self) -> list[str]:
-        seen = {k for f in self._frames for k in f}
-        return [s for s in STAGES if s in seen] + sorted(seen - set(STAGES))
-
-    def samples(self, stage: str) -> np.ndarray:
-        """(n_frames,) seconds spent in ``stage`` per frame."""
-        return np.array([f.get(stage, 0.0) for f in self._frames], dtype=float)
-
-    def per_frame_total(self) -> np.ndarray:
-        """(n_frames,) seconds spent in all stages per frame."""
-        return np.array([sum(f.values()) for f in self._frames], dtype=float)
-
-    def summary(self) -> dict[str, dict[str, float | int]]:
-        if not self._frames:
-            return {}
-        return {s: Stats.from_samples(self.samples(s)).to_json() for s in self.stages()}
-
-
 # ------------------------------------------------------------------------------------------ memory
 def _proc_status_kib(key: str) -> int | None:
     try:
@@ -298,18 +253,6 @@ def pin_threads(n_threads: int | None) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------------------- video
-def read_timestamps(path: str | Path) -> np.ndarray | None:
-    """Frame times (seconds) of a ``<cam>.timestamps.txt`` (lines ``frame t_s``), or None if absent."""
-    p = Path(path)
-    if not p.is_file():
-        return None
-    rows = [ln.split() for ln in p.read_text().splitlines() if ln.strip() and not ln.startswith("#")]
-    try:
-        return np.array([float(r[1]) for r in rows], dtype=float)
-    except (IndexError, ValueError):
-        raise InputError(f"{p}: expected lines 'frame t_s', got e.g. {rows[:1]}") from None
-
-
 def _open(path: str | Path, raw: bool = False):
     """An OpenCV capture of ``path``; ``raw`` turns ``CAP_PROP_CONVERT_RGB`` off (set before the first
     read: the decoder's own planes, e.g. (H, W) for a grey FFV1, (H, W, 4) for a ``bgr0`` one)."""

@@ -74,21 +74,6 @@ def test_stats_from_samples():
         bench.Stats.from_samples([])
 
 
-def test_stage_clock_accumulates_within_a_frame_and_zero_fills():
-    c = bench.StageClock()
-    c.add("detect", 0.002)
-    c.add("detect", 0.003)  # second camera
-    c.add("decode", 0.001)
-    c.end_frame()
-    c.add_all({"decode": 0.004, "fuse": 0.5})
-    c.end_frame()
-    assert c.n_frames == 2
-    assert c.stages() == ["decode", "detect", "fuse"]  # pipeline order
-    np.testing.assert_allclose(c.samples("detect"), [0.005, 0.0])
-    np.testing.assert_allclose(c.per_frame_total(), [0.006, 0.504])
-    assert c.summary()["fuse"]["median_s"] == pytest.approx(0.25)
-
-
 # ------------------------------------------------------------------------------------------ memory
 def test_rss_sees_a_touched_allocation():
     before = bench.rss_bytes()
@@ -143,13 +128,6 @@ def test_decode_only_counts_frames(video):
 def test_missing_video_is_a_source_error(tmp_path):
     with pytest.raises(SourceError, match=r"nope\.mkv: cannot (be opened|open)"):
         list(bench.looped_frames({"cam0": tmp_path / "nope.mkv"}, 1))
-
-
-def test_read_timestamps(tmp_path):
-    p = tmp_path / "cam0.timestamps.txt"
-    p.write_text("0 0.0\n1 0.0333\n# comment\n3 0.1\n")
-    np.testing.assert_allclose(bench.read_timestamps(p), [0.0, 0.0333, 0.1])
-    assert bench.read_timestamps(tmp_path / "absent.txt") is None
 
 
 # ------------------------------------------------------------------------------ pinning subprocess
