@@ -386,7 +386,7 @@ def _mono_range_cm(d_cm: float, t1_deg: float, t2_deg: float) -> geo.Triangulati
     return geo.planar_triangulate(d_cm / 100.0, math.radians(t1_deg), math.radians(t2_deg))
 
 
-def _range_spread_cm(d_cm, t1, t2, *, which: str = "range") -> tuple[float, float] | None:
+def _range_spread_cm(d_cm, t1, t2) -> tuple[float, float] | None:
     """Min/max of our estimate over the rounding box of the printed inputs (8 corners)."""
     vals = []
     for sd, s1, s2 in itertools.product((-1, 1), repeat=3):
@@ -396,7 +396,7 @@ def _range_spread_cm(d_cm, t1, t2, *, which: str = "range") -> tuple[float, floa
         r = _mono_range_cm(dd, a1, a2)
         if isinstance(r, geo.Unobservable):
             return None
-        vals.append(100.0 * (r.range_m if which == "range" else float(r.p[1])))
+        vals.append(100.0 * r.range_m)
     return min(vals), max(vals)
 
 

@@ -45,7 +45,6 @@ from pipeline.sim.world import SKY_ID, World, object_velocity, raycast, surface_
 from pipeline.sinks import make_output_dir, to_plain
 
 RANGE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 50.0, math.inf)
-Z_975 = 1.959963984540054  # standard normal 97.5% quantile
 
 
 # ----------------------------------------------------------------------------- chi-square helpers

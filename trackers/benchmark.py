@@ -238,7 +238,6 @@ class _Explainer:
         self.first_on: dict[tuple[int, int], int] = {}  # (gid, obstacle) -> first frame on it
         self.last_rep: dict[int, int] = {}  # gid -> last frame reported
         self.prev_cover: dict[int, set[int]] = {}  # obstacle -> gids covering it last frame
-        self.known_gids: set[int] = set()
 
     def _local_tracks(self):
         fe = self.fe

@@ -469,7 +469,6 @@ class FrontEnd:
         self._R_W_B: deque[np.ndarray] = deque(maxlen=8)
         self._n = 0
         self.last_features: dict[str, Any] = {}
-        self.last_tracks: dict[str, list[ObstacleTrack]] = {}
 
     # --------------------------------------------------------------------------------- api
     def process(
@@ -602,7 +601,6 @@ class FrontEnd:
                 s += s2
                 lost += l2
             seen[name] = s
-        self.last_tracks = seen
         t0 = time.perf_counter()
         absorbed: list[int] = []
         self._merged_into = {}

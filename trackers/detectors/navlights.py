@@ -198,17 +198,6 @@ class NavLightsDetector(Detector):
         green = cv2.inRange(hsv, (45, s, v), (90, 255, 255))
         return red, green
 
-    def colour_masks(self, bgr: np.ndarray, mask: np.ndarray | None) -> dict[str, np.ndarray]:
-        """0/255 (H, W) masks of the red, green and white-candidate (bright, unsaturated) pixels."""
-        hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
-        red, green = self._colour(hsv)
-        white = cv2.inRange(hsv, (0, 0, self.min_value), (179, self.max_white_saturation, 255))
-        res = {"red": red, "green": green, "white": white}
-        if mask is not None:
-            m = (mask > 0).astype(np.uint8) * 255
-            res = {k: cv2.bitwise_and(x, m) for k, x in res.items()}
-        return res
-
     def _crop_box(self, mask: np.ndarray | None, shape_hw: tuple[int, int]) -> tuple[int, int, int, int]:
         """The mask's bounding box, remembered per mask object (the front end passes one fixed lens
         mask per camera; the mask is kept referenced so that its id is not reused)."""
