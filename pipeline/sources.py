@@ -223,13 +223,13 @@ class VideoSource(Source):
         camera: camera name the frames belong to.
         expected_size: (width, height) pixels from the calibration; a mismatch is a SourceError.
         fps: frame rate to assume (Hz) when the video gives no usable times (overrides the container's).
-        timestamps: a ``frame t_s`` file; default ``<video stem>.timestamps.txt`` when it exists.
         grey: yield (H, W) uint8 grey frames instead of BGR. A file whose stream is already full-range
             grey (e.g. the simulator's ``--grey`` FFV1, or MJPEG's luma) is read without any colour
             conversion (``CAP_PROP_CONVERT_RGB`` off: the decoder's plane as it is, checked on the first
             frame against ``cvtColor(BGR2GRAY)`` of the converted decode); other streams are decoded to
             BGR and converted once per frame (``grey_mode`` says which: ``"native"`` or ``"converted"``).
 
+    The frame times come from ``<video stem>.timestamps.txt`` beside the video when it exists.
     The file is opened and its first frame decoded on construction, so bad input fails before a run
     starts. When decoding stops before the announced frame count (timestamps lines, else the
     container's count), iteration ends and ``error`` says where.
@@ -241,7 +241,6 @@ class VideoSource(Source):
         camera: str = "cam0",
         expected_size: tuple[int, int] | None = None,
         fps: float | None = None,
-        timestamps: str | Path | None = None,
         grey: bool = False,
     ):
         self.path = str(path)
@@ -261,19 +260,12 @@ class VideoSource(Source):
                 )
             if p.stat().st_size == 0:
                 raise SourceError(f"{p}: video file is empty (0 bytes)")
-        ts_path = (
-            Path(timestamps)
-            if timestamps is not None
-            else (None if is_url else timestamps_path_for(self.path))
-        )
+        ts_path = None if is_url else timestamps_path_for(self.path)
         self.timestamps: list[tuple[int, float]] | None = None
+        self.timestamps_path: Path | None = None
         if ts_path is not None and ts_path.is_file():
             self.timestamps = read_timestamps(ts_path)
-            self.timestamps_path: Path | None = ts_path
-        elif timestamps is not None:
-            raise SourceError(f"{timestamps}: timestamps file not found")
-        else:
-            self.timestamps_path = None
+            self.timestamps_path = ts_path
         self._cap = open_capture(self.path)
         self.fps = float(fps) if fps else (self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
         if not np.isfinite(self.fps) or self.fps <= 0 or self.fps > 1000:
@@ -385,8 +377,9 @@ class ImageFolderSource(Source):
         folder: folder of ``.png/.jpg/...`` images.
         camera: camera name; expected_size: (width, height) from the calibration.
         fps: frame rate (Hz) used when there is no timestamps file.
-        timestamps: a ``frame t_s`` file; default ``folder/timestamps.txt`` or ``<folder>.timestamps.txt``.
         grey: read as grey (H, W) instead of BGR.
+
+    The frame times come from ``folder/timestamps.txt`` or ``<folder>.timestamps.txt`` when one exists.
     """
 
     def __init__(
@@ -395,7 +388,6 @@ class ImageFolderSource(Source):
         camera: str = "cam0",
         expected_size: tuple[int, int] | None = None,
         fps: float | None = None,
-        timestamps: str | Path | None = None,
         grey: bool = False,
     ):
         self.folder = Path(folder)
@@ -410,14 +402,7 @@ class ImageFolderSource(Source):
                             key=natural_key)
         if not self.files:
             raise SourceError(f"{self.folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in the folder")
-        cands = (
-            [Path(timestamps)]
-            if timestamps
-            else [
-                self.folder / "timestamps.txt",
-                self.folder.with_name(self.folder.name + ".timestamps.txt"),
-            ]
-        )
+        cands = [self.folder / "timestamps.txt", self.folder.with_name(self.folder.name + ".timestamps.txt")]
         self.timestamps = None
         for c in cands:
             if c.is_file():
@@ -428,9 +413,6 @@ class ImageFolderSource(Source):
                         f"in {self.folder}"
                     )
                 break
-        else:
-            if timestamps:
-                raise SourceError(f"{timestamps}: timestamps file not found")
         if self.timestamps is None and not fps:
             raise SourceError(
                 f"{self.folder}: no timestamps.txt and no frame rate; give inputs.fps (Hz, e.g. --set "
