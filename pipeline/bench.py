@@ -1140,13 +1140,14 @@ class Clip:
 
 
 def get_clip(cache_dir: Path, resolution: tuple[int, int], rig: str, frames: int, n_obstacles: int,
-             render: Callable[[Path, Path], None] | None = None, grey: bool = False) -> Clip:
+             grey: bool = False) -> Clip:
     """The cached (or freshly rendered) clip of :func:`bench_scenario` (grey videos with ``grey``)."""
     fps = camera_rate_hz(resolution)
     scn = bench_scenario(f"bench_{rig}_{n_obstacles}obs", resolution, rig, fps, frames, n_obstacles)
-    if render is None:
-        def render(p: Path, out: Path) -> None:
-            simulate_render(p, out, resolution, frames, grey=grey)
+
+    def render(p: Path, out: Path) -> None:
+        simulate_render(p, out, resolution, frames, grey=grey)
+
     d = cached_render(scn, cache_dir, resolution=resolution, frames=frames, render=render, grey=grey)
     return Clip(d, render_videos(d), scn, tuple(resolution), fps, frames)
 
@@ -1195,14 +1196,11 @@ class BenchRun:
     Args:
         plan: what to measure. out_dir: folder for bench.json and the runs' tracks.jsonl.
         cache_dir: rendered clips. log: progress messages (to stderr in the CLI).
-        render: injectable renderer ``render(scenario_yaml, out_dir)`` (tests), default the simulator.
     """
 
     def __init__(self, plan: BenchPlan, out_dir: Path, cache_dir: Path,
-                 log: Callable[[str], None] = lambda m: None,
-                 render: Callable[..., None] | None = None) -> None:
+                 log: Callable[[str], None] = lambda m: None) -> None:
         self.plan, self.out, self.cache, self.log = plan, Path(out_dir), Path(cache_dir), log
-        self.render = render
         self.rows: list[Row] = []
         self.sections: dict[str, Any] = {}
         self.notes: list[str] = []
@@ -1212,12 +1210,7 @@ class BenchRun:
     def clip(self, resolution: tuple[int, int], rig: str, n_obstacles: int | None = None) -> Clip:
         n = self.plan.base_obstacles if n_obstacles is None else n_obstacles
         t0 = time.perf_counter()
-        render = None
-        if self.render is not None:
-            def render(p: Path, o: Path) -> None:
-                self.render(p, o, resolution, self.plan.render_frames)
-        c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, render=render,
-                     grey=self.plan.grey_clips)
+        c = get_clip(self.cache, resolution, rig, self.plan.render_frames, n, grey=self.plan.grey_clips)
         dt = time.perf_counter() - t0
         self.sections.setdefault("clips", {}).setdefault(
             c.dir.name, {"dir": str(c.dir), "render_or_load_s": dt, "cameras": sorted(c.videos)})

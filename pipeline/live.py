@@ -562,19 +562,19 @@ class Grabber:
         interval = span / (len(self._recent) - 1)
         return min(self.stall_timeout_s, 2.0 * interval + PAIR_WAIT_SLACK_S)
 
-    def nearest(self, t: float, tolerance_s: float, wait_s: float | None = None) -> LiveFrame | None:
+    def nearest(self, t: float, tolerance_s: float) -> LiveFrame | None:
         """This camera's frame of frame time ``t`` (another camera's frame; s, :func:`frame_time`).
 
         Pairing is in frame time: of the last few frames, the one whose time is nearest ``t`` joins
         when ``|time - t| <= tolerance_s``. Waiting is in wall time (on ``clock``) and separate from the
         tolerance: until this camera has a frame at or after ``t`` (so the nearest one is known),
-        at most ``wait_s`` (default: about two frame intervals, see :meth:`_pair_wait_s`), and not
+        at most about two frame intervals (:meth:`_pair_wait_s`), and not
         at all for a camera that published nothing for ``stall_timeout_s`` (stopped) or finished.
         None when there is no frame within the tolerance.
         """
         with self._cond:
             now = self.clock()
-            deadline = now + (self._pair_wait_s() if wait_s is None else float(wait_s))
+            deadline = now + self._pair_wait_s()
             last = self._last_publish_s if self._last_publish_s is not None else self._started_s
             if last is not None:  # a stopped camera (nothing for stall_timeout_s) is not waited for
                 deadline = min(deadline, last + self.stall_timeout_s)

@@ -38,7 +38,6 @@ def run_demo(
     resolution: tuple[int, int] | None = DEFAULT_RESOLUTION,
     seconds: float | None = None,
     progress: bool = True,
-    detector: str | None = None,
 ) -> dict[str, Any]:
     """Simulate, run, evaluate and report; returns the report's figures (also in ``report.json``).
 
@@ -48,7 +47,6 @@ def run_demo(
             ``configs/scenarios``.
         resolution: (width, height) to render at (the lens scaled), None = the scenario's own.
         seconds: shorten the flight (None = the scenario's duration).
-        detector: detector name for the run (default: the config default, ``orb+navlights``).
 
     What is scored (the figures of the report): the **confirmed** tracks' reports whose bearing hits
     an obstacle (the renderer's ray cast along the reported bearing hits it first); their truth is
@@ -81,8 +79,6 @@ def run_demo(
         "outputs.plots": True,
         "outputs.progress": progress,
     }
-    if detector:
-        cli["detector.name"] = detector
     grey = wants_grey(load_config(None, cli=cli))  # a grey-only detector: render grey, decode as it is
 
     t0 = time.perf_counter()
