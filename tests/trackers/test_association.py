@@ -606,6 +606,43 @@ def test_stereo_klt_searches_new_rows_on_a_part_around_their_epipolar_curves(mon
         assert w < np.ptp(uv_a[rows, 0]) + 2 * (m + reach) - 2**levels
 
 
+def test_stereo_klt_part_holds_near_matches_far_along_their_epipolar_curves():
+    """A new row's part holds its epipolar curve, not only its start: matches 180-200 px from their
+    infinite-depth starts (0.93-1.03 rad at this lens's 194 px/rad; w |t| ~ 1.3-1.7) are found on the
+    part where the whole images find them. A box of the starts alone with the same margin (window
+    margin + BAND_SLACK: 208 px at maxLevel 4) holds those points but not their coarse windows
+    (~126 px around them), and loses most of them. Camera b sees a's image moved d px left along
+    the row through the centre (the epipolar line of a horizontal baseline there); a broad blob
+    (sigma 75 px) with fine texture, so LK converges from that far."""
+    import cv2
+
+    from trackers.association import stereo_klt
+
+    cv2.setNumThreads(1)
+    model = equidistant(1280, 720)
+    rng = np.random.default_rng(0)
+    fine = cv2.GaussianBlur(rng.random((720, 1280 + 200)).astype(np.float32), (0, 0), 1.5)
+    fine = (fine - fine.mean()) / fine.std()
+    yy, xx = np.mgrid[0:720, 0:1280].astype(np.float32)
+
+    def scene(cx, dx):
+        blob = np.exp(-((xx - cx) ** 2 + (yy - model.cy) ** 2) / (2 * 75.0**2))
+        return np.clip(60 + 150 * blob + 12 * fine[:, dx : dx + 1280], 0, 255).astype(np.uint8)
+
+    t = np.array([-0.1, 0.0, 0.0])
+    for xa in (620.0, 650.0, 680.0):
+        uv_a = np.array([[xa, model.cy]])
+        b_a, _ = model.pixel_to_bearing(uv_a)
+        for d in (180, 190, 200):
+            img_a, img_b = scene(xa, 0), scene(xa - d, d)  # b sees a's pixel x at x - d
+            whole = stereo_klt(img_a, img_b, b_a, uv_a, model, np.eye(3), t, crop=False)
+            part = stereo_klt(img_a, img_b, b_a, uv_a, model, np.eye(3), t)
+            np.testing.assert_array_equal(whole.idx, [0])
+            np.testing.assert_allclose(whole.uv_b, uv_a - [d, 0.0], atol=0.05)
+            np.testing.assert_array_equal(part.idx, whole.idx)
+            np.testing.assert_allclose(part.uv_b, whole.uv_b, atol=1e-3)
+
+
 def test_stereo_klt_checks_a_followed_match_that_lands_off_its_guess():
     """A followed row whose forward result lands more than recheck_px from its guess gets the
     backward check (and most such rows pass it); one that lands on its guess is kept unchecked.
