@@ -118,9 +118,14 @@ def match_features(
     return np.stack([i[good], j[good]], axis=1)
 
 
-#: Inverse ranges times the baseline (w |t|, ~ the angle a point at range r = |t| / (w |t|) is seen off
-#: its infinite-depth projection) at which a new stereo row's epipolar curve is sampled for the part
-#: its search runs on (``stereo_klt``; beyond the last one the search's reach ends first)
+#: Inverse ranges times the baseline (w |t|) at which a new stereo row's epipolar curve (R b_a + w t
+#: projected) is sampled for the part its search runs on (``stereo_klt``). A sample lies atan(w |t|)
+#: off the infinite-depth start for a ray square to the baseline (the last: 1.01 rad, 130 px at 129
+#: px/rad, 196 px at 194), nearer for a ray toward the baseline's direction (0.51 rad at 47 deg), whose
+#: curve goes on to the epipole: up to ~60 px of a 160-px reach's curve lie past the last sample. They
+#: are inside the part's margin (window + BAND_SLACK, 208 px at maxLevel 4), and the coarsest windows
+#: there (~126 px around a point: 96 of window, 30 of pyramid filter) read the whole image's pixels
+#: up to ~80 px past a sample.
 EPIPOLAR_STEPS = (0.0, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
 
 
@@ -183,9 +188,12 @@ def stereo_klt(
             n searches n + 1 pyramid levels; a followed match starts within a pixel or two of its
             answer, so it needs no coarse levels); the other rows use ``levels`` (also a maxLevel).
             None: ``levels`` for all rows (one call).
-        crop: run each KLT call on the parts of the two images its search reads (``_lk_part``:
-            the same answers for any point that travels less than the coarsest window's reach,
-            for a fraction of the pyramid-building cost); False: on the whole images.
+        crop: run each KLT call on a part of the two images (``_lk_part``: the box of the points
+            with the windows' margin and the search's reach; a call of new rows only and the
+            backward check on a part around their epipolar curves and paths back, ``band``), for a
+            fraction of the pyramid-building cost. The answers are the whole images' but for LK's
+            last float32 bits (it works relative to the part's origin) and a search that strays
+            from where it is expected (it reads the part's edge); False: on the whole images.
     Returns:
         ``StereoKLT`` (idx, uv_b, b_b, checked).
     """
