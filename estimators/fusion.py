@@ -46,13 +46,14 @@ Measurements
       tracks, bearings mode) the representative bearings are triangulated, as follows.
     * Stereo: when two cameras see the track in one frame, ``geometry.triangulate`` gives a point.
       It initialises the track (moving hypothesis) and switches a mono-initialised track to the
-      moving hypothesis. The update itself (``stereo_update``): ``"bearings"`` (default) fuses the
-      two cameras' bearings as above, ``"point"`` fuses the triangulated point as a 3-D position
-      (z = p_tri, H = [I 0], R = sigma_r^2 u u^T + (depth sigma_b)^2 (I - u u^T)); never both
-      (double counting). Bearings won on the accuracy harness (0.30 m baseline, 0.5 px): median
-      range error within 8 m 1.7 % vs 2.5 %, speed 8.9 % vs 11.7 %, 1-sigma share 71 % vs 49 %,
-      because the triangulated range's noise is skewed (range ~ 1 / parallax: at 8 m one frame's
-      sigma is ~10 %) while the bearing noise is Gaussian and the prior keeps the EKF linear.
+      moving hypothesis. The update itself fuses the two cameras' bearings as above, not the
+      triangulated point as a 3-D position (z = p_tri, H = [I 0], R = sigma_r^2 u u^T + (depth
+      sigma_b)^2 (I - u u^T)); never both (double counting). Bearings won on the accuracy harness
+      (0.30 m baseline, 0.5 px): median range error within 8 m 1.7 % vs 2.5 %, speed 8.9 % vs
+      11.7 %, 1-sigma share 71 % vs 49 %, because the triangulated range's noise is skewed (range ~
+      1 / parallax: at 8 m one frame's sigma is ~10 %) while the bearing noise is Gaussian and the
+      prior keeps the EKF linear; the point update (a former ``stereo_update: point``, removed in
+      session 29) is kept for a feature stereo fix only, below.
     * Mono parallax triangulation: the current bearing against the sighting with the longest
       baseline within ``baseline_max_age_s`` (the thesis: a longer baseline ranges farther; the age
       limit keeps a moving obstacle from corrupting it). It initialises the filter once its
@@ -171,8 +172,6 @@ class FusionSettings:
         mono_init_max_rel_sigma: a mono track is initialised only from a triangulation with
             range_sigma / range at most this. Default 0.1 (at 0.3 the skewed 1/parallax error made
             the first half-second inconsistent: NEES 30+ right after initialisation).
-        stereo_update: how a stereo frame updates an initialised track: ``"bearings"`` (each
-            camera's bearing, default) or ``"point"`` (the triangulated point). Default "bearings".
         feature_ranging: for static-hypothesis (mono) tracks whose observations list member
             features, range from the features (below) instead of the representative bearing's
             parallax. Default True.
@@ -568,7 +567,6 @@ class FusionSettings:
     min_parallax_rad: float = math.radians(1.0)
     stereo_max_rel_sigma: float = 0.3
     mono_init_max_rel_sigma: float = 0.1
-    stereo_update: str = "bearings"
     feature_ranging: bool = True
     feature_sigma_rad: float = 1e-3
     feature_sigma_focal_px: float | None = 204.52395028133697
@@ -620,12 +618,6 @@ class FusionSettings:
             v = getattr(self, f.name)
             if v is None and f.name in ("max_speed_mps", "velocity_prior_sigma_mps",
                                         "feature_sigma_focal_px"):
-                continue
-            if f.name == "stereo_update":
-                if v not in ("bearings", "point"):
-                    raise ConfigError(
-                        f"FusionSettings.stereo_update: expected 'bearings' or 'point', got {v!r}"
-                    )
                 continue
             if f.type == "bool":  # (2.5 or 1 is no switch: refuse, do not read it as truthy)
                 if not isinstance(v, bool | np.bool_):
@@ -1858,7 +1850,7 @@ class ObstacleFusion:
                     tr.vel_assumed = tr.feature_stereo is not None and s.feature_velocity_lag_s > 0
                 if tr.feature_stereo is not None and tr.feature_stereo_anchor:
                     self._anchor_position(tr, *stereo)  # (the state is on another point)
-                elif s.stereo_update == "point" or tr.feature_stereo is not None:
+                elif tr.feature_stereo is not None:
                     # (a feature stereo fix lies on the first camera's representative ray; the
                     # second camera's representative bearing points at another part of the object)
                     self._point_update(tr, *stereo, c)
