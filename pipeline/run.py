@@ -54,6 +54,7 @@ __all__ = [
     "StageTimings",
     "FramePoseCache",
     "ClockOffset",
+    "EDGE_S",
     "on_frame_clock",
     "RunResult",
     "build_rig",
@@ -209,17 +210,25 @@ class FramePoseCache:
         return getattr(self.inner, name)
 
 
+#: How far (s) past either end of a trajectory a frame time may lie and take that end's pose: half a
+#: millisecond, the rounding of a video's own frame times (Matroska and most containers store whole
+#: milliseconds), so the frame a trajectory ends on (1.466667 s) is covered at its rounded time (1.467 s).
+#: At 20 m/s that is 1 cm of motion; beyond it a frame outside the span is an error, as before.
+EDGE_S = 0.5e-3
+
+
 class ClockOffset:
     """A trajectory read at frame times: frame time ``t_s`` is its time ``t_s + offset_s``
-    (``ego_motion.time_offset_s``, the trajectory's clock minus the frames'; 0 when they share one).
-    ``pose_at``, ``velocity_at``, ``covers`` and ``start_s`` are in frame times. An error outside the
-    trajectory's span names the frame time (and, with an offset, the trajectory's); for a frame before the
-    first pose it says how long before, and names ``ego_motion.time_offset_s``: a trajectory on another
-    clock (a flight log's) is the usual cause.
+    (``ego_motion.time_offset_s``, the trajectory's clock minus the frames'; 0 when they share one), and a
+    time within :data:`EDGE_S` outside its span takes the nearer end's pose (the rounding of a video's
+    own frame times). ``pose_at``, ``velocity_at``, ``covers`` and ``start_s`` are in frame times. An
+    error outside the span names the frame time (and, with an offset, the trajectory's); for a frame before
+    the first pose it says how long before, and names ``ego_motion.time_offset_s``: a trajectory on
+    another clock (a flight log's) is the usual cause.
 
     Args:
-        inner: an ``estimators.egomotion.TumTrajectory`` (first pose ``t_s[0]``) or a
-            ``pipeline.live.GrowingTrajectory`` (``start_s``), on the trajectory's clock.
+        inner: an ``estimators.egomotion.TumTrajectory`` (pose times ``t_s``) or a
+            ``pipeline.live.GrowingTrajectory`` (``start_s``, ``end_s``), on the trajectory's clock.
         offset_s: seconds added to a frame time, finite.
     """
 
@@ -227,16 +236,37 @@ class ClockOffset:
         self.inner = inner
         self.offset_s = float(offset_s)
 
+    def _span(self) -> tuple[float, float] | None:
+        """The trajectory's first and last pose times (its clock); None before it has two poses."""
+        t = getattr(self.inner, "t_s", None)
+        if t is not None:
+            return float(t[0]), float(t[-1])
+        lo, hi = self.inner.start_s, self.inner.end_s
+        return None if lo is None else (lo, hi)
+
     @property
     def start_s(self) -> float | None:
         """The frame time of the trajectory's first pose; None before it has two poses."""
-        t = getattr(self.inner, "t_s", None)
-        first = float(t[0]) if t is not None else self.inner.start_s
-        return None if first is None else first - self.offset_s
+        span = self._span()
+        return None if span is None else span[0] - self.offset_s
+
+    def _at(self, t_s: float) -> float:
+        """Frame time ``t_s`` on the trajectory's clock, moved onto an end it misses by <= EDGE_S."""
+        t = t_s + self.offset_s
+        if self.inner.covers(t):
+            return t
+        span = self._span()
+        if span is not None:
+            lo, hi = span
+            if lo - EDGE_S <= t < lo:
+                return lo
+            if hi < t <= hi + EDGE_S:
+                return hi
+        return t
 
     def _ask(self, what: str, t_s: float) -> Any:
         try:
-            return getattr(self.inner, what)(t_s + self.offset_s)
+            return getattr(self.inner, what)(self._at(t_s))
         except InputError as e:
             msg = str(e)
             if self.offset_s:
@@ -255,7 +285,7 @@ class ClockOffset:
         return self._ask("velocity_at", t_s)
 
     def covers(self, t_s: float) -> bool:
-        return self.inner.covers(t_s + self.offset_s)
+        return self.inner.covers(self._at(t_s))
 
 
 def on_frame_clock(trajectory: Any, cfg: PipelineConfig) -> ClockOffset:

@@ -183,6 +183,20 @@ def test_growing_trajectory_is_reread_when_time_passes_its_end(tmp_path):
     assert g.velocity_at(1.5) == pytest.approx([2.0, 0, 0])
 
 
+def test_a_growing_trajectory_read_at_frame_times_takes_its_ends_within_half_a_millisecond(tmp_path):
+    """As a file trajectory (pipeline.run.ClockOffset): a frame time within EDGE_S of the span's ends
+    takes the end's pose (rounded frame times); one with no pose yet in the file is still not covered."""
+    from pipeline.run import EDGE_S, ClockOffset
+
+    p = tmp_path / "t.tum"
+    p.write_text("10.0 0 0 0 0 0 0 1\n11.0 1 0 0 0 0 0 1\n")
+    g = ClockOffset(GrowingTrajectory(p), 10.0)
+    assert g.start_s == 0.0 and g.covers(1.0 + 0.8 * EDGE_S) and g.covers(-0.8 * EDGE_S)
+    assert g.pose_at(1.0 + 0.8 * EDGE_S).t == pytest.approx([1.0, 0, 0])
+    assert not g.covers(1.0 + 1.2 * EDGE_S) and not g.covers(-1.2 * EDGE_S)
+    assert ClockOffset(GrowingTrajectory(tmp_path / "none.tum")).start_s is None  # no poses yet
+
+
 @pytest.mark.parametrize(
     ("bad", "problem"),
     [

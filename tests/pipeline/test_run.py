@@ -634,6 +634,45 @@ def test_a_trajectory_on_another_clock_is_read_at_frame_time_plus_the_offset():
     assert same.start_s == 100.0 and ego.start_s == 0.0
 
 
+def test_a_frame_time_rounded_past_a_trajectorys_end_takes_the_end_pose():
+    """A video's own frame times are whole milliseconds: the frame a trajectory ends on (1.466667 s) reads
+    1.467 s. Within half a millisecond (EDGE_S) outside the span a frame takes the nearer end's pose
+    (hand-made trajectory: 90 deg of yaw and 2 m along x over 100-101 s, offset 100 s); farther out it is
+    an error, as before."""
+    from estimators.egomotion import TumTrajectory
+
+    s = np.sqrt(0.5)
+    traj = TumTrajectory(np.array([100.0, 101.0]), np.array([[0.0, 0, 0], [2.0, 0, 0]]),
+                         np.array([[0, 0, 0, 1.0], [0, 0, s, s]]))
+    ego = run_mod.on_frame_clock(traj, load_config(None, ["ego_motion.trajectory=t.tum",
+                                                          "ego_motion.time_offset_s=100"]))
+    assert run_mod.EDGE_S == 0.5e-3
+    for t, x, yaw in ((1.0004, 2.0, np.pi / 2), (-0.0004, 0.0, 0.0)):
+        assert ego.covers(t)
+        p = ego.pose_at(t)
+        assert p.t == pytest.approx([x, 0, 0], abs=1e-12)
+        assert np.arctan2(p.R[1, 0], p.R[0, 0]) == pytest.approx(yaw)
+        assert ego.velocity_at(t) == pytest.approx([2.0, 0, 0])
+    for t in (1.0006, -0.0006):
+        assert not ego.covers(t)
+        with pytest.raises(InputError, match="outside the trajectory's span"):
+            ego.pose_at(t)
+
+
+def test_run_over_a_video_whose_frame_times_are_its_own_rounded_milliseconds(tmp_path):
+    """The simulator's 45-frame video without its .timestamps.txt: the container's frame times are whole
+    milliseconds, so the last frame (44/30 = 1.466667 s) reads 1.467 s, 0.33 ms past the trajectory's
+    last pose. The run stopped there with "outside the trajectory's span"; it now ranges every frame."""
+    from pipeline.cli import main
+
+    sim = _simulated_ci_small(tmp_path / "sim", 45)
+    (sim / "cam0.timestamps.txt").unlink()
+    rc = main(["run", "--video", str(sim / "cam0.mkv"), "--calibration", str(sim / "camchain.yaml"),
+               "--trajectory", str(sim / "trajectory.tum"), "--out", str(tmp_path / "o"), "--no-progress"])
+    recs = _lines(tmp_path / "o" / "tracks.jsonl")
+    assert rc == 0 and len(recs) == 45 and recs[-1]["t_s"] == 1.467
+
+
 def test_run_over_a_trajectory_stamped_on_another_clock(tmp_path):
     """The simulator's trajectory re-stamped 1000 s later (a flight log on its own clock): without an
     offset the run stops at the first frame, naming it; with ego_motion.time_offset_s=1000 its tracks
