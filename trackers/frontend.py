@@ -614,7 +614,6 @@ class FrontEnd:
             absorbed += self._associate(seen, greys)
         if len(self.cams) > 1 and self.boxers:  # box tracks: every frame (no features to match)
             absorbed += self._associate_boxes(seen)
-        self._revive_across(seen, absorbed)
         if len(self.cams) > 1:
             for name, extra in self._derive_views(seen, greys).items():
                 seen[name] = seen.get(name, []) + extra
@@ -1109,86 +1108,6 @@ class FrontEnd:
                         continue  # linked to another track in that camera
                 self._merge_gids(keep, drop, (la, lb), absorbed)
         return absorbed
-
-    def _reach(self, camera: str, tr: ObstacleTrack) -> float:
-        """How far (rad) from ``tr``'s bearing its obstacle may be found: a box track's angular
-        half-diagonal (3 sigma_rad) plus its BoxTracker's gate_rad; a feature track's link_rad (the
-        grouping's distance between neighbouring features of one obstacle)."""
-        bx = self.boxers.get(camera)
-        if bx is not None and tr.id in bx.tracks:
-            return 3.0 * tr.sigma_rad + bx.gate_rad
-        return self.groupers[camera].link_rad
-
-    def _revive_across(self, seen: dict[str, list[ObstacleTrack]], absorbed: list[int]) -> None:
-        """An obstacle whose every track coasts is revived by a track born this frame in another
-        tracker (another camera's, or the other detector's in its camera) where it was predicted
-        (issue 4: a lost track re-born under a new id). Each tracker revives only its own tracks
-        (the grouper's step 3, a box's gate), so an obstacle one camera saw last and another finds
-        next, or a box found again as features, got a new id (heldout_stereo_flying's drone: cam0's
-        box coasting since frame 19, ORB's track on it in cam1 from frame 28).
-
-        A global id that was reported and has no local track seen this frame (none lost yet: an id
-        reported lost never comes back, ``_observations``) and a track first seen this frame under
-        its own id, in a tracker with no track of that id, one of the two a box track, are one
-        obstacle when the two bearings, seen from the body, lie within the coasting track's reach
-        or the newborn's (``_reach``, the larger one) and, across cameras, satisfy the epipolar
-        constraint with the rays meeting ahead (``box_pairs``, ``association.epipolar_deg`` added),
-        each the other's only candidate. The newborn then takes the old id (``_merge_gids``; it
-        was never reported, so nothing is reported lost). No parallax is allowed beyond the reach:
-        a near obstacle seen from two cameras far apart is not revived. Two feature tracks are left
-        to the stereo association (their shared features; across cameras, the rule revived
-        feature tracks whose id had lain on the ground onto obstacles and back, demo and
-        heldout_stereo_flying: docs/ARCHITECTURE.md)."""
-        if not any(bx.tracks for bx in self.boxers.values()):
-            return  # (every pair has a box track)
-        gid = self._global
-        by_g: dict[int, list[tuple[str, bool, ObstacleTrack]]] = {}  # (camera, is a box, track)
-        for is_box, ds in ((False, self.groupers), (True, self.boxers)):
-            for name, d in ds.items():
-                for t in d.tracks.values():
-                    by_g.setdefault(gid(t.id), []).append((name, is_box, t))
-        coasting = [
-            g for g, v in by_g.items()
-            if g in self._reported and g not in absorbed and not any(t.seen for _n, _b, t in v)
-        ]
-        if not coasting:
-            return
-        shown = {id(t) for trs in seen.values() for t in trs}
-        born = [
-            (name, is_box, t)
-            for g, v in by_g.items()
-            for name, is_box, t in v
-            if len(v) == 1 and g == t.id and t.hits == 1 and t.seen and id(t) in shown
-        ]
-        if not born:
-            return
-        pairs: list[tuple[int, int]] = []  # (coasting id, index into born)
-        for g in coasting:
-            boxed = any(b for _n, b, _t in by_g[g])
-            for j, (nb, bb, tn) in enumerate(born):
-                if not (boxed or bb) or any(n == nb and b == bb for n, b, _t in by_g[g]):
-                    continue  # that tracker had its own chance to revive it
-                for na, ba, ta in by_g[g]:
-                    if not (ba or bb):
-                        continue  # (two feature tracks: the stereo association's, by their features)
-                    tol = max(self._reach(na, ta), self._reach(nb, tn))
-                    # (the bearings as seen from the body: no parallax allowed beyond the reach)
-                    ok = float((ta.b_C @ self._R_C_B[na]) @ (tn.b_C @ self._R_C_B[nb])) > np.cos(tol)
-                    if ok and na != nb:
-                        T = self._T_b_a[(na, nb)]
-                        ok = len(box_pairs(ta.b_C[None], [tol], tn.b_C[None], [tol], T.R, T.t,
-                                           self.epipolar_rad)[0]) > 0
-                    if ok:
-                        pairs.append((g, j))
-                        break
-        n_g: dict[int, int] = {}
-        n_j: dict[int, int] = {}
-        for g, j in pairs:
-            n_g[g] = n_g.get(g, 0) + 1
-            n_j[j] = n_j.get(j, 0) + 1
-        for g, j in pairs:
-            if n_g[g] == 1 and n_j[j] == 1:
-                self._merge_gids(g, born[j][2].id, (born[j][2].id,), absorbed)
 
     def link_features(self, camera: str, ref_ids: np.ndarray, ids: np.ndarray) -> None:
         """Record verified matches of ``camera``'s features to the reference camera's (rig's first).
