@@ -439,7 +439,9 @@ class LiveConfig(_Section):
         0.2,
         ge=0,
         description="float, s: how long to wait for a growing trajectory file to reach a frame's t_s before "
-        "the frame is skipped (counted).",
+        "the frame is skipped (counted in summary.json's frames_without_pose); a frame before the file's "
+        "first pose is skipped at once (also counted as frames_before_trajectory): poses are only added at "
+        "the end.",
     )
     preview: Literal["none", "file", "mjpeg"] = Field(
         "none",
@@ -606,6 +608,8 @@ _REMOVED_KEYS: dict[tuple[str, ...], str] = {
     ("fusion", "feature_window_px"): "the fusion's window angle follows the front end's KLT window: set "
     "tracker.features.win_px (the window's side in tracked px; the fusion takes its half-width over each "
     "camera's tracked px per rad)",
+    ("fusion", "stereo_update"): "a stereo frame always updates a track with the two cameras' bearings (the "
+    "'point' update lost on the accuracy harness and was removed in session 29); drop the key",
     ("tracker", "densify_every"): "densify's cadence is a duration now: set tracker.densify_s (seconds, "
     "applied at the frame rate seen; every 2nd frame at 30 fps = 2/30)",
 }

@@ -1016,6 +1016,7 @@ def run_live(
     frames = 0
     no_pose = 0
     before_start = 0  # of no_pose: frames before the trajectory's first pose (another clock?)
+    gap_before = gap_after = None  # s: the farthest skipped frame before the first / after the last pose
     interrupted = False
     failed: Exception | None = None
     # The grabber threads need the GIL for a moment between frames; while the pipeline runs Python, a
@@ -1071,12 +1072,16 @@ def run_live(
                     if start is not None and t_s < start:  # a file that grows never reaches back to it
                         no_pose += 1
                         before_start += 1
+                        gap_before = max(gap_before or 0.0, start - t_s)
                         continue
                     wait_until = time.monotonic() + lv.trajectory_wait_s
                     while not egomotion.covers(t_s) and time.monotonic() < wait_until:
                         time.sleep(0.01)
                     if not egomotion.covers(t_s):
                         no_pose += 1
+                        end = getattr(egomotion, "end_s", None)
+                        if end is not None:
+                            gap_after = max(gap_after or 0.0, t_s - end)
                         continue
                 last_t_s = t_s
                 for n in missing:  # counted for processed frames only: frames_without_partner <= frames
@@ -1191,6 +1196,8 @@ def run_live(
                 "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
                 "frames_without_pose": no_pose,
                 "frames_before_trajectory": before_start,
+                "pose_gap_before_s": gap_before,
+                "pose_gap_after_s": gap_after,
                 "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},
                 "timings": timings.summary(),
                 "parameters": cfg.model_dump(mode="json"),

@@ -204,15 +204,15 @@ class FramePoseCache:
     def covers(self, t_s: float) -> bool:
         return self.inner.covers(t_s)
 
-    def __getattr__(self, name: str) -> Any:  # anything else (end_s, reloads, source...): the inner's
+    def __getattr__(self, name: str) -> Any:  # anything else (a trajectory's start_s, end_s): the inner's
         if name == "inner":
             raise AttributeError(name)
         return getattr(self.inner, name)
 
 
 #: How far (s) past either end of a trajectory a frame time may lie and take that end's pose: half a
-#: millisecond, the rounding of a video's own frame times (Matroska and most containers store whole
-#: milliseconds), so the frame a trajectory ends on (1.466667 s) is covered at its rounded time (1.467 s).
+#: millisecond, the rounding of a video's own frame times where its container stores whole milliseconds
+#: (Matroska), so the frame a trajectory ends on (1.466667 s) is covered at its rounded time (1.467 s).
 #: At 20 m/s that is 1 cm of motion; beyond it a frame outside the span is an error, as before.
 EDGE_S = 0.5e-3
 
@@ -249,6 +249,12 @@ class ClockOffset:
         """The frame time of the trajectory's first pose; None before it has two poses."""
         span = self._span()
         return None if span is None else span[0] - self.offset_s
+
+    @property
+    def end_s(self) -> float | None:
+        """The frame time of the trajectory's last pose (so far, for a growing file); None before two."""
+        span = self._span()
+        return None if span is None else span[1] - self.offset_s
 
     def _at(self, t_s: float) -> float:
         """Frame time ``t_s`` on the trajectory's clock, moved onto an end it misses by <= EDGE_S."""

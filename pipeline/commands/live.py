@@ -71,15 +71,32 @@ def register(app: typer.Typer) -> None:
 
             raise interrupted(f"stopped; tracks.jsonl and summary.json are in {out_dir}") from None
         lat = r.latency
-        before = r.summary.get("frames_before_trajectory", 0)
-        late = r.summary.get("frames_without_pose", 0) - before
+        sm = r.summary
+        before = sm.get("frames_before_trajectory", 0)
+        late = sm.get("frames_without_pose", 0) - before
         print(
             f"{r.frames} frames, {r.stale} stale frames dropped"
-            + (f", {late} skipped without a pose (the trajectory did not reach their time within "
-               f"live.trajectory_wait_s)" if late else "")
-            + (f", {before} skipped before the trajectory's first pose (a trajectory on another clock needs "
-               "ego_motion.time_offset_s, its time minus the frame's, or live.clock)" if before else "")
+            + (f", {late} skipped without a pose ({_late_text(sm.get('pose_gap_after_s'), cfg)})"
+               if late else "")
+            + (f", {before} skipped before the trajectory's first pose (up to "
+               f"{sm['pose_gap_before_s']:.3f} s before it: its writer started after the camera, or it runs "
+               "on another clock, which needs ego_motion.time_offset_s, its time minus the frame's, or "
+               "live.clock)"
+               if before else "")
             + f", latency median {1000 * lat.get('median_s', 0):.1f} ms p99 "
             f"{1000 * lat.get('p99_s', 0):.1f} ms -> {r.out_dir / 'tracks.jsonl'}",
             file=sys.stderr,
         )
+
+
+def _late_text(gap_s: float | None, cfg) -> str:
+    """Why frames past the trajectory's last pose were skipped, for the closing line: the farthest one's
+    distance past it and, when that is far beyond what a writer lags (over 1 s and 10 waits), the clock."""
+    text = "the trajectory did not reach their time within live.trajectory_wait_s"
+    if gap_s is None:
+        return text
+    text += f"; the farthest was {gap_s:.3f} s past its last pose"
+    if gap_s > max(1.0, 10 * cfg.live.trajectory_wait_s):
+        text += (": a trajectory on another clock needs ego_motion.time_offset_s, its time minus the "
+                 "frame's, or live.clock")
+    return text

@@ -441,10 +441,31 @@ def test_live_says_how_many_frames_it_skipped_for_want_of_a_pose(tmp_path, monke
     rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
                "--out", str(tmp_path / "o")])
     err = _err_lines(capsys)
-    skipped = json.loads((tmp_path / "o" / "summary.json").read_text())["frames_without_pose"]
+    sm = json.loads((tmp_path / "o" / "summary.json").read_text())
+    skipped, gap = sm["frames_without_pose"], sm["pose_gap_after_s"]
     assert rc == 0 and skipped >= 1  # (4 unless the loaded machine dropped some as stale)
+    assert 0.05 <= gap <= 0.35 + 1e-9 and sm["frames_before_trajectory"] == 0  # (0.4-0.7 s past 0.35 s)
     assert f" stale frames dropped, {skipped} skipped without a pose (the trajectory did not reach their " \
-        "time within live.trajectory_wait_s), latency median " in err[-1], err
+        f"time within live.trajectory_wait_s; the farthest was {gap:.3f} s past its last pose), latency " \
+        "median " in err[-1], err  # (a writer's lag: no clock hint)
+
+
+def test_live_names_the_clock_when_frames_lie_far_past_a_trajectorys_last_pose(tmp_path, monkeypatch, capsys):
+    """Frames on the unix clock against a trajectory on a flight controller's boot clock (poses at
+    -500..-499 s): every frame lies ~500 s past the last pose; the closing line gives that gap and names
+    ego_motion.time_offset_s / live.clock, which a writer's usual lag (above) does not get."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", 4, times=[k / 10 for k in range(4)])
+    traj = tmp_path / "boot.tum"
+    traj.write_text("-500.0 0 0 0 0 0 0 1\n-499.0 1 0 0 0 0 0 1\n")
+    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
+               "--out", str(tmp_path / "o")])
+    err = _err_lines(capsys)
+    sm = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert rc == 0 and sm["frames_without_pose"] >= 1 and 499.0 <= sm["pose_gap_after_s"] <= 499.3 + 1e-9
+    assert (f"the farthest was {sm['pose_gap_after_s']:.3f} s past its last pose: a trajectory on another "
+            "clock needs ego_motion.time_offset_s, its time minus the frame's, or live.clock), latency "
+            "median ") in err[-1], err
 
 
 def test_live_skips_frames_before_a_trajectorys_first_pose_without_waiting_and_names_the_offset(
@@ -467,9 +488,12 @@ def test_live_skips_frames_before_a_trajectorys_first_pose_without_waiting_and_n
     assert rc == 0 and s["frames"] == 0 and took < 5, (took, err)  # (6 frames x 5 s before)
     before = s["frames_before_trajectory"]
     assert before >= 1 and s["frames_without_pose"] == before  # (6 unless dropped as stale)
-    assert (f" stale frames dropped, {before} skipped before the trajectory's first pose (a trajectory on "
-            "another clock needs ego_motion.time_offset_s, its time minus the frame's, or live.clock), "
-            "latency median ") in err[-1], err
+    gap = s["pose_gap_before_s"]
+    assert 499.5 <= gap <= 500.0 and s["pose_gap_after_s"] is None  # (the first frame kept is 0 s: 500 s)
+    assert (f" stale frames dropped, {before} skipped before the trajectory's first pose (up to {gap:.3f} s "
+            "before it: its writer started after the camera, or it runs on another clock, which needs "
+            "ego_motion.time_offset_s, its time minus the frame's, or live.clock), latency median ") \
+        in err[-1], err
     rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=5",
                "--set", "ego_motion.time_offset_s=500", "--out", str(tmp_path / "o2")])
     s = json.loads((tmp_path / "o2" / "summary.json").read_text())

@@ -436,3 +436,14 @@ def test_a_boolean_for_a_fusion_number_is_refused(key, value):
         load_config(overrides=[f"fusion.{key}={value}"])
     assert load_config(overrides=["fusion.max_speed_mps=null"]).fusion.max_speed_mps is None
     assert load_config(overrides=[f"fusion.{key}=2"]).fusion.settings_kwargs()[key] == 2
+
+
+def test_the_removed_stereo_update_key_says_it_was_removed(tmp_path):
+    """fusion.stereo_update (removed in session 29) is in every config.resolved.yaml written before: such a
+    file names the removal, not 'did you mean stereo_jump_check'."""
+    p = _write(tmp_path, "fusion:\n  stereo_update: bearings\n")
+    with pytest.raises(ConfigError) as e:
+        load_config(p)
+    assert str(e.value) == (f"{p}:2: 'fusion.stereo_update' was removed: a stereo frame always updates a "
+                            "track with the two cameras' bearings (the 'point' update lost on the accuracy "
+                            "harness and was removed in session 29); drop the key")
