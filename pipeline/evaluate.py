@@ -1,7 +1,8 @@
 """Metrics of a run's ``tracks.jsonl`` against a simulated scenario's ground truth.
 
 Truth of a report: the ray from the body origin along the report's ``bearing_body`` (rotated to W
-with ``T_W_B`` of ``trajectory.tum`` at the report's ``t_s``) is cast into the scene with
+with ``T_W_B`` of ``trajectory.tum`` at the report's ``t_s``; within ``pipeline.run.EDGE_S`` past either
+end the end's pose, as a run takes it) is cast into the scene with
 :func:`pipeline.sim.world.raycast`. The hit's depth is the true range along that bearing and the
 hit's object associates the report with an obstacle. A ray that narrowly misses (it hits sky or
 ground) is associated with the obstacle of smallest angular distance to its bounding sphere if
@@ -40,6 +41,7 @@ import numpy as np
 
 from estimators.egomotion import TumTrajectory
 from estimators.errors import InputError
+from pipeline.run import ClockOffset
 from pipeline.sim.scene import Scenario, load_scenario
 from pipeline.sim.world import SKY_ID, World, object_velocity, raycast, surface_distance
 from pipeline.sinks import make_output_dir, to_plain
@@ -136,7 +138,7 @@ class ScenarioTruth:
     name: str
     scn: Scenario
     world: World
-    traj: TumTrajectory
+    traj: ClockOffset  # trajectory.tum at frame times (within pipeline.run.EDGE_S past an end: its pose)
     gt: list[dict] = field(default_factory=list)  # gt.jsonl lines
 
     @classmethod
@@ -149,7 +151,8 @@ class ScenarioTruth:
                 )
         scn = load_scenario(folder / "scene.yaml")
         gt = _read_jsonl(folder / "gt.jsonl")
-        return cls(scn.name, scn, World(scn), TumTrajectory.load(folder / "trajectory.tum"), gt)
+        traj = ClockOffset(TumTrajectory.load(folder / "trajectory.tum"))
+        return cls(scn.name, scn, World(scn), traj, gt)
 
 
 def check_run_inputs(run_dir: str | Path, scen_dir: str | Path) -> list[str]:

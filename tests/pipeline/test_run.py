@@ -671,6 +671,11 @@ def test_run_over_a_video_whose_frame_times_are_its_own_rounded_milliseconds(tmp
                "--trajectory", str(sim / "trajectory.tum"), "--out", str(tmp_path / "o"), "--no-progress"])
     recs = _lines(tmp_path / "o" / "tracks.jsonl")
     assert rc == 0 and len(recs) == 45 and recs[-1]["t_s"] == 1.467
+    # evaluate takes the truth's poses as the run took them: the last frame is inside the truth and scored
+    assert main(["evaluate", str(tmp_path / "o"), str(sim), "--out", str(tmp_path / "e"), "--no-plots"]) == 0
+    assert json.loads((tmp_path / "e" / "metrics.json").read_text())["overall"]["frames_outside_truth"] == 0
+    scored = {r["t_s"] for r in _lines(tmp_path / "e" / "reports.jsonl")}
+    assert recs[-1]["tracks"] and 1.467 in scored
 
 
 def test_run_over_a_trajectory_stamped_on_another_clock(tmp_path):
