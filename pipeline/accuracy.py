@@ -1250,6 +1250,9 @@ def scene_config(sdir: Path, overrides: tuple[str, ...] | list[str] = ()):
 # ignored, so settings_from_overrides refuses it
 _SCENE_KEYS = ("inputs.videos", "rig.calibration", "rig.cameras", "ego_motion.trajectory",
                "ego_motion.speed_mps", "outputs.progress")
+# the keys of how the render's trajectory meets its frames (one clock, the render's own; an offset past
+# EDGE_S stops every scene at its first or last frame): settings_from_overrides refuses them too
+_CLOCK_KEYS = ("ego_motion.time_offset_s", "ego_motion.t0_s")
 
 
 def _load_config(overrides, cli: dict | None = None):
@@ -1290,6 +1293,10 @@ def settings_from_overrides(overrides: tuple[str, ...] | list[str] = (), max_spe
             raise ConfigError(f"--override {item}: {key} is set from each scene's render (its videos, "
                               "calibration and trajectory) and cannot be overridden; expected a detector, "
                               "tracker or fusion key")
+        if key in _CLOCK_KEYS:
+            raise ConfigError(f"--override {item}: each scene's trajectory is on its frames' clock (the "
+                              f"render's), so {key} cannot be overridden; expected a detector, tracker or "
+                              "fusion key")
     cfg = _load_config(overrides)
     if any(getattr(cfg, sec).model_fields_set for sec in ("detector", "tracker")):
         from pipeline.run import build_frontend

@@ -261,6 +261,9 @@ def test_override_cli_reaches_the_fusion_settings_and_the_options(monkeypatch):
         ("tracker.grouping.old=1", ["--override tracker.grouping.old=1:", "unknown key 'old'"]),
         ("ego_motion.speed_mps=3", ["--override ego_motion.speed_mps=3", "set from each scene's render"]),
         ("rig.calibration=x.yaml", ["--override rig.calibration=x.yaml", "cannot be overridden"]),
+        # the render's trajectory and frames share one clock: an offset stopped every scene at an end
+        ("ego_motion.time_offset_s=0.01", ["--override ego_motion.time_offset_s=0.01", "frames' clock"]),
+        ("ego_motion.t0_s=1", ["--override ego_motion.t0_s=1", "cannot be overridden"]),
     ],
 )
 def test_bad_override_is_a_clear_error_before_anything_runs(monkeypatch, item, expect):
