@@ -6,15 +6,18 @@ functions so that ``fisheye-des --help`` stays fast.
 
 Errors: library code raises ``estimators.errors.FisheyeDesError``; here it becomes one line on
 stderr and exit code 2 (no traceback unless ``--debug``). Ctrl-C exits with 130 after the command's
-own clean-up has run. Anything else (a bug), and any error under ``--debug``, is raised on: Python
-prints its traceback and exits with 1.
+own clean-up has run; so does a SIGTERM (a supervisor's stop: systemd, a launch file, ``docker
+stop``), which the command takes as a Ctrl-C. Anything else (a bug), and any error under
+``--debug``, is raised on: Python prints its traceback and exits with 1.
 """
 
 from __future__ import annotations
 
 import importlib
 import inspect
+import signal
 import sys
+import threading
 
 import typer
 
@@ -61,10 +64,25 @@ def interrupted(note: str) -> typer.Exit:
     return typer.Exit(INTERRUPTED)
 
 
+def _sigterm_as_ctrl_c(signum, frame) -> None:
+    raise KeyboardInterrupt  # the command's own Ctrl-C clean-up: summary.json written, exit 130
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console-script entry point; returns the process exit code."""
     args = sys.argv[1:] if argv is None else argv
     _state["noted"] = False
+    # (a handler can be set from the main thread only; it is put back on return)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c) if main_thread else None
+    try:
+        return _main(args)
+    finally:
+        if main_thread:  # (None: a handler not set from Python, i.e. the default)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _main(args: list[str]) -> int:
     try:
         rc = app(args=args, standalone_mode=False)
     except FisheyeDesError as e:

@@ -507,3 +507,48 @@ def test_run_batch_refuses_zero_workers(tmp_path):
 
     with pytest.raises(ConfigError, match=r"run_batch workers\): expected an integer of at least 1"):
         run_batch(load_config(None, ["ego_motion.speed_mps=3"]), [], tmp_path / "o", workers=0)
+
+
+_SIGTERM_RUN = """
+import os, signal, sys
+sys.path.insert(0, {tests!r})
+from test_run_support import FakeFrontEnd, FakeFusion, mono_rig
+from pipeline import live as live_mod, run as run_mod
+from pipeline.cli import main
+
+class Stopped(FakeFrontEnd):  # a supervisor's SIGTERM arrives while the 4th frame set is processed
+    def process(self, images, frame, t_s, T_W_B=None):
+        if len(self.calls) == 3:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return super().process(images, frame, t_s, T_W_B)
+
+for mod in (run_mod, live_mod):
+    mod.build_rig = lambda cfg: mono_rig()
+    mod.build_frontend = lambda cfg, rig: Stopped(rig)
+    mod.build_fusion = lambda cfg, rig, ego: FakeFusion()
+sys.exit(main({args!r}))
+"""
+
+
+@pytest.mark.parametrize("command", ["run", "live"])
+def test_sigterm_stops_like_ctrl_c_with_summary_json_written(tmp_path, command):
+    """systemd, a launch file or `docker stop` end a process with SIGTERM: the run stops as on a Ctrl-C
+    (summary.json written, interrupted true, exit 130), not killed without its summary (was: exit -15,
+    no summary.json)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pipeline
+
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
+    src = "--video" if command == "run" else "--camera"
+    args = [command, src, str(v), "--speed-mps", "3", "--out", str(tmp_path / "o")]
+    code = _SIGTERM_RUN.format(tests=str(Path(__file__).parent), args=args)
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 130, p.stderr
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    lines = (tmp_path / "o" / "tracks.jsonl").read_text().splitlines()
+    assert s["interrupted"] is True and s["error"] is None and s["frames"] == len(lines) == 3

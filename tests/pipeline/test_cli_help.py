@@ -83,8 +83,9 @@ def test_exit_code_1_is_an_unexpected_error_with_its_traceback_as_the_readme_say
                        cwd=tmp_path)
     assert r.returncode == 1 and "Traceback" in r.stderr, r.stderr
     readme = " ".join((REPO / "README.md").read_text().split())
-    assert ("130 interrupted (Ctrl-C; outputs written so far are kept), 1 an unexpected internal error "
-            "(a bug: Python's traceback on stderr; also bad input under `--debug`") in readme
+    assert ("130 interrupted (Ctrl-C, or SIGTERM as systemd, a launch file or `docker stop` send it; "
+            "outputs written so far are kept, `summary.json` with `interrupted` true), 1 an unexpected "
+            "internal error (a bug: Python's traceback on stderr; also bad input under `--debug`") in readme
 
 
 def test_ctrl_c_in_a_command_without_its_own_note_says_it_was_interrupted(tmp_path, monkeypatch, capsys):
