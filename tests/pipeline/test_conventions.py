@@ -196,11 +196,23 @@ def camchain_names(path: Path) -> set[str]:
     return {e.get("camera_name", k) for k, e in d.items()}
 
 
+def documented_summary_keys() -> set[str]:
+    """The names in backticks of docs/OUTPUTS.md's "`summary.json`" section."""
+    import re
+
+    text = (ROOT / "docs" / "OUTPUTS.md").read_text()
+    section = text.partition("## `summary.json`")[2].split("\n## ", 1)[0]
+    return set(re.findall(r"`([a-z_0-9]+)`", section))
+
+
 def check_run_folder(out: Path, rig_names: set[str]) -> dict:
-    """tracks.jsonl and, beside it, the resolved config and the summary JSON."""
+    """tracks.jsonl and, beside it, the resolved config and the summary JSON (every key of it named
+    in docs/OUTPUTS.md)."""
     counts = check_tracks_jsonl(out / "tracks.jsonl", rig_names)
     summary = strict_loads((out / "summary.json").read_text())
     assert isinstance(summary, dict) and summary["frames"] == counts["frames"]
+    undocumented = set(summary) - documented_summary_keys()
+    assert not undocumented, f"summary.json keys not in docs/OUTPUTS.md: {sorted(undocumented)}"
     assert isinstance(yaml.safe_load((out / "config.resolved.yaml").read_text()), dict)
     return counts
 

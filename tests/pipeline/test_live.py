@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_conventions import documented_summary_keys
 from test_run_support import FakeFrontEnd, FakeFusion, H, W, mono_rig, stereo_rig, write_video
 
 from estimators.egomotion import ConstantVelocity
@@ -67,6 +68,8 @@ def test_paced_replay_latency_and_video_times(tmp_path):
         assert x["t_s"] == pytest.approx(times[x["frame"]])
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["latency"]["n"] == r.frames and 0 <= s["latency"]["median_s"] <= s["latency"]["p99_s"] < 1.0
+    undocumented = set(s) - documented_summary_keys()
+    assert not undocumented, f"live summary.json keys not in docs/OUTPUTS.md: {sorted(undocumented)}"
 
 
 def test_slow_pipeline_takes_newest_frame_and_counts_stale(tmp_path):
