@@ -16,7 +16,10 @@ A run is scored only against the scenario it ran on (:func:`check_run_inputs`): 
 its videos; another scenario's truth is refused. An input that cannot be checked (an image folder
 elsewhere, a file no longer there, a camera, no resolved config) is scored with a note.
 
-Metrics (per group: overall, per scenario, per obstacle, stationary vs moving, by true-range bin):
+Metrics (per group: overall, per scenario, per obstacle, stationary vs moving, by true-range bin;
+these groups hold the tentative and confirmed reports, near misses included; beside them
+``confirmed_hits``, the reports ``fisheye-des demo`` scores: :func:`scored_reports`, and
+``near_misses`` alone, whose error measures the association, not the range along the bearing):
 relative range error ``|r - r_true| / r_true`` (median, p90, signed median as bias), share within
 5% and 10%, coverage of ``[range_min_m, range_max_m]``, its median width (an interval without an
 upper end counts as infinitely wide) and the share without an upper end, speed and heading
@@ -627,6 +630,8 @@ def evaluate(
     )
     metrics = {
         "overall": overall,
+        "confirmed_hits": scored_range_metrics(all_rows)["confirmed"],
+        "near_misses": range_metrics([r for r in all_rows if r.hit == "near"]),
         "by_scenario": by_scenario,
         "sky_by_scenario": sky_by,
         "ground": range_metrics(all_rows, surface="ground"),
@@ -664,7 +669,8 @@ _COLS = [
 
 def format_table(metrics: dict) -> str:
     """A plain-text table of the groups of ``metrics`` (one row per group)."""
-    groups = [("overall", metrics["overall"])]
+    groups = [("overall", metrics["overall"]), ("(confirmed hits)", metrics["confirmed_hits"]),
+              ("(near misses)", metrics["near_misses"])]
     groups += [(f"scenario {k}", v) for k, v in metrics["by_scenario"].items()]
     groups += [
         (f"obstacle {k} ({v['kind']}{', moving' if v['moving'] else ''})", v)
@@ -684,6 +690,12 @@ def format_table(metrics: dict) -> str:
         lines.append(name.ljust(w0) + " ".join(cells))
     o = metrics["overall"]
     lines.append("")
+    lines.append(
+        "scored: overall and the scenario, obstacle, motion and range rows take tentative and confirmed "
+        "reports whose bearing hits an obstacle or narrowly misses it (near misses: truth the obstacle's "
+        "nearest surface, while the report ranges what lies behind it); (confirmed hits): confirmed "
+        "reports whose bearing hits an obstacle, as fisheye-des demo scores them"
+    )
     if o.get("frames_outside_truth"):
         lines.append(
             f"note: {o['frames_outside_truth']} tracks.jsonl frames lie outside the scenario's time span "
