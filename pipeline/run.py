@@ -685,6 +685,43 @@ def find_recording(folder: Path, names: list[str]) -> list[Path] | None:
     return found
 
 
+# a batch worker process's state: the batch's stop event (set by the parent on a Ctrl-C or SIGTERM) and
+# whether a recording is under way (a signal between recordings must not end the worker's own loop)
+_BATCH_WORKER: dict[str, Any] = {"stop": None, "in_job": False, "interrupted": False}
+
+
+def _batch_worker_init(stop: Any) -> None:
+    """A batch worker process: a Ctrl-C (the terminal's, to the whole process group) or a SIGTERM (from
+    the parent, which alone got a supervisor's) stops the recording under way as in a single run
+    (its summary.json written, ``interrupted`` true); later signals do nothing, so that the clean-up
+    is not cut short; a recording not yet started is not run (the stop event)."""
+    import signal
+
+    _BATCH_WORKER["stop"] = stop
+
+    def interrupt(signum: int, frame: Any) -> None:  # (the handlers stay: a signal already pending
+        if _BATCH_WORKER["in_job"] and not _BATCH_WORKER["interrupted"]:  # when one became SIG_IGN raised
+            _BATCH_WORKER["interrupted"] = True  # "ignored due to race condition")
+            raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, interrupt)
+    signal.signal(signal.SIGTERM, interrupt)
+
+
+def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
+    """:func:`_batch_worker` in a worker process: not run once the batch is stopped; an interrupted
+    recording is reported as such (``interrupted``)."""
+    if _BATCH_WORKER["stop"].is_set():
+        return {"out_dir": args[1], "frames": 0, "not_run": True}
+    _BATCH_WORKER["in_job"] = True
+    try:
+        return _batch_worker(args)
+    except KeyboardInterrupt:
+        return {"out_dir": args[1], "interrupted": True}
+    finally:
+        _BATCH_WORKER["in_job"] = False
+
+
 def _batch_worker(args: tuple[dict, str, str | None]) -> dict:
     cfg_dict, out_dir, config_source = args
     try:
@@ -722,6 +759,11 @@ def run_batch(
             ``["cam0", "cam1"]`` for a two-camera calibration).
 
     Returns one dict per run (out_dir, frames, tracks, frames_per_s, error), in input order.
+
+    Raises:
+        KeyboardInterrupt: on a Ctrl-C or SIGTERM (worker processes: the recordings under way stop with
+            their outputs written, ``on_done`` gets them with ``interrupted``, and those not started
+            with ``not_run``).
     """
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
@@ -794,9 +836,31 @@ def run_batch(
             if on_done:
                 on_done(r)
         return results
-    with ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn")) as ex:
-        for r in ex.map(_batch_worker, jobs):
-            results.append(r)
+    ctx = get_context("spawn")
+    stop = ctx.Event()
+    with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_batch_worker_init,
+                             initargs=(stop,)) as ex:
+        futures = [ex.submit(_batch_pool_job, j) for j in jobs]
+        try:
+            for f in futures:
+                r = f.result()
+                results.append(r)
+                if on_done:
+                    on_done(r)
+        except KeyboardInterrupt:  # stop the recordings under way (their outputs kept), start no other
+            import signal
+            from multiprocessing import active_children
+
+            stop.set()
+            for p in active_children():  # (a Ctrl-C reached them already; a SIGTERM reached this process)
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(p.pid, signal.SIGTERM)
+            ex.shutdown(wait=True, cancel_futures=True)
             if on_done:
-                on_done(r)
+                for f, j in zip(futures[len(results):], jobs[len(results):], strict=True):
+                    if f.cancelled() or f.exception() is not None:
+                        on_done({"out_dir": j[1], "frames": 0, "not_run": True})
+                    else:
+                        on_done(f.result())
+            raise
     return results

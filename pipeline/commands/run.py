@@ -103,12 +103,7 @@ def register(app: typer.Typer) -> None:
                 workers=jobs,
                 camera_names=names,
                 config_source=config,
-                on_done=lambda r: print(
-                    f"{r['out_dir']}: {r.get('frames', 0)} frames"
-                    + (f", {r['frames_per_s']:.1f} frames/s" if r.get("frames_per_s") else "")
-                    + (f"  ERROR {r['error']}" if r.get("error") else ""),
-                    file=sys.stderr,
-                ),
+                on_done=lambda r: print(_batch_line(r), file=sys.stderr),
             )
             if any(r.get("error") for r in results):
                 from estimators.errors import SourceError
@@ -128,3 +123,16 @@ def register(app: typer.Typer) -> None:
             f" -> {r.out_dir / 'tracks.jsonl'}",
             file=sys.stderr,
         )
+
+
+def _batch_line(r: dict) -> str:
+    """The line ``run --batch`` prints for one recording's result (``run_batch``'s dict)."""
+    if r.get("not_run") or (r.get("interrupted") and not Path(r["out_dir"]).is_dir()):
+        return f"{r['out_dir']}: not run (the batch was stopped)"
+    if r.get("interrupted"):
+        return f"{r['out_dir']}: interrupted; what it did is in the folder"
+    if r.get("error") and not Path(r["out_dir"]).is_dir():  # refused before its first frame
+        return f"{r['out_dir']}: not run, no folder  ERROR {r['error']}"
+    return (f"{r['out_dir']}: {r.get('frames', 0)} frames"
+            + (f", {r['frames_per_s']:.1f} frames/s" if r.get("frames_per_s") else "")
+            + (f"  ERROR {r['error']}" if r.get("error") else ""))

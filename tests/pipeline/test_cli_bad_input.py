@@ -552,3 +552,81 @@ def test_sigterm_stops_like_ctrl_c_with_summary_json_written(tmp_path, command):
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     lines = (tmp_path / "o" / "tracks.jsonl").read_text().splitlines()
     assert s["interrupted"] is True and s["error"] is None and s["frames"] == len(lines) == 3
+
+
+_BATCH_MAIN = """
+import sys, time
+sys.path.insert(0, {tests!r})
+from test_run_support import FakeFrontEnd, FakeFusion, mono_rig
+from pipeline import run as run_mod
+
+class Slow(FakeFrontEnd):  # 0.2 s a frame: a recording of 20 frames takes 4 s
+    def process(self, images, frame, t_s, T_W_B=None):
+        time.sleep(0.2)
+        return super().process(images, frame, t_s, T_W_B)
+
+# (module level: the spawned batch workers import this file as __mp_main__ and get the stand-ins too)
+run_mod.build_rig = lambda cfg: mono_rig()
+run_mod.build_frontend = lambda cfg, rig: Slow(rig)
+run_mod.build_fusion = lambda cfg, rig, ego: FakeFusion()
+
+if __name__ == "__main__":
+    from pipeline.cli import main
+    sys.exit(main({args!r}))
+"""
+
+
+def test_sigterm_stops_a_batch_its_recordings_under_way_and_starts_no_other(tmp_path):
+    """A SIGTERM to `run --batch` (which reaches its process alone, not the workers) stops the
+    recordings under way, each with its summary.json (interrupted), and starts none of the rest: was
+    every recording run to its end, the queued ones too, before the batch exited."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import pipeline
+
+    vids = [write_video(tmp_path / f"v{k}.mkv", 20, times=[i / 10 for i in range(20)]) for k in (1, 2, 3)]
+    out = tmp_path / "o"
+    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
+            "--out", str(out), "--no-progress"]
+    script = tmp_path / "batch_main.py"
+    script.write_text(_BATCH_MAIN.format(tests=str(Path(__file__).parent), args=args))
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
+    with subprocess.Popen([sys.executable, str(script)], stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:
+            t_end = time.monotonic() + 90
+            while time.monotonic() < t_end and not all(
+                (out / n / "tracks.jsonl").is_file() and (out / n / "tracks.jsonl").stat().st_size
+                for n in ("v1", "v2")
+            ):
+                time.sleep(0.05)
+            p.send_signal(signal.SIGTERM)
+            err = p.communicate(timeout=60)[1]
+        finally:
+            if p.poll() is None:
+                p.kill()
+    assert p.returncode == 130, err
+    for n in ("v1", "v2"):
+        s = json.loads((out / n / "summary.json").read_text())
+        assert s["interrupted"] is True and s["frames"] < 20, (n, s["frames"])
+        assert f"{out / n}: interrupted; what it did is in the folder" in err
+    assert not (out / "v3").exists() and f"{out / 'v3'}: not run (the batch was stopped)" in err
+
+
+def test_a_batch_recording_refused_at_its_start_is_named_without_a_folder(tmp_path, monkeypatch, capsys):
+    """A file of the batch that is no video gets no result folder: its line says so (was "DIR: 0
+    frames", naming a folder that does not exist), and the other recordings run."""
+    _fake_stages(monkeypatch)
+    good = write_video(tmp_path / "good.mkv", 3, times=[0.0, 0.1, 0.2])
+    bad = tmp_path / "bad.mkv"
+    bad.write_text("not a video")
+    out = tmp_path / "o"
+    rc = main(["run", "--batch", str(bad), "--batch", str(good), "--jobs", "1", "--speed-mps", "3",
+               "--out", str(out), "--no-progress"])
+    err = _err_lines(capsys)
+    assert rc == 2 and not (out / "bad").exists() and (out / "good" / "summary.json").is_file()
+    assert err[0].startswith(f"{out / 'bad'}: not run, no folder  ERROR {bad}: cannot be opened"), err
+    assert err[1].startswith(f"{out / 'good'}: 3 frames, "), err
