@@ -436,11 +436,13 @@ def _task_memory_probe(task: Mapping[str, Any]) -> dict[str, Any]:
 
 
 class _SourceInfo:
-    """What ``pipeline.run.run`` reads of each camera source (``frame_count``, ``fps``, ``path``)."""
+    """What ``pipeline.run.run`` reads of each camera source (``frame_count``, ``fps``, ``path``,
+    ``frame_times``)."""
 
     def __init__(self, camera: str, path: str, fps: float) -> None:
         self.camera, self.path, self.fps, self.frame_count = camera, path, fps, None
         self.error = None
+        self.frame_times = "frame / fps (the bench's looped clip)"
 
 
 class LoopingSource:

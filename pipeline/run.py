@@ -645,6 +645,7 @@ def run(
             "dropped_unpaired_frames": dict(source.dropped),
             "rig": {"kind": getattr(rig, "kind", None), "cameras": list(getattr(rig, "names", []))},
             "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
+            "frame_times": {s.camera: s.frame_times for s in source.sources},
             "timings": timings.summary(),
             "per_frame": per_frame.summary(),
             "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},

@@ -286,6 +286,15 @@ class VideoSource(Source):
         self._first = (img, pos0)
         self._fps_given = fps is not None
 
+    @property
+    def frame_times(self) -> str:
+        """Where the frame times come from (``summary.json`` ``frame_times``): the timestamps file's path,
+        ``"inputs.fps"`` (frame / fps), or ``"container"`` (the container's presentation times, frame /
+        its fps where it gives none)."""
+        if self.timestamps_path is not None:
+            return str(self.timestamps_path)
+        return "inputs.fps" if self._fps_given else "container"
+
     def _grey_setup(self, bgr: np.ndarray, probe: bool) -> np.ndarray:
         """Choose how grey frames are made; returns the first frame as (H, W) uint8 grey."""
         grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if bgr.ndim == 3 else bgr
@@ -404,9 +413,11 @@ class ImageFolderSource(Source):
             raise SourceError(f"{self.folder}: no images ({', '.join(IMAGE_SUFFIXES)}) in the folder")
         cands = [self.folder / "timestamps.txt", self.folder.with_name(self.folder.name + ".timestamps.txt")]
         self.timestamps = None
+        self.frame_times = "inputs.fps"  # where the frame times come from: this or the timestamps file
         for c in cands:
             if c.is_file():
                 self.timestamps = read_timestamps(c)
+                self.frame_times = str(c)
                 if len(self.timestamps) < len(self.files):
                     raise SourceError(
                         f"{c}: {len(self.timestamps)} timestamps for {len(self.files)} images "

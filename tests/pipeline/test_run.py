@@ -51,6 +51,7 @@ def test_run_writes_tracks_summary_and_resolved_config(tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["frames"] == 5 and s["tracks"] == 2 and s["error"] is None and not s["interrupted"]
     assert s["frames_per_s"] > 0
+    assert s["frame_times"] == {"cam0": str(tmp_path / "cam0.timestamps.txt")}
     for stage in ("decode", "detect", "track", "group", "associate", "estimate", "fuse", "write"):
         assert (
             s["timings"][stage]["n"] == 5 and s["timings"][stage]["p99_s"] >= s["timings"][stage]["median_s"]
@@ -671,6 +672,8 @@ def test_run_over_a_video_whose_frame_times_are_its_own_rounded_milliseconds(tmp
                "--trajectory", str(sim / "trajectory.tum"), "--out", str(tmp_path / "o"), "--no-progress"])
     recs = _lines(tmp_path / "o" / "tracks.jsonl")
     assert rc == 0 and len(recs) == 45 and recs[-1]["t_s"] == 1.467
+    # summary.json says where the times came from (the file's path when there is one: above)
+    assert json.loads((tmp_path / "o" / "summary.json").read_text())["frame_times"] == {"cam0": "container"}
     # evaluate takes the truth's poses as the run took them: the last frame is inside the truth and scored
     assert main(["evaluate", str(tmp_path / "o"), str(sim), "--out", str(tmp_path / "e"), "--no-plots"]) == 0
     assert json.loads((tmp_path / "e" / "metrics.json").read_text())["overall"]["frames_outside_truth"] == 0

@@ -44,6 +44,7 @@ def test_video_without_sidecar_uses_container_times(tmp_path):
 def test_video_fps_option_gives_frame_over_fps(tmp_path):
     p = write_video(tmp_path / "v.mkv", 4, fps=30.0)
     assert [f.t_s for f in VideoSource(p, fps=10.0)] == pytest.approx([0.0, 0.1, 0.2, 0.3])
+    assert VideoSource(p, fps=10.0).frame_times == "inputs.fps" and VideoSource(p).frame_times == "container"
 
 
 def test_image_folder_sorted_with_fps_and_with_timestamps(tmp_path):
@@ -54,7 +55,9 @@ def test_image_folder_sorted_with_fps_and_with_timestamps(tmp_path):
     got = list(ImageFolderSource(d, fps=20.0, grey=True))
     assert [int(f.image[0, 0]) for f in got] == [0, 10, 20]
     assert [f.t_s for f in got] == pytest.approx([0.0, 0.05, 0.1])
+    assert ImageFolderSource(d, fps=20.0).frame_times == "inputs.fps"
     (d / "timestamps.txt").write_text("10 1.5\n11 1.6\n13 1.8\n")
+    assert ImageFolderSource(d, fps=20.0).frame_times == str(d / "timestamps.txt")
     got = list(ImageFolderSource(d))
     assert [(f.frame, f.t_s) for f in got] == [(10, 1.5), (11, 1.6), (13, 1.8)]
 
