@@ -739,6 +739,27 @@ def _batch_worker(args: tuple[dict, str, str | None]) -> dict:
         return {"out_dir": out_dir, "frames": getattr(e, "frames", 0), "error": str(e)}
 
 
+def _pool_result(f: Any, out_dir: str) -> dict:
+    """The result of the batch worker future ``f`` for the recording written to ``out_dir``. A worker
+    process that died (the system killed it, e.g. out of memory) breaks the pool: every recording not
+    finished then gets an error (its folder, if it started, keeps what it wrote) and the batch exits 2.
+    A bug in a recording is raised on with the recording named."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    try:
+        return f.result()
+    except BrokenProcessPool:
+        if Path(out_dir).is_dir():
+            why = ("its worker process died, or was stopped when another did (killed by the system: out of "
+                   "memory?); what it wrote is in its folder")
+        else:
+            why = "not run: a worker process of the batch died (killed by the system: out of memory?)"
+        return {"out_dir": out_dir, "frames": 0, "error": why}
+    except Exception as e:
+        e.add_note(f"(in the batch's recording {out_dir})")
+        raise
+
+
 def run_batch(
     cfg: PipelineConfig,
     items: list[Path],
@@ -843,8 +864,8 @@ def run_batch(
                              initargs=(stop,)) as ex:
         futures = [ex.submit(_batch_pool_job, j) for j in jobs]
         try:
-            for f in futures:
-                r = f.result()
+            for f, j in zip(futures, jobs, strict=True):
+                r = _pool_result(f, j[1])
                 results.append(r)
                 if on_done:
                     on_done(r)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import pytest
 from test_run_support import FakeFrontEnd, FakeFusion, mono_rig, write_video
@@ -630,3 +631,80 @@ def test_a_batch_recording_refused_at_its_start_is_named_without_a_folder(tmp_pa
     assert rc == 2 and not (out / "bad").exists() and (out / "good" / "summary.json").is_file()
     assert err[0].startswith(f"{out / 'bad'}: not run, no folder  ERROR {bad}: cannot be opened"), err
     assert err[1].startswith(f"{out / 'good'}: 3 frames, "), err
+
+
+def _writer_of(path) -> int | None:
+    """The pid of a process holding ``path`` open for writing (Linux /proc), or None."""
+    import os
+
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                if os.readlink(f"/proc/{pid}/fd/{fd}") == str(path):
+                    return int(pid)
+        except OSError:
+            continue
+    return None
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
+def test_a_batch_worker_killed_by_the_system_is_named_and_the_batch_exits_2(tmp_path):
+    """A batch worker killed mid-recording (SIGKILL, as the kernel's out-of-memory killer does) broke the
+    pool: the batch died with BrokenProcessPool's traceback naming no recording. Now each recording left
+    unfinished gets its line (started: what it wrote is in its folder; not started: not run) and the
+    batch exits 2."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    import pipeline
+
+    vids = [write_video(tmp_path / f"v{k}.mkv", 20, times=[i / 10 for i in range(20)]) for k in (1, 2, 3)]
+    out = tmp_path / "o"
+    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
+            "--out", str(out), "--no-progress"]
+    script = tmp_path / "batch_main.py"
+    script.write_text(_BATCH_MAIN.format(tests=str(Path(__file__).parent), args=args))
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
+    with subprocess.Popen([sys.executable, str(script)], stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:
+            t_end = time.monotonic() + 90
+            pid = None
+            while time.monotonic() < t_end and pid is None:
+                f = out / "v1" / "tracks.jsonl"
+                pid = _writer_of(f) if f.is_file() and f.stat().st_size else None
+                time.sleep(0.05)
+            assert pid is not None and pid != p.pid
+            os.kill(pid, signal.SIGKILL)
+            err = p.communicate(timeout=60)[1]
+        finally:
+            if p.poll() is None:
+                p.kill()
+    assert p.returncode == 2, err
+    assert "Traceback" not in err and "BrokenProcessPool" not in err, err
+    assert f"{out / 'v1'}: 0 frames  ERROR its worker process died" in err
+    assert (out / "v1" / "tracks.jsonl").stat().st_size > 0  # what it wrote is kept
+    assert str(out / "v3") in err
+
+
+def test_a_bug_in_a_batch_recording_names_the_recording(tmp_path):
+    """A bug (not a refused input) in a batch worker is raised on, as in a single run (traceback, exit 1),
+    now with the recording named: the traceback came from the worker process and named none."""
+    import os
+    import subprocess
+    import sys
+
+    import pipeline
+
+    vids = [write_video(tmp_path / f"v{k}.mkv", 3, times=[i / 10 for i in range(3)]) for k in (1, 2)]
+    out = tmp_path / "o"
+    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
+            "--out", str(out), "--no-progress"]
+    script = tmp_path / "batch_main.py"
+    script.write_text(_BATCH_MAIN.replace("time.sleep(0.2)", "raise RuntimeError('a bug')").format(
+        tests=str(Path(__file__).parent), args=args))
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
+    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 1 and "RuntimeError: a bug" in p.stderr, p.stderr
+    assert f"(in the batch's recording {out / 'v1'})" in p.stderr, p.stderr
