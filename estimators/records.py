@@ -203,6 +203,9 @@ class TrackReport:
     diagnostics; ``gated`` counts measurements rejected by the chi-square gate so far.
     ``speed_sigma_mps`` is the 1-sigma of ``speed_mps`` (first order along the reported velocity,
     sqrt(u^T P_vv u) with u = v / |v|, m/s), null when no velocity is reported.
+    ``miss_distance_m`` is the distance at the closest approach ``ttc_s`` is the time of,
+    |r + t* w|, and ``miss_distance_sigma_m`` its 1-sigma (``estimators.fusion._miss_distances``);
+    both null exactly when ``ttc_s`` is.
     """
 
     id: int
@@ -218,6 +221,8 @@ class TrackReport:
     speed_mps: float | None = None
     speed_sigma_mps: float | None = None
     ttc_s: float | None = None
+    miss_distance_m: float | None = None
+    miss_distance_sigma_m: float | None = None
     source: str = ""
     label: str = "orb"
     nis: float | None = None
@@ -265,7 +270,7 @@ def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True)
     F, opt_list = float, _opt_list
     for r, b, a, e in zip(reports, B.tolist(), az.tolist(), el.tolist(), strict=True):
         # optional floats inline: None or a Python float as they are, anything else (numpy scalars,
-        # ints) through float(); no function call per field (~50 reports x 7 fields a frame)
+        # ints) through float(); no function call per field (~50 reports x 9 fields a frame)
         d: dict[str, Any] = {
             "id": int(r.id),
             "status": r.status,
@@ -282,6 +287,8 @@ def reports_to_json(reports: Sequence[TrackReport], null_nonfinite: bool = True)
             "speed_mps": v if (v := r.speed_mps) is None or type(v) is F else F(v),
             "speed_sigma_mps": v if (v := r.speed_sigma_mps) is None or type(v) is F else F(v),
             "ttc_s": v if (v := r.ttc_s) is None or type(v) is F else F(v),
+            "miss_distance_m": v if (v := r.miss_distance_m) is None or type(v) is F else F(v),
+            "miss_distance_sigma_m": v if (v := r.miss_distance_sigma_m) is None or type(v) is F else F(v),
             "source": r.source,
             "label": r.label,
             "nis": v if (v := r.nis) is None or type(v) is F else F(v),

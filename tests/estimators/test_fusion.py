@@ -103,6 +103,42 @@ def test_ttc_closed_form_for_a_stationary_obstacle():
     assert r.ttc_s == pytest.approx(4.0 - t, rel=0.02)
 
 
+def test_miss_distance_of_an_obstacle_passing_abeam_and_then_receding():
+    # body at 5 m/s along x past a stationary point 2 m to its left (20, 2, 0): the closest approach
+    # misses by 2 m; after passing it (3 m to the left of (3, 3, 0.5), passed at t = 0.6 s) the
+    # obstacle recedes: no time to closest approach and no distance at it, while still ranged
+    run = _fly(mono_forward_rig(MODEL), ConstantVelocity(5.0), np.array([20.0, 2.0, 0.0]), sigma=1e-3)
+    ranged = [r for _t, r, *_ in run if r.range_m is not None]
+    assert ranged
+    for r in ranged:
+        assert r.ttc_s is not None
+        assert abs(r.miss_distance_m - 2.0) <= 3.0 * r.miss_distance_sigma_m
+    r = ranged[-1]
+    assert r.miss_distance_m == pytest.approx(2.0, rel=0.01)
+    assert 0 < r.miss_distance_sigma_m < 0.05
+    assert r.to_json()["miss_distance_m"] == r.miss_distance_m
+    run = _fly(mono_forward_rig(MODEL), ConstantVelocity(5.0), np.array([3.0, 3.0, 0.5]), sigma=1e-3)
+    for t, r, *_ in run:
+        assert (r.miss_distance_m is None) == (r.ttc_s is None) == (r.miss_distance_sigma_m is None)
+        if t < 0.5 and r.ttc_s is not None:
+            assert r.miss_distance_m == pytest.approx(math.hypot(3.0, 0.5), rel=0.05)
+        if t > 0.7:  # past it
+            assert r.range_m is not None and r.ttc_s is None and r.miss_distance_m is None
+
+
+def test_miss_distance_of_a_head_on_obstacle_is_zero_within_its_sigma():
+    # a 0.30 m stereo pair at 3 m/s straight at a stationary point 8 m ahead: the miss is 0; each
+    # report's miss is a distance from 0 no larger than 2 of its sigmas, and the sigma (the
+    # filter's lateral position and velocity uncertainty at t*) shrinks as the range does
+    run = _fly(stereo_forward_rig(MODEL, 0.30), ConstantVelocity(3.0), np.array([8.0, 0.0, 0.0]), sigma=1e-3)
+    reps = [r for _t, r, *_ in run if r.miss_distance_m is not None]
+    assert len(reps) >= 20
+    for r in reps:
+        assert 0.0 <= r.miss_distance_m <= 2.0 * r.miss_distance_sigma_m
+    assert reps[-1].miss_distance_sigma_m < 0.6 * reps[0].miss_distance_sigma_m
+    assert reps[-1].miss_distance_m < 0.1
+
+
 def test_hover_mono_range_is_unobservable_with_bounds():
     run = _fly(mono_forward_rig(MODEL), ConstantVelocity(0.0), np.array([8.0, 2.0, 1.0]), T_s=1.0)
     for _t, r, _rt, _, _ in run[1:]:

@@ -40,6 +40,8 @@ _FIELDS: dict[str, tuple] = {
     "speed_mps": (*_NUM, type(None)),
     "speed_sigma_mps": (*_NUM, type(None)),
     "ttc_s": (*_NUM, type(None)),
+    "miss_distance_m": (*_NUM, type(None)),
+    "miss_distance_sigma_m": (*_NUM, type(None)),
     "source": (str,),
     "label": (str,),
     "nis": (*_NUM, type(None)),
@@ -132,6 +134,13 @@ def check_track(t: dict, rig_names: set[str]) -> list[str]:
             bad.append(f"speed_sigma_mps {t['speed_sigma_mps']} with a velocity")
     if t["ttc_s"] is not None and (t["ttc_s"] < 0 or r is None):
         bad.append(f"ttc_s {t['ttc_s']} (range_m {r})")
+    # the distance at that closest approach and its sigma: null exactly when ttc_s is; the miss is
+    # the range's component across the relative velocity, so at most the range
+    md, ms = t["miss_distance_m"], t["miss_distance_sigma_m"]
+    if (md is None) != (t["ttc_s"] is None) or (ms is None) != (t["ttc_s"] is None):
+        bad.append(f"miss_distance_m {md}, miss_distance_sigma_m {ms} with ttc_s {t['ttc_s']}")
+    elif md is not None and not (0 <= md <= r * (1 + 1e-9) and ms >= 0):
+        bad.append(f"miss_distance_m {md} +- {ms} (range_m {r})")
     # source: "" or members of {mono, stereo, bounds} joined by "+" in that order
     s = t["source"]
     parts = s.split("+") if s else []
@@ -223,7 +232,8 @@ def test_the_reader_refuses_what_the_conventions_exclude(tmp_path):
             "azimuth_deg": math.degrees(math.atan2(0.8, 0.6)), "elevation_deg": 0.0,
             "range_m": 5.0, "range_sigma_m": 0.5, "range_min_m": 1.0, "range_max_m": None,
             "position_body_m": [3.0, 4.0, 0.0], "velocity_world_mps": [0.0, 3.0, 4.0], "speed_mps": 5.0,
-            "speed_sigma_mps": 0.1, "ttc_s": 2.0, "source": "mono+bounds", "label": "orb", "nis": None,
+            "speed_sigma_mps": 0.1, "ttc_s": 2.0, "miss_distance_m": 1.5, "miss_distance_sigma_m": 0.2,
+            "source": "mono+bounds", "label": "orb", "nis": None,
             "innovation": None, "gated": 0, "unobservable_reason": None}
     assert check_track(good, {"cam0"}) == []
     for change, what in [
@@ -232,6 +242,8 @@ def test_the_reader_refuses_what_the_conventions_exclude(tmp_path):
         ({"position_body_m": [3.0, -4.0, 0.0]}, "position_body_m"),
         ({"speed_mps": 7.0}, "speed_mps"),
         ({"ttc_s": -1.0}, "ttc_s"),
+        ({"ttc_s": None}, "miss_distance_m"),
+        ({"miss_distance_m": 6.0}, "miss_distance_m"),
         ({"source": "bounds+mono"}, "source"),
         ({"camera": ["cam0", "cam9"]}, "camera"),
         ({"status": "deleted"}, "status"),

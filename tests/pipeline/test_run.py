@@ -296,6 +296,8 @@ def test_end_to_end_run_over_a_simulated_video(tmp_path):
         "velocity_world_mps",
         "speed_mps",
         "ttc_s",
+        "miss_distance_m",
+        "miss_distance_sigma_m",
         "source",
     }
     tracks = [t for x in recs for t in x["tracks"]]
