@@ -80,6 +80,10 @@ TARGETS: dict[str, tuple[str, float]] = {
     "mono_obstacle_coverage": (">=", 0.95),
 }
 
+# the miss distance's informational row scores the reports whose time to closest approach is at
+# most this (s): those an autopilot acts on
+MISS_TTC_MAX_S = 3.0
+
 # metric -> (count of samples it was to be scored on, what those samples lacked): a metric without
 # values although there were samples to score is a FAIL (nothing reported), not "n/a"
 _SCORED_ON: dict[str, tuple[str, str]] = {
@@ -167,6 +171,11 @@ class Sample:
     thesis_speed_mps: float | None = None
     hit: str = "obstacle"  # pipeline mode: the evaluator's association ("obstacle" | "near")
     obstacle: int | None = None  # pipeline mode: the evaluator's obstacle id
+    # pipeline mode, reports with ttc_s <= MISS_TTC_MAX_S on the obstacle: the reported distance at
+    # closest approach, its sigma, and the truth's (``_true_miss``)
+    miss_m: float | None = None
+    miss_sigma_m: float | None = None
+    miss_true_m: float | None = None
 
 
 # ------------------------------------------------------------------------------------- scenes
@@ -496,6 +505,17 @@ def summarize(samples: list[Sample]) -> dict:
     # whether 1.0 lies inside, read only from CLUSTER_MIN tracks on (fewer: the interval is too narrow)
     m["range_nees_track_interval_has_1"] = (iv[0] <= 1.0 <= iv[1]
                                             if iv and len(set(clusters)) >= CLUSTER_MIN else None)
+    # informational, no target: the distance at closest approach of reports with ttc_s <= 3 s
+    # against the truth's (the obstacle's surface point along the report's bearing, moving with the
+    # obstacle; the drone's and the obstacle's true velocities at the report's time)
+    ms = [s for s in samples if s.miss_true_m is not None]
+    ae = [abs(s.miss_m - s.miss_true_m) for s in ms]
+    m["miss_n"] = len(ms)
+    m["miss_abs_err_median"] = _q(ae, 0.5)
+    m["miss_abs_err_p90"] = _q(ae, 0.9)
+    for k in (1, 2):
+        m[f"miss_within_{k}sigma"] = (
+            float(np.mean([e <= k * s.miss_sigma_m for e, s in zip(ae, ms, strict=True)])) if ms else None)
     m["n_samples"] = len(samples)
     return m
 
@@ -596,6 +616,13 @@ def format_table(m: dict, title: str = "") -> str:
         lines.append(f"{f'range NEES mean, tracks resampled, [{ivt[0]:.2f}, {ivt[1]:.2f}]':52s} "
                      f"{_fmt(n1):>10s} {'':>10s} {'info':>10s}  informational, no verdict: 1.0 {inside} "
                      f"({k} tracks, {m.get('range_nees_n')} reports)")
+    if "mono_eligible_n" in m:  # pipeline mode (the reports carry their truth's miss distance)
+        lines.append(f"{f'miss distance, ttc_s <= {MISS_TTC_MAX_S:g} s: median |err| (m)':52s} "
+                     f"{_fmt(m.get('miss_abs_err_median')):>10s} {'':>10s} {'info':>10s}  informational, no "
+                     f"verdict: p90 {_fmt(m.get('miss_abs_err_p90'))} m; truth within 1 sigma "
+                     f"{_fmt(m.get('miss_within_1sigma'), True)}, 2 sigma "
+                     f"{_fmt(m.get('miss_within_2sigma'), True)}"
+                     f" (Gaussian 68.3 / 95.4 %; {m.get('miss_n')} reports on an obstacle)")
     lines.append(
         f"samples: {m.get('n_samples')}  mono {m.get('mono_n')} "
         f"(ranged {_fmt(m.get('mono_ranged_share'), True)})  stereo<=3m {m.get('stereo_3m_n')}  "
@@ -1008,6 +1035,13 @@ def format_compare(metrics_by_set: dict[str, dict]) -> str:
             lines.append(f"{label:52s} " + " ".join(
                 f"{_fmt(((m.get('scored_ranges') or {}).get(grp) or {}).get(key), True):>16s}" for m in ms)
                 + f" {'info':>10s}")
+    if any("mono_eligible_n" in m for m in ms):  # informational (format_table's miss distance row)
+        for label, key, pct in ((f"miss distance, ttc_s <= {MISS_TTC_MAX_S:g} s: median |err| (m)",
+                                 "miss_abs_err_median", False),
+                                ("miss distance: truth within 1 sigma", "miss_within_1sigma", True),
+                                ("miss distance: truth within 2 sigma", "miss_within_2sigma", True)):
+            lines.append(f"{label:52s} " + " ".join(f"{_fmt(m.get(key), pct):>16s}" for m in ms)
+                         + f" {'info':>10s}")
     for label, key in (("samples", "n_samples"), ("mono samples", "mono_n"), ("stereo <=3 m samples",
                        "stereo_3m_n"), ("stereo <=8 m samples", "stereo_8m_n"),
                        ("bounded moving reports", "bounds_n"), ("stereo moving reports >= 1 s",
@@ -1753,6 +1787,15 @@ def _front_end_rays(obs_frames, rig, ego) -> dict[tuple[float, int], list[tuple[
     return out
 
 
+def _true_miss(r_W: np.ndarray, w_W: np.ndarray) -> float:
+    """The true distance at closest approach of a point at r_W (3,) m from the body origin moving at
+    w_W (3,) m/s relative to the body: |r + t* w|, t* = max(-r.w / |w|^2, 0) (receding or
+    relatively still: the closest approach is now, |r|)."""
+    ww = float(w_W @ w_W)
+    t = max(-float(r_W @ w_W) / ww, 0.0) if ww > 0.0 else 0.0
+    return float(np.linalg.norm(r_W + t * w_W))
+
+
 def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions,
                        rays: dict | None = None) -> list[Sample]:
     """Samples of pipeline mode from the evaluator's rows (reports associated with obstacles).
@@ -1808,6 +1851,10 @@ def _samples_from_rows(truth, frames: list[dict], rows, opts: AccuracyOptions,
         # the thesis's two-frame method on the same track's front-end bearings (each camera's
         # representative ray; the report's own bearing follows the fusion, e.g. a member feature's
         # point, so it is not the thesis's input); two cameras of one frame for its stereo method
+        ttc = tr.get("ttc_s")
+        if ttc is not None and ttc <= MISS_TTC_MAX_S and r.hit == "obstacle":
+            s.miss_m, s.miss_sigma_m = tr["miss_distance_m"], tr["miss_distance_sigma_m"]
+            s.miss_true_m = _true_miss(r.range_true_m * b_W, v_true - v_drone)
         h = hist[r.track_id]
         views_now = (rays or {}).get(key) or [(T_W_B.t, b_W)]
         h.append((r.t_s, views_now))

@@ -86,6 +86,36 @@ def test_summarize_one_sigma_share_and_nees():
     assert "range NEES" in table
 
 
+def test_true_miss_distance_closed_forms():
+    from pipeline.accuracy import _true_miss
+
+    # head-on: 10 m ahead closing at 5 m/s; abeam: 6 m ahead, 2 m left, closing at 3 m/s along x;
+    # receding (or relatively still): the closest approach is now, |r|
+    assert _true_miss(np.array([10.0, 0.0, 0.0]), np.array([-5.0, 0.0, 0.0])) == pytest.approx(0.0, abs=1e-12)
+    assert _true_miss(np.array([6.0, 2.0, 0.0]), np.array([-3.0, 0.0, 0.0])) == pytest.approx(2.0)
+    assert _true_miss(np.array([6.0, 2.0, 0.0]), np.array([3.0, 0.0, 0.0])) == pytest.approx(math.sqrt(40.0))
+    assert _true_miss(np.array([6.0, 2.0, 0.0]), np.zeros(3)) == pytest.approx(math.sqrt(40.0))
+
+
+def test_summarize_miss_distance_row_is_informational():
+    # errors 0.05, 0.15 and 0.5 m with a 0.1 m sigma: median 0.15, 1 of 3 within 1 sigma, 2 within 2;
+    # a report without the truth's miss (ttc_s > 3 s or null) and a near miss are not scored
+    samples = [_s(miss_m=2.0, miss_sigma_m=0.1, miss_true_m=2.05),
+               _s(miss_m=1.0, miss_sigma_m=0.1, miss_true_m=0.85),
+               _s(miss_m=0.0, miss_sigma_m=0.1, miss_true_m=0.5), _s(),
+               _s(miss_m=0.0, miss_sigma_m=0.1, miss_true_m=9.0, hit="near")]
+    m = summarize(samples)
+    assert m["miss_n"] == 3
+    assert m["miss_abs_err_median"] == pytest.approx(0.15)
+    assert m["miss_within_1sigma"] == pytest.approx(1 / 3)
+    assert m["miss_within_2sigma"] == pytest.approx(2 / 3)
+    assert "miss distance" not in format_table(m)  # (bearings mode: no such reports)
+    m["mono_eligible_n"] = 1  # pipeline mode
+    row = next(ln for ln in format_table(m).splitlines() if ln.startswith("miss distance, ttc_s <= 3 s"))
+    assert "0.150" in row and "info" in row and "33.33 %" in row and "66.67 %" in row
+    assert "PASS" not in row and "FAIL" not in row
+
+
 def test_thesis_law_of_sines_hand_worked_triangle():
     # A = (0,0,0), B = (4,0,0), C = (4,3,0): theta1 = atan2(3, 4), theta2 = 90 deg, |BC| = 3
     c_a, c_b = np.zeros(3), np.array([4.0, 0.0, 0.0])

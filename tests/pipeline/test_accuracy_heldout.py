@@ -122,6 +122,9 @@ def test_set_heldout_quick_runs_and_scores_only_the_heldout_scene(tmp_path):
     res = json.loads((tmp_path / "accuracy_heldout.json").read_text())
     assert list(res["per_scene"]) == ["heldout_ci_small"]
     assert res["metrics"]["mono_eligible_n"] > 0
+    # the informational miss-distance row, scored on the reports closing within 3 s
+    assert "miss distance, ttc_s <= 3 s: median |err| (m)" in r.output
+    assert res["metrics"]["miss_n"] > 0 and res["metrics"]["miss_abs_err_median"] < 0.5
 
 
 def test_unknown_set_is_a_config_error():
