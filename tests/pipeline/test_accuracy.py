@@ -114,6 +114,10 @@ def test_summarize_miss_distance_row_is_informational():
     row = next(ln for ln in format_table(m).splitlines() if ln.startswith("miss distance, ttc_s <= 3 s"))
     assert "0.150" in row and "info" in row and "33.33 %" in row and "66.67 %" in row
     assert "PASS" not in row and "FAIL" not in row
+    from pipeline.accuracy import format_compare
+
+    rows = [ln for ln in format_compare({"a": m, "b": m}).splitlines() if ln.startswith("miss distance")]
+    assert len(rows) == 3 and rows[0].split()[-3:] == ["0.150", "0.150", "info"]
 
 
 def test_thesis_law_of_sines_hand_worked_triangle():
