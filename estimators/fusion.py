@@ -128,6 +128,7 @@ from estimators.errors import ConfigError, InputError, frame_at
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
 from estimators.geometry import (
     _cross,  # a x b of (3,) or (K, 3) rows, np.cross without its overhead
+    _einsum,  # np.einsum without its Python-level wrapper
     _isin,  # np.isin of integer arrays without its overhead
     _norm,  # |x| of a 1-D array, np.linalg.norm's own formula without its dispatch
 )
@@ -962,7 +963,7 @@ class _FeatureRays:
         if not M:
             return
         Pm = np.eye(3)[None] - b_W[:, :, None] * b_W[:, None, :]  # I - b b^T, (M, 3, 3)
-        Pc = np.einsum("kij,kj->ki", Pm, c_W)
+        Pc = _einsum("kij,kj->ki", Pm, c_W)
         cPc = np.sum(Pc * c_W, axis=1)
         bdc = np.sum(b_W * c_W, axis=1)  # b_i . c_i
         bbc = b_W * bdc[:, None]
@@ -1025,7 +1026,7 @@ class _FeatureRays:
 
 def _pAp(S: np.ndarray, p: np.ndarray) -> np.ndarray:
     """p^T A p (K,) of points p (K, 3) with the A of the feature store's sum rows S (K, 18)."""
-    return np.einsum("ki,kij,kj->k", p, S[:, 0:9].reshape(len(S), 3, 3), p)
+    return _einsum("ki,kij,kj->k", p, S[:, 0:9].reshape(len(S), 3, 3), p)
 
 
 def _residual2(S: np.ndarray, p: np.ndarray, pAp: np.ndarray) -> np.ndarray:
@@ -2162,7 +2163,7 @@ class ObstacleFusion:
         if not len(g):
             return
         Ainv = adj.compress(ok, 0) / det[ok][:, None, None]  # A^-1 = adj(A) / det(A)
-        p = np.einsum("kij,kj->ki", Ainv, Sr[:, 9:12])  # A_f p_f = y_f
+        p = _einsum("kij,kj->ki", Ainv, Sr[:, 9:12])  # A_f p_f = y_f
         o = work[0][1].o_W
         r_vec = p - o
         r = np.sqrt(_dot_rows(r_vec, r_vec))  # (np.linalg.norm's values)
@@ -2178,7 +2179,7 @@ class ObstacleFusion:
         pAp = _pAp(Sr, p)
         d2 = _depth2(Sr, p, pAp)
         sig_r = s.feature_sigma_rad * np.sqrt(d2) * np.sqrt(
-            np.maximum(np.einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
+            np.maximum(_einsum("ki,kij,kj->k", u, Ainv, u), 0.0))
         # in front of the camera by more than feature_min_depth_m: the rays of a feature seen from
         # one place only (hovering) all meet at the camera centre, a point of no range
         keep = (depth > s.feature_min_depth_m) & (sig_r <= s.mono_init_max_rel_sigma * r)
@@ -2374,7 +2375,7 @@ class ObstacleFusion:
         if not ok.any():
             return out
         Sn, pL = Sn[ok], p[ok]
-        p_s = np.einsum("kij,kj->ki", adj[ok], Sn[:, 9:12]) / det[ok][:, None]  # A_s p_s = y_s
+        p_s = _einsum("kij,kj->ki", adj[ok], Sn[:, 9:12]) / det[ok][:, None]  # A_s p_s = y_s
         d = pL - p_s
         D = _pAp(Sn, d)  # (p_L - p_s)^T A_s (p_L - p_s)
         d2 = _depth2(Sn, pL, _pAp(Sn, pL))  # the newest rays' mean squared depth to p_L
@@ -2457,11 +2458,11 @@ class ObstacleFusion:
         # midpoint of the common perpendicular: depths s, t of the closest points c_a + s b_a,
         # c_b + t b_b solve [1 -k; k -1] [s t]^T = [b_a.w, b_b.w], w = c_b - c_a, k = b_a.b_b
         w = c_b - c_a
-        k = np.einsum("ij,ij->i", b_a, b_b)
+        k = _einsum("ij,ij->i", b_a, b_b)
         den = 1.0 - k * k  # sin^2(parallax)
         good = den > 1e-12
         den = np.where(good, den, 1.0)
-        wa, wb = np.einsum("ij,ij->i", b_a, w), np.einsum("ij,ij->i", b_b, w)
+        wa, wb = _einsum("ij,ij->i", b_a, w), _einsum("ij,ij->i", b_b, w)
         dep_a = (wa - k * wb) / den
         dep_b = (k * wa - wb) / den
         q_a = c_a + dep_a[:, None] * b_a
@@ -2737,7 +2738,7 @@ class ObstacleFusion:
         e1 /= np.sqrt(_dot_rows(e1, e1))[:, None]
         Q = np.stack([a, e1, _cross(a, e1)], axis=2)  # (G, 3, 3), columns a, e1, e2
         Qk = Q[dk]
-        W = np.einsum("ki,kij->kj", (N_P - R_P) / dt[dk][:, None], Qk)  # per-feature velocities, ray frame
+        W = _einsum("ki,kij->kj", (N_P - R_P) / dt[dk][:, None], Qk)  # per-feature velocities, ray frame
         # per-axis medians over each track's features: its rows padded with +inf and sorted
         m = int(n.max())
         pos = np.arange(len(dk)) - start[dk]
@@ -2753,9 +2754,9 @@ class ObstacleFusion:
 
         w = group_median_cols(W)
         # q_k^T C_i q_k of both points: sr^2 (q.u)^2 + st^2 (1 - (q.u)^2)
-        c2 = np.einsum("ki,kij->kj", R_U, Qk) ** 2
+        c2 = _einsum("ki,kij->kj", R_U, Qk) ** 2
         var = (R_S * R_S)[:, None] * c2 + (R_T * R_T)[:, None] * (1.0 - c2)
-        c2 = np.einsum("ki,kij->kj", N_U, Qk) ** 2
+        c2 = _einsum("ki,kij->kj", N_U, Qk) ** 2
         var += (N_S * N_S)[:, None] * c2 + (N_T * N_T)[:, None] * (1.0 - c2)
         var /= (dt * dt)[dk][:, None]
         var_k = group_median_cols(var)
@@ -2776,7 +2777,7 @@ class ObstacleFusion:
         # frame's, about lag / frame interval: see the docstring)
         q = s.max_accel_mps2**2 * s.accel_time_s * m_ov
         rq = var_k * (np.array([median_variance_factor(k) for k in n.tolist()]) / n)[:, None]
-        v = np.einsum("gij,gj->gi", Q, w)
+        v = _einsum("gij,gj->gi", Q, w)
         QT = Q.transpose(0, 2, 1)
         R_end = (Q * (rq + (q * dt / 3.0)[:, None])[:, None, :]) @ QT
         R_mid = (Q * (rq + (q * dt / 12.0)[:, None])[:, None, :]) @ QT
@@ -2838,7 +2839,7 @@ class ObstacleFusion:
         renewed stops deciding "moving" as its covariance grows."""
         V = np.array([tr.vel_acc[0] for tr in trs]).reshape(len(trs), 3)
         P = self._grown_all([tr.vel_acc for tr in trs], [t_s] * len(trs))
-        chi = np.einsum("ki,ki->k", V, np.linalg.solve(P, V[:, :, None])[:, :, 0])
+        chi = _einsum("ki,ki->k", V, np.linalg.solve(P, V[:, :, None])[:, :, 0])
         return P, (chi > self._gate3).tolist()
 
     def _filter_moving(self, tr: _Track, t_s: float) -> bool:
@@ -3240,7 +3241,7 @@ class ObstacleFusion:
             u = r_W / np.maximum(rng, 1e-12)[:, None]
             p_B = r_W @ R_B_W.T
             b_B = p_B / np.maximum(rng, 1e-12)[:, None]
-            var = np.maximum(np.einsum("ki,kij,kj->k", u, Ppp, u), 0.0)
+            var = np.maximum(_einsum("ki,kij,kj->k", u, Ppp, u), 0.0)
             gidx = self._gidx
             # a track that lists member features but whose range no feature fix measured this
             # frame (a carried state, the representative ray: a sliding centroid): at least

@@ -83,7 +83,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from estimators.errors import ConfigError
-from estimators.geometry import _cross, _norm_rows
+from estimators.geometry import _cross, _einsum, _norm_rows
 from trackers.clock import FrameClock, check_durations
 from trackers.features import FeatureTracker
 
@@ -464,7 +464,7 @@ class ObstacleGrouper:
         self._remember_rotation(R1)
         flow, fvalid = self._flows(ft, t_s, R_C_Cprev)
         fvalid &= ft.age >= self.min_age
-        f2 = np.einsum("ij,ij->i", flow, flow)
+        f2 = _einsum("ij,ij->i", flow, flow)
         fnorm = np.sqrt(f2)
         b_prev, pvalid = ft.previous_bearing()
         tracks = list(self.tracks.values())
@@ -482,7 +482,7 @@ class ObstacleGrouper:
         # 1. members stay within max_radius of the representative bearing and move with the track
         r = (owner >= 0).nonzero()[0]
         if len(r):
-            far = np.einsum("ij,ij->i", b.take(r, 0), rep.take(owner[r], 0)) < cos_r
+            far = _einsum("ij,ij->i", b.take(r, 0), rep.take(owner[r], 0)) < cos_r
             owner[r[far]] = -1
         sel = ((owner >= 0) & fvalid).nonzero()[0]  # members with a flow
         o, f_sel, fn_sel = owner[sel], flow.take(sel, 0), fnorm[sel]
@@ -504,7 +504,7 @@ class ObstacleGrouper:
             j = np.argmax(cosd, axis=1)
             k = (cosd[np.arange(len(free)), j] > cos_link).nonzero()[0]
             fk, t_of = free[k], owner[memb[j[k]]]
-            ok = np.einsum("ij,ij->i", b.take(fk, 0), rep.take(t_of, 0)) > cos_r
+            ok = _einsum("ij,ij->i", b.take(fk, 0), rep.take(t_of, 0)) > cos_r
             # (the last known flow if < 3 members)
             ok &= self._agree(flow.take(fk, 0), fnorm[fk], tflow.take(t_of, 0), 1.0, _norm_rows(tflow)[t_of])
             owner[fk[ok]] = t_of[ok]
@@ -623,9 +623,9 @@ class ObstacleGrouper:
         # gentle pull towards the member mean (gain centre_gain)
         moved = _normalise(rep + dsum / np.maximum(pcnt, 1)[:, None])
         moved = _normalise(moved + self.centre_gain * (mean_c - moved))
-        use_moved = (pcnt > 0) & (np.einsum("ij,ij->i", moved, mean_c) > cos_r)
+        use_moved = (pcnt > 0) & (_einsum("ij,ij->i", moved, mean_c) > cos_r)
         new_rep = np.where(use_moved[:, None], moved, mean_c)
-        ang = np.arccos(np.einsum("ij,ij->i", b_own, new_rep.take(o, 0)).clip(-1.0, 1.0))
+        ang = np.arccos(_einsum("ij,ij->i", b_own, new_rep.take(o, 0)).clip(-1.0, 1.0))
         order_o = o.argsort(kind="stable")
         srt = own[order_o]  # member rows grouped by track
         starts = np.concatenate([[0], cnt.cumsum()])
@@ -915,12 +915,12 @@ class ObstacleGrouper:
                 for kk, Rk in R.items():
                     if 0 < kk <= L:
                         Rs[kk] = Rk
-                b_then = np.einsum("nij,nj->ni", Rs.take(bk, 0), b_then)
+                b_then = _einsum("nij,nj->ni", Rs.take(bk, 0), b_then)
             dt = np.maximum(t_s - t_then[rows], 1e-9)
             f = (ft.b_C.take(rows, 0) - b_then) / dt[:, None]  # window flow (rad/s)
             e1, e2 = _tangent_basis(rep[:T])
             e1o, e2o = e1.take(o, 0), e2.take(o, 0)
-            xy = np.stack([np.einsum("ij,ij->i", f, e1o), np.einsum("ij,ij->i", f, e2o)], 1)
+            xy = np.stack([_einsum("ij,ij->i", f, e1o), _einsum("ij,ij->i", f, e2o)], 1)
             fn = np.hypot(xy[:, 0], xy[:, 1])
             if self.plane_min:  # step 3f: a part off the members' planar flow field
                 # (each track every plane_every-th frame, staggered by id; every frame while a
@@ -950,7 +950,7 @@ class ObstacleGrouper:
             reps_n = cnt_o.cumsum()[o] - np.arange(1, m + 1)  # rows after i in its block
             ei = np.arange(m).repeat(reps_n)
             ej = ei + 1 + (np.arange(len(ei)) - (reps_n.cumsum() - reps_n).repeat(reps_n))
-            keep = np.einsum("ij,ij->i", bj.take(ei, 0), bj.take(ej, 0)) > np.cos(self.link_rad)
+            keep = _einsum("ij,ij->i", bj.take(ei, 0), bj.take(ej, 0)) > np.cos(self.link_rad)
             ei, ej = ei[keep], ej[keep]
             dd = np.hypot(*(xy.take(ei, 0) - xy.take(ej, 0)).T)  # |window flow difference| (rad/s)
             thr = self.split_min_px * rad_px / np.minimum(dt[ei], dt[ej])
@@ -1088,16 +1088,16 @@ class ObstacleGrouper:
         os_, bt, F, dts = o[idx], b.take(idx, 0), xy.take(idx, 0), dt[idx]
         S = len(idx)
         # D_i (2,8): the tangent components (e1, e2 at rep) of P_b B_k b, P_b = I - b b^T
-        u = np.einsum("kij,nj->nki", _TRACELESS, bt)  # (S,8,3) B_k b
-        u = u - np.einsum("nki,ni->nk", u, bt)[:, :, None] * bt[:, None, :]
+        u = _einsum("kij,nj->nki", _TRACELESS, bt)  # (S,8,3) B_k b
+        u = u - _einsum("nki,ni->nk", u, bt)[:, :, None] * bt[:, None, :]
         e1o, e2o = e1.take(os_, 0), e2.take(os_, 0)
-        D = np.stack([np.einsum("nki,ni->nk", u, e1o), np.einsum("nki,ni->nk", u, e2o)], 1)
+        D = np.stack([_einsum("nki,ni->nk", u, e1o), _einsum("nki,ni->nk", u, e2o)], 1)
         M = ((bt @ bt.T) > np.cos(self.link_rad)) & (os_[:, None] == os_[None, :])  # disks (S,S)
         Mf = M.astype(float)
         nC = Mf.sum(1)
-        DD = np.einsum("nai,naj->nij", D, D).reshape(S, 64)
-        DF = np.einsum("nai,na->ni", D, F)  # (S,8)
-        FF = np.einsum("ij,ij->i", F, F)
+        DD = _einsum("nai,naj->nij", D, D).reshape(S, 64)
+        DF = _einsum("nai,na->ni", D, F)  # (S,8)
+        FF = _einsum("ij,ij->i", F, F)
         starts = np.concatenate(([True], os_[1:] != os_[:-1])).nonzero()[0]
         blk = np.arange(len(starts)).repeat(np.diff(np.append(starts, S)))  # block of each row
         nR = cnt[os_] - nC
@@ -1113,14 +1113,14 @@ class ObstacleGrouper:
         k, kb, NR, BR = k[wc], kb[wc], NR[wc], BR[wc]
         Mk = Mf[k]  # (K,S)
         NRi = NRi[wc] if NRi is not None else np.linalg.inv(NR)
-        g = np.einsum("kij,kj->ki", NRi, BR)  # (K,8) g_R = N_R^-1 B_R
-        sse = (np.add.reduceat(FF, starts)[kb] - Mk @ FF) - np.einsum("ki,ki->k", g, BR)
+        g = _einsum("kij,kj->ki", NRi, BR)  # (K,8) g_R = N_R^-1 B_R
+        sse = (np.add.reduceat(FF, starts)[kb] - Mk @ FF) - _einsum("ki,ki->k", g, BR)
         s2 = np.maximum(sse, 0.0) / (2.0 * nR[k] - 8.0)
         mC = Mk / nC[k][:, None]
         Dbar = (mC @ D.reshape(S, 16)).reshape(-1, 2, 8)  # (K,2,8)
         fC = mC @ F
-        rbar = fC - np.einsum("kai,ki->ka", Dbar, g)  # (K,2)
-        V = np.einsum("kai,kij,kbj->kab", Dbar, NRi, Dbar) + np.eye(2)[None] / nC[k][:, None, None]
+        rbar = fC - _einsum("kai,ki->ka", Dbar, g)  # (K,2)
+        V = _einsum("kai,kij,kbj->kab", Dbar, NRi, Dbar) + np.eye(2)[None] / nC[k][:, None, None]
         V = V * s2[:, None, None]
         det = V[:, 0, 0] * V[:, 1, 1] - V[:, 0, 1] ** 2
         # z^2 = rbar^T V^-1 rbar (chi2 with 2 degrees of freedom for a part on the plane)
@@ -1135,8 +1135,8 @@ class ObstacleGrouper:
         # over the (candidate, member) pairs, candidate major, members in row order
         K = len(k)
         pk, pn = np.nonzero(M[k])
-        rm = F[pn] - np.einsum("nai,ni->na", D[pn], g[pk])
-        proj = np.einsum("na,na->n", rm, rbar[pk]) / np.maximum(rn, 1e-30)[pk]
+        rm = F[pn] - _einsum("nai,ni->na", D[pn], g[pk])
+        proj = _einsum("na,na->n", rm, rbar[pk]) / np.maximum(rn, 1e-30)[pk]
         way = np.bincount(pk, proj > 0, K) * 3 >= 2 * nC[k]
         # the part: the disk's members displaced at least half as far as its mean (a disk
         # about an obstacle's edge holds a few ground members too); their mean clears the floor
@@ -1309,7 +1309,7 @@ class ObstacleGrouper:
             for k, Rk in R.items():
                 if 0 < k <= self.flow_frames:
                     Rs[k] = Rk
-            b_then = np.einsum("nij,nj->ni", Rs.take(np.maximum(n_back, 0), 0), b_then)
+            b_then = _einsum("nij,nj->ni", Rs.take(np.maximum(n_back, 0), 0), b_then)
         dt = t_s - t_then
         valid &= dt > 0
         flow = (ft.b_C - b_then) / np.where(valid, dt, 1.0)[:, None]
@@ -1443,8 +1443,8 @@ class ObstacleGrouper:
         # tangent basis (e1, e2) at each rep; position (x, y) and sector of each neighbour
         e1, e2 = _tangent_basis(rep)
         d = b.take(i, 0) - rep.take(ti, 0)
-        x = np.einsum("ij,ij->i", d, e1.take(ti, 0))
-        y = np.einsum("ij,ij->i", d, e2.take(ti, 0))
+        x = _einsum("ij,ij->i", d, e1.take(ti, 0))
+        y = _einsum("ij,ij->i", d, e2.take(ti, 0))
         sec = np.floor((np.arctan2(y, x) + np.pi) * (4.0 / np.pi)).astype(np.intp) % 8
         occ = np.zeros((A, 8), bool)
         occ[ti, sec] = True
@@ -1463,7 +1463,7 @@ class ObstacleGrouper:
         s = self.link_rad
         xs, ys = x / s, y / s  # slopes per link_rad
         fi = flow.take(i, 0)
-        fx, fy = np.einsum("ij,ij->i", fi, e1.take(ti, 0)), np.einsum("ij,ij->i", fi, e2.take(ti, 0))
+        fx, fy = _einsum("ij,ij->i", fi, e1.take(ti, 0)), _einsum("ij,ij->i", fi, e2.take(ti, 0))
         # N = sum r r^T, rhs = sum r f^T with r = (1, x, y): per track sums of these 12 products
         # by one bincount over (track, product) (a ufunc.at is ten times slower)
         w = np.stack(
@@ -1475,7 +1475,7 @@ class ObstacleGrouper:
         rhs = sums[:, 6:].reshape(A, 3, 2)
         N += _RIDGE * np.maximum(N[:, 0, 0], 1.0)[:, None, None]
         c0 = np.linalg.solve(N[surrounded], rhs[surrounded])[:, 0, :]  # (S, 2)
-        tf = np.stack([np.einsum("ij,ij->i", tflow, e1), np.einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
+        tf = np.stack([_einsum("ij,ij->i", tflow, e1), _einsum("ij,ij->i", tflow, e2)], 1)[surrounded]
         gap = _norm_rows(c0 - tf)
         thr = self.flow_abs + self.flow_rel * np.maximum(_norm_rows(c0), _norm_rows(tf))
         out[surrounded] = gap < thr
