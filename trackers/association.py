@@ -83,7 +83,7 @@ def match_features(
     else:
         ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
     # descriptor distances only for the epipolar candidates (i0, i1), row-major
-    f = np.flatnonzero(ok)
+    f = np.flatnonzero(ok)  # (ok is (n0, n1): flat, row-major indices)
     ii = f // n1
     jj = f - ii * n1
     # Hamming distance = popcount(d0 XOR d1), 64 bits at a time (ORB's 32 bytes: 4 words)
@@ -91,7 +91,7 @@ def match_features(
     if w0.shape[1] % 8 == 0:
         w0, w1 = w0.view(np.uint64), w1.view(np.uint64)
     h = np.bitwise_count(w0[ii] ^ w1[jj]).sum(axis=1, dtype=np.int64)
-    k = np.flatnonzero(h <= max_hamming)
+    k = (h <= max_hamming).nonzero()[0]
     if not len(k):
         return np.zeros((0, 2), np.intp)
     ii, jj, h = ii[k], jj[k], h[k]
@@ -101,7 +101,7 @@ def match_features(
     key = np.sort((ii * hb + h) * n1 + jj)
     ri = key // (hb * n1)
     rh = key // n1 - ri * hb
-    first = np.flatnonzero(np.concatenate(([True], ri[1:] != ri[:-1])))
+    first = np.concatenate(([True], ri[1:] != ri[:-1])).nonzero()[0]
     i = ri[first]
     j = key[first] % n1
     best = rh[first]
@@ -110,7 +110,7 @@ def match_features(
     second = np.where(has2, rh[np.minimum(nxt, len(ri) - 1)], np.inf)
     # per i1: its best i0 (least distance, ties: least i0), keys (i1, distance, i0)
     ck = np.sort((jj * hb + h) * n0 + ii)
-    cf = np.flatnonzero(np.concatenate(([True], ck[1:] // (hb * n0) != ck[:-1] // (hb * n0))))
+    cf = np.concatenate(([True], ck[1:] // (hb * n0) != ck[:-1] // (hb * n0))).nonzero()[0]
     i_back = np.full(n1, -1, np.int64)
     i_back[ck[cf] // (hb * n0)] = ck[cf] % n0
     # mutual best, and Lowe's ratio test: best <= ratio * second
@@ -211,7 +211,7 @@ def stereo_klt(
         start[own] = np.asarray(guess_b, float)[own]
     curve = np.full((n, len(EPIPOLAR_STEPS), 2), np.nan)  # each new row's epipolar curve in b
     if not own.all():
-        inf = np.flatnonzero(~own)
+        inf = (~own).nonzero()[0]
         d = b_a[inf] @ np.asarray(R_b_a).T
         t = np.asarray(t_b_a, float).reshape(3)
         base = float(np.linalg.norm(t))
@@ -230,7 +230,7 @@ def stereo_klt(
             g, ok_inf = model_b.bearing_to_pixel(d)
         start[inf] = g
         ok[inf] = ok_inf
-    idx = np.flatnonzero(ok)
+    idx = ok.nonzero()[0]
     if not len(idx):
         return empty
     oa = np.zeros(2) if off_a is None else np.asarray(off_a, float).reshape(2)
@@ -241,7 +241,7 @@ def stereo_klt(
     st = np.zeros(len(idx), np.uint8)
     # one forward call per pyramid depth: followed rows (own guess) at follow_levels, others at levels
     near = own[idx] if follow_levels is not None and follow_levels < levels else np.zeros(len(idx), bool)
-    for rows, lv in ((np.flatnonzero(near), follow_levels), (np.flatnonzero(~near), levels)):
+    for rows, lv in ((near.nonzero()[0], follow_levels), ((~near).nonzero()[0], levels)):
         if not len(rows):
             continue
         # on the parts of the images the search reads (_lk_part, its reach what the coarsest
@@ -265,12 +265,12 @@ def stereo_klt(
     # the lens and epipolar tests of the forward results first (row by row: the same numbers on
     # the rows KLT found as on all), so the backward check runs only on rows that can pass them
     box = chk & good  # the rows to check: their box makes the backward call's parts
-    g = np.flatnonzero(good)
+    g = good.nonzero()[0]
     bb = np.zeros((len(idx), 3))
     bb_g, okb = model_b.pixel_to_bearing(uv_b[g])
     bb[g] = bb_g
     good[g] = okb & (epipolar_residual(b_a[idx[g]], bb_g, R_b_a, t_b_a) < np.sin(epipolar_rad))
-    ci = np.flatnonzero(chk & good)
+    ci = (chk & good).nonzero()[0]
     if len(ci):
         # backward: from the forward result in b, starting at the same pixel in a (in the parts of
         # the images all rows to check would read: the same numbers as a call on all of them)
@@ -343,7 +343,7 @@ def depth_consistent(
     sin_g = np.maximum(_norm_rows(_cross(t / base, d)), 0.1)
     noise = noise_rad / (base * sin_g)
     ext = 2.0 * np.asarray(spread_rad, float)
-    starts = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1])))
+    starts = np.concatenate(([True], owner[1:] != owner[:-1])).nonzero()[0]
     cnt = np.diff(np.append(starts, len(owner)))
     x = ext[owner[starts]]
     judged = (cnt >= min_found) & (x < 1.0)  # x >= 1: as deep as its range, any range in front
@@ -363,7 +363,7 @@ def depth_consistent(
     keep[rows] = near_med
     # off the median's bound, a surface of its own (a nearer obstacle grouped with a farther one,
     # the background): another match of its group agrees with it within the two rays' noise
-    out = np.flatnonzero(~near_med)
+    out = (~near_med).nonzero()[0]
     if len(out):
         c = g_cnt[run[out]]
         pi = np.repeat(out, c)  # each such match against every match of its group
@@ -426,7 +426,7 @@ def consistent_pairs(ids_a: np.ndarray, ids_b: np.ndarray) -> tuple[np.ndarray, 
     first[1:] |= b[1:] != b[:-1]
     a, b = a[first], b[first]
     # each a id's partners: its run's length (a is sorted); each b id's: its count in sorted b
-    sa = np.flatnonzero(np.concatenate(([True], a[1:] != a[:-1])))
+    sa = np.concatenate(([True], a[1:] != a[:-1])).nonzero()[0]
     cnt_a = np.diff(np.append(sa, len(a)))
     bs = np.sort(b)
     one_b = np.searchsorted(bs, b, "right") - np.searchsorted(bs, b, "left") == 1

@@ -213,7 +213,7 @@ class _Finder:
         if desc_all is not None and len(job.lost_ids):
             cand = np.arange(len(uv)) if only_reacq else self._near_lost(uv, job.pred)
             reacq_all = self._match_lost(uv, desc_all, cand, job.pred, job.lost_desc)
-        re = np.flatnonzero(reacq_all >= 0)
+        re = (reacq_all >= 0).nonzero()[0]
         if only_reacq:
             keep = re
         else:
@@ -270,7 +270,7 @@ class _Finder:
         near_cells = (pc[:, 1, None, None] + d[None, :, None]) * gw + (
             pc[:, 0, None, None] + d[None, None, :]
         )
-        return np.flatnonzero(_isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel()))
+        return _isin(kc[:, 1] * gw + kc[:, 0], near_cells.ravel()).nonzero()[0]
 
     def _match_lost(
         self, uv: np.ndarray, desc: np.ndarray, cand: np.ndarray, pred: np.ndarray, lost_desc: np.ndarray
@@ -299,7 +299,7 @@ class _Finder:
         second = srt[:, 1] if ham.shape[1] > 1 else np.full(len(ham), 10**6)
         best = np.argmin(ham, axis=1)
         ok = (srt[:, 0] <= self.reacquire_max_hamming) & (srt[:, 0] < 0.8 * second)
-        for i in np.flatnonzero(ok)[np.argsort(srt[ok, 0], kind="stable")]:
+        for i in ok.nonzero()[0][np.argsort(srt[ok, 0], kind="stable")]:
             j = int(best[i])
             # distinctive (Lowe's ratio 0.8 against the second-best lost feature) and close enough
             if ham[i, j] <= self.reacquire_max_hamming and ham[i, j] < 0.8 * second[i] and j not in taken:
@@ -916,11 +916,11 @@ class FeatureTracker:
 
     def history(self, feature_id: int) -> FeatureHistory:
         """The stored past of a live or recently lost feature, oldest first."""
-        hit = np.flatnonzero(self.ids == feature_id)
+        hit = (self.ids == feature_id).nonzero()[0]
         if len(hit):
             s = int(self.slot[hit[0]])
         else:
-            hit = np.flatnonzero(self.lost_ids == feature_id)
+            hit = (self.lost_ids == feature_id).nonzero()[0]
             if not len(hit):
                 raise InputError(f"feature {feature_id} is not tracked by camera {self.name!r}")
             s = int(self.lost_slot[hit[0]])
@@ -1065,15 +1065,15 @@ class FeatureTracker:
             ui = np.minimum(np.rint(pu_).astype(np.intp), w - 1)
             vi = np.minimum(np.rint(pv_).astype(np.intp), h - 1)
             ok = self.mask[vi, ui] > 0
-            near = np.flatnonzero(near_live[k])
+            near = near_live[k].nonzero()[0]
             if len(taken) > n_live:  # features added by earlier regions of this call
                 tu, tv = taken[n_live:, 0], taken[n_live:, 1]
-                more = np.flatnonzero(
+                more = (
                     (tu >= x0 - min_distance_px)
                     & (tu < x1 + min_distance_px)
                     & (tv >= y0 - min_distance_px)
                     & (tv < y1 + min_distance_px)
-                )
+                ).nonzero()[0]
                 near = np.concatenate([near, more + n_live])
             if len(near):  # at least min_distance_px from every live (or newly added) feature
                 du = pu_[:, None] - taken[near, 0][None, :]
@@ -1082,7 +1082,7 @@ class FeatureTracker:
                 dv *= dv
                 du += dv
                 ok &= du.min(axis=1) >= md2
-            cand = np.flatnonzero(ok)
+            cand = ok.nonzero()[0]
             if not len(cand):
                 continue
             resp = np.array([kps[i].response for i in cand.tolist()], np.float32)
@@ -1175,7 +1175,7 @@ class FeatureTracker:
             f_det, t_det, jids, juv = self._joined
             self._joined = None
             j = next(j for j in range(nref) if self._refs[nref - 1 - j][:2] == (f_det, t_det))
-            at = np.flatnonzero(_isin(self.ids, jids))
+            at = _isin(self.ids, jids).nonzero()[0]
             by_id = np.argsort(jids)
             k = np.searchsorted(jids, self.ids[at], sorter=by_id)
             lag[at] = j
@@ -1193,7 +1193,7 @@ class FeatureTracker:
         err = np.empty(N, np.float32)
         st2 = np.empty(N, np.uint8)
         fb = np.empty(N, np.float32)
-        groups = [(j, np.flatnonzero(lag == j)) for j in range(nref)] if nref > 1 else [(0, None)]
+        groups = [(j, (lag == j).nonzero()[0]) for j in range(nref)] if nref > 1 else [(0, None)]
         for j, g in groups:
             if g is not None and not len(g):
                 continue
@@ -1232,7 +1232,7 @@ class FeatureTracker:
                 # was off by more (fast rotation, acceleration) fails it; those features (typically a
                 # few %) are checked again with one coarser level, as the backward pass did before
                 # fb_levels
-                again = np.flatnonzero((gst.reshape(-1) == 1) & ((gst2 != 1) | ~(gfb <= self.fb_max_px)))
+                again = ((gst.reshape(-1) == 1) & ((gst2 != 1) | ~(gfb <= self.fb_max_px))).nonzero()[0]
                 if len(again):
                     q, st3, _ = self._lk(
                         cur,
@@ -1267,7 +1267,7 @@ class FeatureTracker:
             # bound = max(max_residual, 3 median(err), texture_k MAD(patch)); the patch term is only
             # needed (and computed) where err exceeds the first two
             base = max(self.max_residual, 3.0 * _median(err[ok]))
-            over = np.flatnonzero(ok & (err > base))
+            over = (ok & (err > base)).nonzero()[0]
             if len(over):
                 tex = np.zeros(len(over), np.float32)
                 if self.texture_k > 0:
@@ -1314,7 +1314,7 @@ class FeatureTracker:
         np.copyto(self.uv, p1, where=okc)
         self.age += ok
         if n_ok < len(ok):
-            self._drop(np.flatnonzero(~ok), remember=True)
+            self._drop((~ok).nonzero()[0], remember=True)
 
     def _lk(self, prev, nxt, p, start, level: int, flags: int, part: bool):
         """One KLT call from points ``p`` (K, 1, 2) float32 crop px of ``prev`` starting at ``start``
@@ -1397,13 +1397,13 @@ class FeatureTracker:
             return np.zeros(0, np.intp)
         reacq = np.full(len(found.uv), -1, np.intp)
         keep = np.ones(len(found.uv), bool)
-        back = np.flatnonzero(found.lost_id >= 0)
+        back = (found.lost_id >= 0).nonzero()[0]
         if len(back):
             row = {int(i): k for k, i in enumerate(self.lost_ids.tolist())}
             for k in back.tolist():
                 reacq[k] = row.get(int(found.lost_id[k]), -1)
                 keep[k] = reacq[k] >= 0
-        fresh = np.flatnonzero(found.lost_id < 0)
+        fresh = (found.lost_id < 0).nonzero()[0]
         keep[fresh[max(self.max_features - n0, 0) :]] = False
         self._append(found.uv[keep], None if found.desc is None else found.desc[keep], reacq[keep])
         return np.arange(n0, len(self.ids))
@@ -1419,7 +1419,7 @@ class FeatureTracker:
         fresh = reacq < 0
         # (all rows at once, not a Python iteration per row: fresh rows take the next ids and free
         # slots in row order; an id is used up even when no slot is left for it, as before)
-        rf = np.flatnonzero(fresh)
+        rf = fresh.nonzero()[0]
         if len(rf):
             new_vel[rf] = self._neighbour_velocity(np.asarray(uv, np.float32)[rf])
             new_ids[rf] = [next(self._ids) for _ in range(len(rf))]
@@ -1432,7 +1432,7 @@ class FeatureTracker:
                 new_slot[rf[:k]] = slots
                 self._h_n[slots] = 0
         if len(rf) < n:  # re-acquired: the lost feature's id, slot, age and velocity
-            rr = np.flatnonzero(~fresh)
+            rr = (~fresh).nonzero()[0]
             j = reacq[rr]
             new_ids[rr] = self.lost_ids[j]
             new_slot[rr] = self.lost_slot[j]
@@ -1465,7 +1465,7 @@ class FeatureTracker:
         started from zero motion failed the forward-backward check twice as often on a forward
         flight, mono_straight: 12% -> 6% of those away from the rim)."""
         out = np.zeros((len(uv), 2), np.float32)
-        old = np.flatnonzero(self.age >= 3)
+        old = (self.age >= 3).nonzero()[0]
         if not len(uv) or len(old) < 2:
             return out
         # (n, m) squared px, du^2 + dv^2 written out: the same numbers as ((a - b) ** 2).sum(-1),
@@ -1495,7 +1495,7 @@ class FeatureTracker:
         # the kept and remembered rows as index arrays, found once (a boolean mask per array would
         # count its rows again for each of the eight arrays); the same rows in the same order
         if remember and self.reacquire_s > 0:
-            r = np.flatnonzero(gone & self.has_desc)
+            r = (gone & self.has_desc).nonzero()[0]
             nr = len(r)
             self.lost_ids = np.concatenate([self.lost_ids, self.ids[r]])
             self.lost_uv = np.concatenate([self.lost_uv, self.uv[r]])
@@ -1514,12 +1514,12 @@ class FeatureTracker:
         else:
             free = gone
         self._free.extend(self.slot[free].tolist())
-        ki = np.flatnonzero(keep)
+        ki = keep.nonzero()[0]
         for name in ("ids", "uv", "vel", "desc", "has_desc", "age", "slot", "b_C"):
             setattr(self, name, getattr(self, name).take(ki, 0))
 
     def _remove_lost(self, gone: np.ndarray) -> None:
-        keep = np.flatnonzero(~gone)  # (the kept rows found once for the eight arrays)
+        keep = (~gone).nonzero()[0]  # (the kept rows found once for the eight arrays)
         names = ("lost_ids", "lost_uv", "lost_vel", "lost_t", "lost_desc", "lost_age", "lost_slot")
         names += ("lost_for",)
         for name in names:
@@ -1536,7 +1536,7 @@ class FeatureTracker:
             return
         b, valid = self.model.pixel_to_bearing(self.uv.astype(np.float64))
         if not np.all(valid):
-            self._drop(np.flatnonzero(~valid), remember=False)
+            self._drop((~valid).nonzero()[0], remember=False)
             b = b[valid]
         self.b_C = b
         self._write_history(self.slot, self.uv, b, frame, t_s)

@@ -697,7 +697,7 @@ class FrontEnd:
             c = self._id_order[id(ft)] = (ft.ids, order, ft.ids[order])
         _, order, sids = c
         k = np.minimum(np.searchsorted(sids, ids), len(sids) - 1)
-        which = np.flatnonzero(sids[k] == ids)
+        which = (sids[k] == ids).nonzero()[0]
         return order[k[which]], which
 
     def _stereo(self, a: str, b: str, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -728,7 +728,7 @@ class FrontEnd:
                 m_ids = m[1]
                 ids = fa.ids[todo]
                 k = np.minimum(np.searchsorted(m_ids, ids), len(m_ids) - 1)
-                hit = np.flatnonzero(m_ids[k] == ids)
+                hit = (m_ids[k] == ids).nonzero()[0]
                 kk = k[hit]
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
                 guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
@@ -739,7 +739,7 @@ class FrontEnd:
                 retry = self._retry_rows.get((a, b))
                 if retry is not None and len(retry):
                     held |= _isin(todo, retry)
-                keep = np.flatnonzero(held)
+                keep = held.nonzero()[0]
                 todo, guess, last = todo[keep], guess[keep], last[keep]
         if len(todo):
             (ca, oa), (cb, ob) = fa.crop, fb.crop
@@ -768,7 +768,7 @@ class FrontEnd:
             uvb[found] = r.uv_b
             bb[found] = r.b_b
             chk[found] = np.where(r.checked, self._n, last[r.idx])
-        sel = np.flatnonzero(np.isfinite(uvb[rows, 0]))
+        sel = np.isfinite(uvb[rows, 0]).nonzero()[0]
         return sel, uvb[rows[sel]], bb[rows[sel]]
 
     def _remember_stereo(self) -> None:
@@ -778,7 +778,7 @@ class FrontEnd:
         mem = {}
         for (a, b), (_, uvb, _, chk) in self._stereo_cache.items():
             ft = self.trackers[a]
-            f = np.flatnonzero(np.isfinite(uvb[:, 0]))
+            f = np.isfinite(uvb[:, 0]).nonzero()[0]
             o = np.argsort(ft.ids[f], kind="stable")
             f = f[o]
             mem[(a, b)] = (self._n, ft.ids[f], ft.uv[f].astype(float), uvb[f], chk[f])
@@ -1293,7 +1293,7 @@ class FrontEnd:
         # one run of idx; tracks with >= 3 found get a view
         cnt = np.bincount(own[idx], minlength=len(todo))
         ends = np.cumsum(cnt)
-        good = np.flatnonzero(cnt >= 3)
+        good = (cnt >= 3).nonzero()[0]
         if not len(good):
             return []
         R_b_a = self._T_b_a[(a, b)].R
@@ -1353,7 +1353,7 @@ class FrontEnd:
         mean = sums / np.where(nrm > 0, nrm, 1.0)
         ang = np.arccos(np.clip(np.sum(b_a * mean[own], axis=1), -1.0, 1.0))
         # own is non-decreasing: each track's rows are one run
-        starts = np.flatnonzero(np.concatenate(([True], own[1:] != own[:-1])))
+        starts = np.concatenate(([True], own[1:] != own[:-1])).nonzero()[0]
         spread = np.zeros(n)
         spread[own[starts]] = np.maximum.reduceat(ang, starts)
         T = self._T_b_a[(a, b)]
@@ -1485,7 +1485,7 @@ class FrontEnd:
         if not drop.any():
             return
         ends = np.cumsum([m for _, m in parts])
-        for pi in np.unique(np.searchsorted(ends, np.flatnonzero(drop), side="right")).tolist():
+        for pi in np.unique(np.searchsorted(ends, drop.nonzero()[0], side="right")).tolist():
             k, m = parts[pi]
             t = trs[k]
             lo, hi = int(ends[pi]) - m, int(ends[pi])
@@ -1517,7 +1517,7 @@ class FrontEnd:
         if not drop.any():
             return
         ends = np.cumsum([len(extra[k].members) for k in rev])
-        for ri in np.unique(np.searchsorted(ends, np.flatnonzero(drop), side="right")).tolist():
+        for ri in np.unique(np.searchsorted(ends, drop.nonzero()[0], side="right")).tolist():
             t = extra[rev[ri]]
             m = ~drop[int(ends[ri]) - len(t.members) : int(ends[ri])]
             v = _shallow_copy(t)

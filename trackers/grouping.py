@@ -1391,7 +1391,7 @@ class ObstacleGrouper:
         by_label = labels.argsort(kind="stable")  # rows grouped by label, in row order within
         first = size.cumsum() - size
         for r in (size >= self.min_features).nonzero()[0].tolist():
-            comp = by_label[first[r] : first[r] + size[r]]  # (= np.flatnonzero(labels == r))
+            comp = by_label[first[r] : first[r] + size[r]]  # (= (labels == r).nonzero()[0])
             while len(comp):
                 bc = bf.take(comp, 0)
                 cen = _normalise(np.add.reduce(bc, 0) / len(comp))  # (bc.mean(0)'s own sums)

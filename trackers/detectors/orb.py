@@ -160,7 +160,7 @@ class OrbDetector(Detector):
             m = np.asarray(mask)
             ui = np.clip(np.rint(uv[:, 0]).astype(np.intp), 0, m.shape[1] - 1)
             vi = np.clip(np.rint(uv[:, 1]).astype(np.intp), 0, m.shape[0] - 1)
-            inside = np.flatnonzero(m[vi, ui] > 0)
+            inside = (m[vi, ui] > 0).nonzero()[0]
             if not len(inside):
                 return Detections.empty()
             kps = [kps[i] for i in inside.tolist()]
