@@ -2368,7 +2368,7 @@ class ObstacleFusion:
         T > chi2_3(gate_probability): slid. Without the short sums' parallax (det A_s <= 1e-12) no
         test (not slid)."""
         s = self.settings
-        Sn = self._features.S_new[rows]
+        Sn = self._features.S_new.take(rows, 0)
         adj, det = _adjugate_det3(Sn[:, 0:9].reshape(len(Sn), 3, 3))
         ok = det > 1e-12
         out = np.zeros(len(rows), dtype=bool)

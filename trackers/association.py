@@ -272,18 +272,19 @@ def stereo_klt(
     good[g] = okb & (epipolar_residual(b_a[idx[g]], bb_g, R_b_a, t_b_a) < np.sin(epipolar_rad))
     ci = (chk & good).nonzero()[0]
     if len(ci):
+        p1c, p1b = p1.take(ci, 0), p1.compress(box, 0)
         # backward: from the forward result in b, starting at the same pixel in a (in the parts of
         # the images all rows to check would read: the same numbers as a call on all of them)
         # (its part: around the straight paths from those starts to the rows' own pixels in a, where
         # a good match returns)
         p0r, st2, _ = _lk_part(
-            grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit, box_prev=p1[box],
-            band=np.concatenate([p1[box], p0[box]]).reshape(-1, 2),
-        ) if crop else _lk_whole(grey_b, grey_a, p1[ci], p1[ci], win_px, levels, crit)
+            grey_b, grey_a, p1c, p1c, win_px, levels, crit, box_prev=p1b,
+            band=np.concatenate([p1b, p0.compress(box, 0)]).reshape(-1, 2),
+        ) if crop else _lk_whole(grey_b, grey_a, p1c, p1c, win_px, levels, crit)
         good[ci] &= (st2 == 1) & (
-            _norm_rows((p0r - p0[ci]).reshape(-1, 2)) <= fb_max_px
+            _norm_rows((p0r - p0.take(ci, 0)).reshape(-1, 2)) <= fb_max_px
         )
-    return StereoKLT(idx[good], uv_b[good], bb[good], chk[good])
+    return StereoKLT(idx[good], uv_b.compress(good, 0), bb.compress(good, 0), chk[good])
 
 
 def depth_consistent(

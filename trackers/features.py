@@ -1167,7 +1167,7 @@ class FeatureTracker:
                 at = (n - 1 - j >= 0) & (self._h_frame.reshape(-1)[fi] == rf)
                 at &= self._h_t.reshape(-1)[fi] == rt
                 lag[at] = j
-                ref_uv[at] = self._h_uv.reshape(-1, 2)[fi[at]]
+                ref_uv[at] = self._h_uv.reshape(-1, 2).take(fi[at], 0)
                 dt_ref[at] = dt_s + (self._t_uv - self._h_t.reshape(-1)[fi[at]])
         # a deferred detection's features, joined this frame (``_merge_pending``): they step from their
         # positions in the detection's frame (kept in _refs for them)
@@ -1199,14 +1199,16 @@ class FeatureTracker:
                 continue
             sel = slice(None) if g is None else g
             prev = self._refs[nref - 1 - j][2]
-            q0 = ref_uv[sel] - off  # (n, 2) float32 crop px
+            # the group's rows of ref_uv and disp (gathered once, by take: the rows' own values)
+            ref_g, disp_g = (ref_uv, disp) if g is None else (ref_uv.take(g, 0), disp.take(g, 0))
+            q0 = ref_g - off  # (n, 2) float32 crop px
             p0 = q0.reshape(-1, 1, 2)
             # the features younger than the step (few: densified and re-detected ones, clustered) on
             # the parts of the two images their search reads, the others (about the lens) on the
             # whole crops; every feature at <= 1 / klt_step_s fps
             part = j < nstep - 1
             # forward, starting from the prediction
-            guess = (q0 + disp[sel]).reshape(-1, 1, 2)
+            guess = (q0 + disp_g).reshape(-1, 1, 2)
             g1, gst, gerr = self._lk(prev, cur, p0, guess, self.levels, cv2.OPTFLOW_USE_INITIAL_FLOW, part)
             # backward: track g1 back into the reference frame, starting from g1 minus the predicted
             # displacement (the prediction reversed, not p0 itself); a good track lands within
@@ -1218,13 +1220,13 @@ class FeatureTracker:
             # fb_max_px: dropped either way (counted in last_stats as a forward-backward rejection
             # instead of an LK loss).
             back_flags = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
-            back_guess = (g1.reshape(-1, 2) - disp[sel]).reshape(-1, 1, 2)
+            back_guess = (g1.reshape(-1, 2) - disp_g).reshape(-1, 1, 2)
             back_level = min(self.fb_levels, self.levels)
             p0r, gst2, _ = self._lk(cur, prev, g1, back_guess, back_level, back_flags, part)
             p0r = p0r.reshape(-1, 2)
             # |p0r + off - ref_uv| written out (the same float32 values as np.linalg.norm(.., axis=1),
             # whose call costs more than the arithmetic for a few hundred rows)
-            d = p0r + off - ref_uv[sel]
+            d = p0r + off - ref_g
             gfb = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
             if self.fb_retry and self.fb_levels < self.levels:
                 # second chance: a backward pass on the full-resolution level alone converges only
@@ -1238,14 +1240,14 @@ class FeatureTracker:
                         cur,
                         prev,
                         g1[again],
-                        (g1[again].reshape(-1, 2) - disp[sel][again]).reshape(-1, 1, 2).astype(np.float32),
+                        (g1[again].reshape(-1, 2) - disp_g[again]).reshape(-1, 1, 2).astype(np.float32),
                         min(self.fb_levels + 1, self.levels),
                         back_flags,
                         part,
                     )
                     p0r[again] = q.reshape(-1, 2)
                     gst2[again] = st3
-                    gfb[again] = np.linalg.norm(p0r[again] + off - ref_uv[sel][again], axis=1)
+                    gfb[again] = np.linalg.norm(p0r[again] + off - ref_g[again], axis=1)
             p1[sel] = g1.reshape(-1, 2)
             st[sel] = gst
             err[sel] = gerr
@@ -1284,7 +1286,7 @@ class FeatureTracker:
         # np.clip's integers)
         ui = np.minimum(np.maximum(np.rint(u1).astype(np.intp), 0), w - 1)
         vi = np.minimum(np.maximum(np.rint(v1).astype(np.intp), 0), h - 1)
-        ok &= self.mask[vi, ui] > 0
+        ok &= self.mask.take(vi * w + ui) > 0  # (the mask at (vi, ui), by one flat index)
         n_ok = int(np.count_nonzero(ok))
         n_lk = int(np.count_nonzero(lk_ok))
         # why features were dropped this frame (counts): LK lost them (status 0 either way), the
@@ -1335,7 +1337,8 @@ class FeatureTracker:
         h, w = image.shape[:2]
         ui = np.minimum(np.maximum(np.rint(p[:, 0]).astype(np.intp)[:, None] + d[None, :], 0), w - 1)
         vi = np.minimum(np.maximum(np.rint(p[:, 1]).astype(np.intp)[:, None] + d[None, :], 0), h - 1)
-        patch = image[vi[:, :, None], ui[:, None, :]].reshape(len(p), -1).astype(np.float32)
+        # (the image at (vi, ui) for every window pixel, by one flat index)
+        patch = image.take(vi[:, :, None] * w + ui[:, None, :]).reshape(len(p), -1).astype(np.float32)
         return np.mean(np.abs(patch - patch.mean(axis=1, keepdims=True)), axis=1)
 
     def _cell_counts(self) -> np.ndarray:
@@ -1421,7 +1424,7 @@ class FeatureTracker:
         # slots in row order; an id is used up even when no slot is left for it, as before)
         rf = fresh.nonzero()[0]
         if len(rf):
-            new_vel[rf] = self._neighbour_velocity(np.asarray(uv, np.float32)[rf])
+            new_vel[rf] = self._neighbour_velocity(np.asarray(uv, np.float32).take(rf, 0))
             new_ids[rf] = [next(self._ids) for _ in range(len(rf))]
             free = self._free
             k = min(len(rf), len(free))

@@ -731,7 +731,7 @@ class FrontEnd:
                 hit = (m_ids[k] == ids).nonzero()[0]
                 kk = k[hit]
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
-                guess[hit] = m[3][kk] + (fa.uv[todo[hit]] - m[2][kk])
+                guess[hit] = m[3].take(kk, 0) + (fa.uv.take(todo[hit], 0) - m[2].take(kk, 0))
                 last[hit] = m[4][kk]
             if follow_only:  # last frame's matches followed, plus the retry rows (see _follow_only)
                 tried[todo] = True
@@ -769,7 +769,8 @@ class FrontEnd:
             bb[found] = r.b_b
             chk[found] = np.where(r.checked, self._n, last[r.idx])
         sel = np.isfinite(uvb[rows, 0]).nonzero()[0]
-        return sel, uvb[rows[sel]], bb[rows[sel]]
+        rs = rows[sel]
+        return sel, uvb.take(rs, 0), bb.take(rs, 0)
 
     def _remember_stereo(self) -> None:
         """Keep this frame's stereo KLT matches (per camera pair, sorted by a's feature id: the
@@ -1423,7 +1424,7 @@ class FrontEnd:
             keep = keep_all[lo:hi]
             v = _shallow_copy(tb)
             v.members = np.concatenate([allm[lo:hi][keep], found[flo:fhi]])
-            v.member_b_C = np.concatenate([tb.member_b_C[keep], bb[flo:fhi]])
+            v.member_b_C = np.concatenate([tb.member_b_C.compress(keep, 0), bb[flo:fhi]])
             seen[b][k] = v
             n_found[k] = int(fhi - flo)
         return n_found
@@ -1492,7 +1493,7 @@ class FrontEnd:
             keep = ~drop[lo:hi]
             v = _shallow_copy(t)
             v.members = np.concatenate([ids[lo:hi][keep], t.members[m:]])
-            v.member_b_C = np.concatenate([t.member_b_C[:m][keep], t.member_b_C[m:]])
+            v.member_b_C = np.concatenate([t.member_b_C[:m].compress(keep, 0), t.member_b_C[m:]])
             trs[k] = v
 
     def _drop_listed(self, trs: list[ObstacleTrack], extra: list[ObstacleTrack]) -> None:
