@@ -191,9 +191,9 @@ class _Finder:
         uv = det.keypoints
         ui = np.clip(np.round(uv[:, 0]).astype(np.intp) - x0, 0, x1 - x0 - 1)
         vi = np.clip(np.round(uv[:, 1]).astype(np.intp) - y0, 0, y1 - y0 - 1)
-        inside = m[vi, ui] > 0
+        inside = m.take(vi * m.shape[1] + ui) > 0
         det = det.select(inside)
-        uv = uv[inside]
+        uv = uv.compress(inside, 0)
         if not len(uv):
             return _Found.empty()
         desc_all = (
@@ -381,7 +381,7 @@ def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) 
     px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
     levels sample the image's own grid), clipped to the image; the whole image when no point is
     finite (a non-finite one is ignored: LK reports it lost)."""
-    pts = pts[np.isfinite(pts).all(axis=1)]
+    pts = pts.compress(np.isfinite(pts).all(axis=1), 0)
     if not len(pts):
         return 0, 0, shape[1], shape[0]
     lo = np.floor(pts.min(axis=0) - margin)
@@ -1064,7 +1064,7 @@ class FeatureTracker:
             # (keypoints lie in the crop, so the rounded indices are >= 0)
             ui = np.minimum(np.rint(pu_).astype(np.intp), w - 1)
             vi = np.minimum(np.rint(pv_).astype(np.intp), h - 1)
-            ok = self.mask[vi, ui] > 0
+            ok = self.mask.take(vi * w + ui) > 0
             near = near_live[k].nonzero()[0]
             if len(taken) > n_live:  # features added by earlier regions of this call
                 tu, tv = taken[n_live:, 0], taken[n_live:, 1]

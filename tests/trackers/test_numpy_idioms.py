@@ -35,10 +35,13 @@ def test_klt_gathers_rows_by_take_not_by_fancy_indexing():
     """The KLT's per-frame gathers of (N, k) rows and of pixels at (v, u) are ``take``s (a row list or one
     flat index: numpy's chunked copy, the same values), not 2-D fancy indexing (a general iterator, one
     element or row at a time: ~1.6 M instructions a 720p stereo frame more)."""
-    for fn in (features.FeatureTracker._klt, features.FeatureTracker._texture):
+    ft = features.FeatureTracker
+    for fn in (ft._klt, ft._texture, ft.densify, features._Finder.find, orb.OrbDetector.detect,
+               features._lk_box):
         src = inspect.getsource(fn)
         assert "[vi, ui]" not in src and "[vi[" not in src, fn.__name__
         assert "ref_uv[sel]" not in src and "disp[sel]" not in src, fn.__name__
+        assert "uv = uv[inside]" not in src and "pts = pts[" not in src, fn.__name__
 
 
 def test_flat_take_is_the_two_index_gather():
