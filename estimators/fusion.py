@@ -2454,7 +2454,7 @@ class ObstacleFusion:
         if not len(ia):
             return
         o = work[0][1].o_W
-        c_a, b_a, c_b, b_b = c_now[ia], b_now[ia], c_now[ib], b_now[ib]
+        c_a, b_a, c_b, b_b = c_now.take(ia, 0), b_now.take(ia, 0), c_now.take(ib, 0), b_now.take(ib, 0)
         # midpoint of the common perpendicular: depths s, t of the closest points c_a + s b_a,
         # c_b + t b_b solve [1 -k; k -1] [s t]^T = [b_a.w, b_b.w], w = c_b - c_a, k = b_a.b_b
         w = c_b - c_a

@@ -90,7 +90,7 @@ def match_features(
     w0, w1 = np.ascontiguousarray(d0, np.uint8), np.ascontiguousarray(d1, np.uint8)
     if w0.shape[1] % 8 == 0:
         w0, w1 = w0.view(np.uint64), w1.view(np.uint64)
-    h = np.bitwise_count(w0[ii] ^ w1[jj]).sum(axis=1, dtype=np.int64)
+    h = np.bitwise_count(w0.take(ii, 0) ^ w1.take(jj, 0)).sum(axis=1, dtype=np.int64)
     k = (h <= max_hamming).nonzero()[0]
     if not len(k):
         return np.zeros((0, 2), np.intp)

@@ -1109,9 +1109,9 @@ class FeatureTracker:
         added = len(self.ids) - n0
         if added:
             rows = np.arange(n0, len(self.ids))
-            b, valid = self.model.pixel_to_bearing(self.uv[rows].astype(np.float64))
-            self.b_C[rows] = b
-            self._write_history(self.slot[rows], self.uv[rows], b, frame, t_s)
+            b, valid = self.model.pixel_to_bearing(self.uv[n0:].astype(np.float64))
+            self.b_C[n0:] = b
+            self._write_history(self.slot[n0:], self.uv[n0:], b, frame, t_s)
             if not np.all(valid):
                 self._drop(rows[~valid], remember=False)
         return added

@@ -1289,7 +1289,7 @@ class FrontEnd:
         own, mem = own[which], mem[which]
         idx, _, bb = self._stereo(a, b, rows)
         keep = self._depth_consistent(a, b, rows, own, idx, bb, len(todo))
-        idx, bb = idx[keep], bb[keep]
+        idx, bb = idx[keep], bb.compress(keep, 0)
         # idx is increasing and own non-decreasing along rows: each track's found members are
         # one run of idx; tracks with >= 3 found get a view
         cnt = np.bincount(own[idx], minlength=len(todo))
@@ -1347,7 +1347,7 @@ class FrontEnd:
         keep = np.ones(len(idx), bool)
         if len(idx) < 3 or np.bincount(own[idx]).max() < 3:
             return keep  # no track has 3 found: none is judged
-        b_a = self.trackers[a].b_C[rows]
+        b_a = self.trackers[a].b_C.take(rows, 0)
         # each track's angular radius: the largest angle of its members from their mean bearing
         sums = np.stack([np.bincount(own, b_a[:, k], minlength=n) for k in range(3)], axis=1)
         nrm = np.linalg.norm(sums, axis=1, keepdims=True)
