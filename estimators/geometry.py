@@ -31,8 +31,11 @@ import numpy as np
 # np.einsum's own C function, called without its Python-level wrapper (the array-function dispatch
 # and the keyword handling of its optimize path, which is off by default: ~0.7 us a call; the 720p
 # stereo frame makes ~340 calls in the grouping and the fusion): the same function on the same
-# operands, so the same numbers
-from numpy._core.multiarray import c_einsum as _einsum
+# operands, so the same numbers. It is numpy's private name: a numpy without it gets np.einsum itself.
+try:
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:  # pragma: no cover (numpy 2.0-2.4 have it)
+    _einsum = np.einsum
 
 from estimators.errors import InputError
 
