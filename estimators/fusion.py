@@ -3903,7 +3903,7 @@ def _miss_distances(r: np.ndarray, w: np.ndarray, t: np.ndarray,
     G[:, 0, :3] = n
     G[:, 1, :3] = _cross(u, n)
     G[:, :, 3:] = G[:, :, :3] * t[:, None, None]
-    s = np.einsum("kai,kij,kaj->ka", G, P, G)  # (J P J^T = n^T C n)
+    s = _einsum("kai,kij,kaj->ka", G, P, G)  # (J P J^T = n^T C n)
     s_e = np.maximum(s[:, 1], 0.0)
     var = s[:, 0] + s_e * s_e / np.maximum(d * d + s_e, 1e-300)
     return d, np.sqrt(np.maximum(var, 0.0))
