@@ -711,11 +711,12 @@ def _batch_worker_init(stop: Any) -> None:
 
 def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
     """:func:`_batch_worker` in a worker process: not run once the batch is stopped; an interrupted
-    recording is reported as such (``interrupted``)."""
-    if _BATCH_WORKER["stop"].is_set():
-        return {"out_dir": args[1], "frames": 0, "not_run": True}
+    recording is reported as such (``interrupted``). A recording is under way (``in_job``) from before
+    the stop event is read: a signal between that read and the recording's start stops it too."""
     _BATCH_WORKER["in_job"] = True
     try:
+        if _BATCH_WORKER["stop"].is_set():
+            return {"out_dir": args[1], "frames": 0, "not_run": True}
         return _batch_worker(args)
     except KeyboardInterrupt:
         return {"out_dir": args[1], "interrupted": True}

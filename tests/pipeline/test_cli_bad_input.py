@@ -708,3 +708,30 @@ def test_a_bug_in_a_batch_recording_names_the_recording(tmp_path):
     p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
     assert p.returncode == 1 and "RuntimeError: a bug" in p.stderr, p.stderr
     assert f"(in the batch's recording {out / 'v1'})" in p.stderr, p.stderr
+
+
+def test_a_batch_worker_signalled_as_it_reads_the_stop_event_runs_no_recording(tmp_path, monkeypatch):
+    """The batch's parent sets the stop event, then signals its workers: a worker that read the event
+    (not set yet) and got the signal before it marked its recording under way ignored the signal (as
+    between recordings) and ran the recording to its end. The signal is delivered here at that read."""
+    import signal
+
+    from pipeline.run import _BATCH_WORKER, _batch_pool_job, _batch_worker_init
+
+    ran = []
+    monkeypatch.setattr(run_mod, "_batch_worker", lambda args: ran.append(args) or {"out_dir": args[1]})
+
+    class Event:  # the stop event: not set when read, and the parent's SIGTERM arrives right then
+        def is_set(self):
+            signal.getsignal(signal.SIGTERM)(signal.SIGTERM, None)
+            return False
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.setattr(run_mod, "_BATCH_WORKER", dict(_BATCH_WORKER))
+    try:
+        _batch_worker_init(Event())
+        r = _batch_pool_job(({}, str(tmp_path / "v1"), None))
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert ran == [] and r == {"out_dir": str(tmp_path / "v1"), "interrupted": True}
