@@ -872,12 +872,13 @@ def run_batch(
                     on_done(r)
         except KeyboardInterrupt:  # stop the recordings under way (their outputs kept), start no other
             import signal
-            from multiprocessing import active_children
 
             stop.set()
-            for p in active_children():  # (a Ctrl-C reached them already; a SIGTERM reached this process)
+            # the pool's own processes (a caller's other children are not the batch's to stop); a Ctrl-C
+            # reached them already, a SIGTERM this process alone
+            for pid in list(getattr(ex, "_processes", None) or {}):
                 with contextlib.suppress(ProcessLookupError):
-                    os.kill(p.pid, signal.SIGTERM)
+                    os.kill(pid, signal.SIGTERM)
             ex.shutdown(wait=True, cancel_futures=True)
             if on_done:
                 for f, j in zip(futures[len(results):], jobs[len(results):], strict=True):

@@ -735,3 +735,37 @@ def test_a_batch_worker_signalled_as_it_reads_the_stop_event_runs_no_recording(t
         for s, h in saved.items():
             signal.signal(s, h)
     assert ran == [] and r == {"out_dir": str(tmp_path / "v1"), "interrupted": True}
+
+
+def test_a_stopped_batch_signals_its_own_workers_and_no_other_child_of_its_caller(tmp_path):
+    """run_batch as a library: stopped (a KeyboardInterrupt, here from on_done), it sent SIGTERM to every
+    multiprocessing child of the calling process (multiprocessing.active_children), a caller's own
+    worker too, which died of it; now only to the pool's processes."""
+    import multiprocessing
+
+    from pipeline.config import load_config
+    from pipeline.run import run_batch
+
+    bystander = multiprocessing.get_context("spawn").Process(target=time.sleep, args=(60,), daemon=True)
+    bystander.start()
+    try:
+        bad = []
+        for k in (1, 2, 3):
+            bad.append(tmp_path / f"v{k}.mkv")
+            bad[-1].write_text("not a video")
+        done = []
+
+        def on_done(r):
+            done.append(r)
+            if len(done) == 1:
+                raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            run_batch(load_config(None, ["ego_motion.speed_mps=3"]), bad, tmp_path / "o", workers=2,
+                      on_done=on_done)
+        assert len(done) == 3
+        bystander.join(0.5)
+        assert bystander.is_alive(), bystander.exitcode
+    finally:
+        bystander.kill()
+        bystander.join()
