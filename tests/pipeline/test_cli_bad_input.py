@@ -556,54 +556,77 @@ def test_sigterm_stops_like_ctrl_c_with_summary_json_written(tmp_path, command):
 
 
 _BATCH_MAIN = """
-import sys, time
+import os, sys, time
 sys.path.insert(0, {tests!r})
 from test_run_support import FakeFrontEnd, FakeFusion, mono_rig
 from pipeline import run as run_mod
 
-class Slow(FakeFrontEnd):  # 0.2 s a frame: a recording of 20 frames takes 4 s
+class Stalled(FakeFrontEnd):
     def process(self, images, frame, t_s, T_W_B=None):
-        time.sleep(0.2)
+{body}
         return super().process(images, frame, t_s, T_W_B)
 
 # (module level: the spawned batch workers import this file as __mp_main__ and get the stand-ins too)
 run_mod.build_rig = lambda cfg: mono_rig()
-run_mod.build_frontend = lambda cfg, rig: Slow(rig)
+run_mod.build_frontend = lambda cfg, rig: Stalled(rig)
 run_mod.build_fusion = lambda cfg, rig, ego: FakeFusion()
 
 if __name__ == "__main__":
     from pipeline.cli import main
     sys.exit(main({args!r}))
 """
+# a recording stops at its third frame until the test creates the file `release` (or a signal stops
+# it): what the test acts on is under way however slow the machine (no race with a recording's end)
+_STALL = """\
+        if len(self.calls) == 2:
+            t_end = time.monotonic() + 60
+            while not os.path.exists({release!r}) and time.monotonic() < t_end:
+                time.sleep(0.02)"""
+
+
+def _batch(tmp_path, n_frames: int, body: str = _STALL):
+    """``run --batch`` of three recordings of ``n_frames`` frames (v1, v2, v3) with 2 workers, in a
+    child process whose front end runs ``body`` before each frame: its Popen arguments, the output
+    folder and the release file (``_STALL``)."""
+    import os
+    import sys
+
+    import pipeline
+
+    vids = [write_video(tmp_path / f"v{k}.mkv", n_frames, times=[i / 10 for i in range(n_frames)])
+            for k in (1, 2, 3)]
+    out, release = tmp_path / "o", tmp_path / "release"
+    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
+            "--out", str(out), "--no-progress"]
+    script = tmp_path / "batch_main.py"
+    script.write_text(_BATCH_MAIN.format(tests=str(Path(__file__).parent), args=args,
+                                         body=body.format(release=str(release))))
+    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
+    return [sys.executable, str(script)], env, out, release
+
+
+def _wait_for(cond, timeout_s: float = 90.0) -> None:
+    t_end = time.monotonic() + timeout_s
+    while not cond():
+        assert time.monotonic() < t_end, "timed out"
+        time.sleep(0.05)
+
+
+def _lines_in(path) -> int:
+    return len(path.read_text().splitlines()) if path.is_file() else 0
 
 
 def test_sigterm_stops_a_batch_its_recordings_under_way_and_starts_no_other(tmp_path):
     """A SIGTERM to `run --batch` (which reaches its process alone, not the workers) stops the
     recordings under way, each with its summary.json (interrupted), and starts none of the rest: was
     every recording run to its end, the queued ones too, before the batch exited."""
-    import os
     import signal
     import subprocess
-    import sys
-    from pathlib import Path
 
-    import pipeline
-
-    vids = [write_video(tmp_path / f"v{k}.mkv", 20, times=[i / 10 for i in range(20)]) for k in (1, 2, 3)]
-    out = tmp_path / "o"
-    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
-            "--out", str(out), "--no-progress"]
-    script = tmp_path / "batch_main.py"
-    script.write_text(_BATCH_MAIN.format(tests=str(Path(__file__).parent), args=args))
-    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
-    with subprocess.Popen([sys.executable, str(script)], stderr=subprocess.PIPE, text=True, env=env) as p:
-        try:
-            t_end = time.monotonic() + 90
-            while time.monotonic() < t_end and not all(
-                (out / n / "tracks.jsonl").is_file() and (out / n / "tracks.jsonl").stat().st_size
-                for n in ("v1", "v2")
-            ):
-                time.sleep(0.05)
+    cmd, env, out, _release = _batch(tmp_path, 20)
+    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:  # v1 and v2 under way, each held at its third frame
+            _wait_for(lambda: all(_lines_in(out / n / "tracks.jsonl") >= 2 for n in ("v1", "v2")))
             p.send_signal(signal.SIGTERM)
             err = p.communicate(timeout=60)[1]
         finally:
@@ -612,7 +635,7 @@ def test_sigterm_stops_a_batch_its_recordings_under_way_and_starts_no_other(tmp_
     assert p.returncode == 130, err
     for n in ("v1", "v2"):
         s = json.loads((out / n / "summary.json").read_text())
-        assert s["interrupted"] is True and s["frames"] < 20, (n, s["frames"])
+        assert s["interrupted"] is True and s["frames"] == 2, (n, s["frames"])
         assert f"{out / n}: interrupted; what it did is in the folder" in err
     assert not (out / "v3").exists() and f"{out / 'v3'}: not run (the batch was stopped)" in err
 
@@ -656,27 +679,16 @@ def test_a_batch_worker_killed_by_the_system_is_named_and_the_batch_exits_2(tmp_
     import os
     import signal
     import subprocess
-    import sys
 
-    import pipeline
-
-    vids = [write_video(tmp_path / f"v{k}.mkv", 20, times=[i / 10 for i in range(20)]) for k in (1, 2, 3)]
-    out = tmp_path / "o"
-    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
-            "--out", str(out), "--no-progress"]
-    script = tmp_path / "batch_main.py"
-    script.write_text(_BATCH_MAIN.format(tests=str(Path(__file__).parent), args=args))
-    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
-    with subprocess.Popen([sys.executable, str(script)], stderr=subprocess.PIPE, text=True, env=env) as p:
-        try:
-            t_end = time.monotonic() + 90
-            pid = None
-            while time.monotonic() < t_end and pid is None:
-                f = out / "v1" / "tracks.jsonl"
-                pid = _writer_of(f) if f.is_file() and f.stat().st_size else None
-                time.sleep(0.05)
+    cmd, env, out, release = _batch(tmp_path, 20)
+    f = out / "v1" / "tracks.jsonl"
+    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:  # v1 held at its third frame, its file open
+            _wait_for(lambda: _lines_in(f) >= 2)
+            pid = _writer_of(f)
             assert pid is not None and pid != p.pid
             os.kill(pid, signal.SIGKILL)
+            release.touch()  # (v2, if its worker still runs)
             err = p.communicate(timeout=60)[1]
         finally:
             if p.poll() is None:
@@ -684,28 +696,17 @@ def test_a_batch_worker_killed_by_the_system_is_named_and_the_batch_exits_2(tmp_
     assert p.returncode == 2, err
     assert "Traceback" not in err and "BrokenProcessPool" not in err, err
     assert f"{out / 'v1'}: 0 frames  ERROR its worker process died" in err
-    assert (out / "v1" / "tracks.jsonl").stat().st_size > 0  # what it wrote is kept
+    assert _lines_in(f) == 2  # what it wrote is kept
     assert str(out / "v3") in err
 
 
 def test_a_bug_in_a_batch_recording_names_the_recording(tmp_path):
     """A bug (not a refused input) in a batch worker is raised on, as in a single run (traceback, exit 1),
     now with the recording named: the traceback came from the worker process and named none."""
-    import os
     import subprocess
-    import sys
 
-    import pipeline
-
-    vids = [write_video(tmp_path / f"v{k}.mkv", 3, times=[i / 10 for i in range(3)]) for k in (1, 2)]
-    out = tmp_path / "o"
-    args = ["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "2", "--speed-mps", "3",
-            "--out", str(out), "--no-progress"]
-    script = tmp_path / "batch_main.py"
-    script.write_text(_BATCH_MAIN.replace("time.sleep(0.2)", "raise RuntimeError('a bug')").format(
-        tests=str(Path(__file__).parent), args=args))
-    env = {**os.environ, "PYTHONPATH": str(Path(pipeline.__file__).parents[1])}
-    p = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    cmd, env, out, _release = _batch(tmp_path, 3, body="        raise RuntimeError('a bug')")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
     assert p.returncode == 1 and "RuntimeError: a bug" in p.stderr, p.stderr
     assert f"(in the batch's recording {out / 'v1'})" in p.stderr, p.stderr
 
