@@ -137,11 +137,14 @@ def _detection_worker_init(nice: int | None) -> None:
 
     cv2.setNumThreads(1)  # one thread, on the cores the run was given
     set_thread_nice(nice)
-    # Ctrl-C reaches the whole process group: the run ends the worker itself (its shutdown), so the
-    # worker ignores it (otherwise each Ctrl-C printed the worker's KeyboardInterrupt traceback); and
-    # it ends when the run's process is gone without a shutdown (SIGKILL, an unhandled SIGTERM):
-    # otherwise it stayed, an orphan waiting for jobs, for good
+    # Ctrl-C reaches the whole process group, and a supervisor's SIGTERM may too (systemd's default
+    # KillMode=control-group): the run ends the worker itself (its shutdown, after summary.json), so the
+    # worker ignores both (otherwise each Ctrl-C printed the worker's KeyboardInterrupt traceback, and a
+    # SIGTERM killed it under the run: summary.json's worker_cpu_s null, a detection's join a broken
+    # pool); and it ends when the run's process is gone without a shutdown (SIGKILL, an unhandled
+    # SIGTERM): otherwise it stayed, an orphan waiting for jobs, for good
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     parent = multiprocessing.parent_process()
     if parent is not None:
 

@@ -944,10 +944,11 @@ def test_a_set_up_error_after_the_worker_started_leaves_no_worker_camera_or_thre
     assert _no_worker_left() and not _grabbing_threads() and len(closed) == 2
 
 
-def test_the_detection_worker_ignores_ctrl_c_and_ends_with_its_run_process():
-    """Ctrl-C reaches the whole process group: the worker ignores it (the run ends it with its shutdown;
-    it printed its own KeyboardInterrupt traceback on every Ctrl-C before), and a worker whose run process
-    is gone without a shutdown (SIGKILL) ends too instead of waiting for jobs for good."""
+def test_the_detection_worker_ignores_ctrl_c_and_sigterm_and_ends_with_its_run_process():
+    """Ctrl-C reaches the whole process group, and so may a supervisor's SIGTERM: the worker ignores both
+    (the run ends it with its shutdown; it printed its own KeyboardInterrupt traceback on every Ctrl-C
+    before, and a SIGTERM killed it under the run, summary.json's worker_cpu_s null), and a worker whose
+    run process is gone without a shutdown (SIGKILL) ends too instead of waiting for jobs for good."""
     import os
     import signal
     import subprocess
@@ -960,9 +961,10 @@ def test_the_detection_worker_ignores_ctrl_c_and_ends_with_its_run_process():
     ex = detection_worker(None)
     try:
         pid = ex.submit(os.getpid).result()
-        os.kill(pid, signal.SIGINT)
-        time.sleep(0.3)
-        assert ex.submit(abs, -2).result(timeout=30) == 2
+        for sig in (signal.SIGINT, signal.SIGTERM):  # (SIGTERM: systemd's stop reaches the whole group)
+            os.kill(pid, sig)
+            time.sleep(0.3)
+            assert ex.submit(abs, -2).result(timeout=30) == 2, sig
     finally:
         ex.shutdown()
     code = (
