@@ -630,7 +630,7 @@ def evaluate(
     )
     metrics = {
         "overall": overall,
-        "confirmed_hits": scored_range_metrics(all_rows)["confirmed"],
+        "confirmed_hits": range_metrics(scored_reports(all_rows)),
         "near_misses": range_metrics([r for r in all_rows if r.hit == "near"]),
         "by_scenario": by_scenario,
         "sky_by_scenario": sky_by,
