@@ -712,10 +712,13 @@ def _batch_worker_init(stop: Any) -> None:
 def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
     """:func:`_batch_worker` in a worker process: not run once the batch is stopped; an interrupted
     recording is reported as such (``interrupted``). A recording is under way (``in_job``) from before
-    the stop event is read: a signal between that read and the recording's start stops it too."""
+    the stop event is read: a signal between that read and the recording's start stops it too. A worker
+    once interrupted runs no other recording: a signal that reached it directly (a Ctrl-C, systemd's
+    SIGTERM to the whole group) can come before the parent sets the stop event, and the worker, which
+    takes no second signal, would run the next recording to its end."""
     _BATCH_WORKER["in_job"] = True
     try:
-        if _BATCH_WORKER["stop"].is_set():
+        if _BATCH_WORKER["interrupted"] or _BATCH_WORKER["stop"].is_set():
             return {"out_dir": args[1], "frames": 0, "not_run": True}
         return _batch_worker(args)
     except KeyboardInterrupt:

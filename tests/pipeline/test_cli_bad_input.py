@@ -770,3 +770,30 @@ def test_a_stopped_batch_signals_its_own_workers_and_no_other_child_of_its_calle
     finally:
         bystander.kill()
         bystander.join()
+
+
+def test_a_batch_worker_once_interrupted_runs_no_other_recording(tmp_path, monkeypatch):
+    """systemd's stop sends SIGTERM to every process of the unit: a worker interrupted directly, its
+    recording's outputs written, could take the next recording before the parent had set the stop
+    event, and, taking no second signal, ran it to its end while the batch waited."""
+    import signal
+
+    from pipeline.run import _BATCH_WORKER, _batch_pool_job, _batch_worker_init
+
+    ran = []
+    monkeypatch.setattr(run_mod, "_batch_worker", lambda args: ran.append(args) or {"out_dir": args[1]})
+
+    class Event:  # the parent's stop: not set yet
+        def is_set(self):
+            return False
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.setattr(run_mod, "_BATCH_WORKER", dict(_BATCH_WORKER))
+    try:
+        _batch_worker_init(Event())
+        run_mod._BATCH_WORKER.update(interrupted=True)  # (its first recording was stopped)
+        r = _batch_pool_job(({}, str(tmp_path / "v3"), None))
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert ran == [] and r == {"out_dir": str(tmp_path / "v3"), "frames": 0, "not_run": True}
