@@ -3309,8 +3309,7 @@ class ObstacleFusion:
                     kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)),
                               speed_sigma_mps=_speed_sigma(v_W, P_v))
                 elif vel_ok.get(j, False):
-                    v_W = X[j, 3:].copy()
-                    P_w = None
+                    v_W = X[j, 3:].copy()  # (a moving track's: P_w is already None, the filter's P)
                     kw.update(velocity_world_mps=v_W, speed_mps=math.sqrt(_tdot(v_W, v_W)),
                               speed_sigma_mps=_speed_sigma(v_W, trs[j].kf.P[3:, 3:]))
                 elif tr.moving and not tr.vel_assumed:
