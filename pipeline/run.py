@@ -787,9 +787,9 @@ def run_batch(
     Returns one dict per run (out_dir, frames, tracks, frames_per_s, error), in input order.
 
     Raises:
-        KeyboardInterrupt: on a Ctrl-C or SIGTERM (worker processes: the recordings under way stop with
-            their outputs written, ``on_done`` gets them with ``interrupted``, and those not started
-            with ``not_run``).
+        KeyboardInterrupt: on a Ctrl-C or SIGTERM (the recordings under way stop with their outputs
+            written, ``on_done`` gets them with ``interrupted``, and those not started with ``not_run``;
+            in this process, ``workers`` 1, as in worker processes).
     """
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
@@ -856,8 +856,15 @@ def run_batch(
     n = workers or min(len(jobs), os.cpu_count() or 1)
     results: list[dict] = []
     if n <= 1 or len(jobs) == 1:
-        for j in jobs:
-            r = _batch_worker(j)
+        for k, j in enumerate(jobs):
+            try:
+                r = _batch_worker(j)
+            except KeyboardInterrupt:  # as with worker processes: the recording's line, and the rest's
+                if on_done:
+                    on_done({"out_dir": j[1], "interrupted": True})
+                    for rest in jobs[k + 1:]:
+                        on_done({"out_dir": rest[1], "frames": 0, "not_run": True})
+                raise
             results.append(r)
             if on_done:
                 on_done(r)

@@ -797,3 +797,26 @@ def test_a_batch_worker_once_interrupted_runs_no_other_recording(tmp_path, monke
         for s, h in saved.items():
             signal.signal(s, h)
     assert ran == [] and r == {"out_dir": str(tmp_path / "v3"), "frames": 0, "not_run": True}
+
+
+def test_a_ctrl_c_in_a_one_worker_batch_names_the_recording_stopped_and_those_not_run(tmp_path, monkeypatch,
+                                                                                     capsys):
+    """`run --batch ... --jobs 1` runs its recordings in this process: a Ctrl-C (or SIGTERM) printed no
+    line for the recording it stopped nor for those it left, as a batch of worker processes does."""
+
+    class Stopped(FakeFrontEnd):  # the Ctrl-C during v1's third frame
+        def process(self, images, frame, t_s, T_W_B=None):
+            if len(self.calls) == 2:
+                raise KeyboardInterrupt
+            return super().process(images, frame, t_s, T_W_B)
+
+    _fake_stages(monkeypatch, front=lambda cfg, rig: Stopped(rig))
+    vids = [write_video(tmp_path / f"v{k}.mkv", 5, times=[i / 10 for i in range(5)]) for k in (1, 2)]
+    out = tmp_path / "o"
+    rc = main(["run", *(a for v in vids for a in ("--batch", str(v))), "--jobs", "1", "--speed-mps", "3",
+               "--out", str(out), "--no-progress"])
+    err = _err_lines(capsys)
+    assert rc == 130
+    assert json.loads((out / "v1" / "summary.json").read_text())["interrupted"] is True
+    assert f"{out / 'v1'}: interrupted; what it did is in the folder" in err, err
+    assert f"{out / 'v2'}: not run (the batch was stopped)" in err and not (out / "v2").exists(), err
