@@ -622,39 +622,44 @@ def run(
     except Exception as e:  # a stage refused a frame (or failed): recorded, raised below with where to look
         failed = e
     finally:
-        bar.close()
-        writer.close()
-        source.close()
-        if video is not None:
-            video.close()
-        wall = time.perf_counter() - t_start
-        cpu = time.process_time() - cpu_start  # all threads of this process (OpenCV's too)
-        error = source.error if failed is None else error_text(failed)
-        summary = {
-            "frames": frames,
-            "tracks": len(writer.track_ids),
-            "track_reports_by_status": dict(writer.statuses),
-            "wall_s": wall,
-            "frames_per_s": frames / wall if wall > 0 else None,
-            "cpu_s": cpu,
-            "cpu_s_per_frame": cpu / frames if frames else None,
-            "t_s_first": first_t,
-            "t_s_last": last_t,
-            "interrupted": interrupted,
-            "error": error,
-            "dropped_unpaired_frames": dict(source.dropped),
-            "rig": {"kind": getattr(rig, "kind", None), "cameras": list(getattr(rig, "names", []))},
-            "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
-            "frame_times": {s.camera: s.frame_times for s in source.sources},
-            "timings": timings.summary(),
-            "per_frame": per_frame.summary(),
-            "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},
-            "parameters": cfg.model_dump(mode="json"),
-            "pid": os.getpid(),
-        }
-        if video is not None and video.frames:
-            summary["outputs"]["annotated_video"] = video.path.name
-        write_json(out / SUMMARY_NAME, summary)  # first: a second Ctrl-C during the plots loses nothing
+        try:  # (a second Ctrl-C or SIGTERM in the closes still writes summary.json, then no plots)
+            bar.close()
+            writer.close()
+            source.close()
+            if video is not None:
+                video.close()
+        except KeyboardInterrupt:  # (after a normal end too: the run is interrupted)
+            interrupted = True
+            raise
+        finally:
+            wall = time.perf_counter() - t_start
+            cpu = time.process_time() - cpu_start  # all threads of this process (OpenCV's too)
+            error = source.error if failed is None else error_text(failed)
+            summary = {
+                "frames": frames,
+                "tracks": len(writer.track_ids),
+                "track_reports_by_status": dict(writer.statuses),
+                "wall_s": wall,
+                "frames_per_s": frames / wall if wall > 0 else None,
+                "cpu_s": cpu,
+                "cpu_s_per_frame": cpu / frames if frames else None,
+                "t_s_first": first_t,
+                "t_s_last": last_t,
+                "interrupted": interrupted,
+                "error": error,
+                "dropped_unpaired_frames": dict(source.dropped),
+                "rig": {"kind": getattr(rig, "kind", None), "cameras": list(getattr(rig, "names", []))},
+                "inputs": [getattr(s, "path", getattr(s, "folder", None)) for s in source.sources],
+                "frame_times": {s.camera: s.frame_times for s in source.sources},
+                "timings": timings.summary(),
+                "per_frame": per_frame.summary(),
+                "outputs": {"tracks": TRACKS_NAME, "config": "config.resolved.yaml"},
+                "parameters": cfg.model_dump(mode="json"),
+                "pid": os.getpid(),
+            }
+            if video is not None and video.frames:
+                summary["outputs"]["annotated_video"] = video.path.name
+            write_json(out / SUMMARY_NAME, summary)  # first: a second Ctrl-C during the plots loses nothing
         if cfg.outputs.plots and frames:
             try:
                 names = [p.name for p in make_plots(out / TRACKS_NAME, out, cfg.outputs.max_plot_tracks)]

@@ -104,6 +104,31 @@ def test_ctrl_c_keeps_outputs(tmp_path):
     assert s["outputs"]["plots"] == ["range_over_time.png", "polar_map.png"]  # plots of what was done
 
 
+
+@pytest.mark.parametrize("first", ["ctrl_c", "end"])
+def test_a_second_ctrl_c_during_the_clean_up_still_writes_summary_json(tmp_path, monkeypatch, first):
+    """A supervisor that repeats its SIGTERM (or a second Ctrl-C) while the run closes its files (the
+    source, an annotated video's encoder) lost summary.json: it was built after the closes. Now the
+    summary is written whatever the closes raise, with ``interrupted`` true (also when the signal came
+    after the last frame), and no plots are made."""
+    from pipeline.sinks import TracksWriter
+
+    close = TracksWriter.close
+
+    def close_then_signal(self):
+        close(self)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(TracksWriter, "close", close_then_signal)
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 10 for k in range(10)])
+    rig = mono_rig()
+    with pytest.raises(KeyboardInterrupt):
+        _run(tmp_path, [v], rig=rig, front=FakeFrontEnd(rig, interrupt_at=4 if first == "ctrl_c" else None),
+             plots=True)
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["interrupted"] is True and s["frames"] == (4 if first == "ctrl_c" else 10)
+    assert "plots" not in s["outputs"] and not (tmp_path / "out" / "polar_map.png").exists()
+
 def test_frame_size_mismatch_is_an_error_before_anything_runs(tmp_path):
     v = write_video(tmp_path / "cam0.mkv", 3, size=(80, 60))
     with pytest.raises(SourceError, match=rf"frames are 80x60 pixels but the calibration expects {W}x{H}"):
