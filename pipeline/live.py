@@ -1137,75 +1137,84 @@ def run_live(
     except Exception as e:  # a stage refused a frame (or failed): recorded, raised below with where to look
         failed = e
     finally:
-        gc_clock.close()
-        sys.setswitchinterval(switch_interval)
-        for g in grabbers:
-            g.stop()
         deferred = None
-        if worker is not None:  # the detection under way (if any) is dropped; the process ends with the run
-            frontend.defer_detection(None)
-            per_cam = getattr(frontend, "deferred", {})
-            worker_cpu_end = process_cpu_s(worker_pid)
-            deferred = {
-                "worker_nice": getattr(worker, "nice", None),
-                # CPU seconds (user + system) the worker process used from loop start to end; None where
-                # /proc cannot be read
-                "worker_cpu_s": (
-                    None if worker_cpu_start is None or worker_cpu_end is None
-                    else worker_cpu_end - worker_cpu_start
-                ),
-                "joined": {n: d["joined"] for n, d in per_cam.items()},
-                "frames_late": {n: d["frames_late"] for n, d in per_cam.items()},
-            }
         # the outputs first, the worker last: its shutdown waits for a detection under way (kornia on a
-        # CPU: ~1 s), and a Ctrl-C or an error there must not cost tracks.jsonl or summary.json
+        # CPU: ~1 s), and a Ctrl-C or an error there must not cost tracks.jsonl or summary.json; a second
+        # Ctrl-C or SIGTERM while the grabbers stop (up to 5 s a camera) or the files close does not either
         try:
-            writer.close()
-            if log is not None:
-                log.close()
-            if server is not None:
-                server.close()
-            if video is not None:
-                video.close()
-            wall = time.perf_counter() - t_start
-            summary = {
-                "mode": "live",
-                "frames": frames,
-                "tracks": len(writer.track_ids),
-                "wall_s": wall,
-                "frames_per_s": frames / wall if wall > 0 else None,
-                "interrupted": interrupted,
-                # the message of the error that stopped the run (null when it ended normally)
-                "error": None if failed is None else error_text(failed),
-                "latency": latency.summary(),
-                # latency split: from arrival until the loop took the frame, and from then to its line
-                "latency_waited": waited.summary(),
-                "latency_processing": processing.summary(),
-                # the same split finer (they add up per frame): lag + queue + process + write; decode beside
-                "latency_parts": {k: v.summary() for k, v in parts.items()},
-                # replays only: how late each frame was published after it was due (the grabber's lag)
-                "replay_lag": {g.name: g.lag.summary() for g in grabbers if g.lag.n},
-                "stale_frames_dropped": {g.name: g.stale for g in grabbers},
-                "frames_grabbed": {g.name: g.grabbed for g in grabbers},
-                "drop_rate": {g.name: g.stale / g.grabbed if g.grabbed else None for g in grabbers},
-                # of the dropped: grabbed but never decoded (the loop was busy past the next frame; cameras)
-                "frames_not_decoded": {g.name: g.skipped for g in grabbers},
-                "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
-                "grabber_nice": {g.name: g.nice for g in grabbers},
-                # the re-detections run off the frame's path (live.deferred_detection): the worker process's
-                # nice value and CPU seconds over the loop; per feature tracker, detections joined and the
-                # frames processed in all between each detection's frame and its join
-                "deferred_detection": deferred,
-                "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
-                "frames_without_pose": no_pose,
-                "frames_before_trajectory": before_start,
-                "pose_gap_before_s": gap_before,
-                "pose_gap_after_s": gap_after,
-                "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},
-                "timings": timings.summary(),
-                "parameters": cfg.model_dump(mode="json"),
-            }
-            write_json(out / SUMMARY_NAME, summary)
+            try:
+                gc_clock.close()
+                sys.setswitchinterval(switch_interval)
+                for g in grabbers:
+                    g.stop()
+                # the detection under way (if any) is dropped; the process ends with the run
+                if worker is not None:
+                    frontend.defer_detection(None)
+                    per_cam = getattr(frontend, "deferred", {})
+                    worker_cpu_end = process_cpu_s(worker_pid)
+                    deferred = {
+                        "worker_nice": getattr(worker, "nice", None),
+                        # CPU seconds (user + system) the worker process used from loop start to end; None
+                        # where /proc cannot be read
+                        "worker_cpu_s": (
+                            None if worker_cpu_start is None or worker_cpu_end is None
+                            else worker_cpu_end - worker_cpu_start
+                        ),
+                        "joined": {n: d["joined"] for n, d in per_cam.items()},
+                        "frames_late": {n: d["frames_late"] for n, d in per_cam.items()},
+                    }
+                writer.close()
+                if log is not None:
+                    log.close()
+                if server is not None:
+                    server.close()
+                if video is not None:
+                    video.close()
+            except KeyboardInterrupt:  # (after the loop's end too: the run is interrupted)
+                interrupted = True
+                raise
+            finally:
+                wall = time.perf_counter() - t_start
+                summary = {
+                    "mode": "live",
+                    "frames": frames,
+                    "tracks": len(writer.track_ids),
+                    "wall_s": wall,
+                    "frames_per_s": frames / wall if wall > 0 else None,
+                    "interrupted": interrupted,
+                    # the message of the error that stopped the run (null when it ended normally)
+                    "error": None if failed is None else error_text(failed),
+                    "latency": latency.summary(),
+                    # latency split: from arrival until the loop took the frame, and from then to its line
+                    "latency_waited": waited.summary(),
+                    "latency_processing": processing.summary(),
+                    # the same split finer (they add up per frame): lag + queue + process + write; decode
+                    # beside
+                    "latency_parts": {k: v.summary() for k, v in parts.items()},
+                    # replays only: how late each frame was published after it was due (the grabber's lag)
+                    "replay_lag": {g.name: g.lag.summary() for g in grabbers if g.lag.n},
+                    "stale_frames_dropped": {g.name: g.stale for g in grabbers},
+                    "frames_grabbed": {g.name: g.grabbed for g in grabbers},
+                    "drop_rate": {g.name: g.stale / g.grabbed if g.grabbed else None for g in grabbers},
+                    # of the dropped: grabbed but never decoded (the loop was busy past the next frame;
+                    # cameras)
+                    "frames_not_decoded": {g.name: g.skipped for g in grabbers},
+                    "reopened": {g.name: max(0, g.reconnects) for g in grabbers},
+                    "grabber_nice": {g.name: g.nice for g in grabbers},
+                    # the re-detections run off the frame's path (live.deferred_detection): the worker
+                    # process's nice value and CPU seconds over the loop; per feature tracker, detections
+                    # joined and the frames processed in all between each detection's frame and its join
+                    "deferred_detection": deferred,
+                    "last_camera_error": {g.name: g.last_error for g in grabbers if g.last_error},
+                    "frames_without_pose": no_pose,
+                    "frames_before_trajectory": before_start,
+                    "pose_gap_before_s": gap_before,
+                    "pose_gap_after_s": gap_after,
+                    "frames_without_partner": {n: unpaired.get(n, 0) for n in names[1:]},
+                    "timings": timings.summary(),
+                    "parameters": cfg.model_dump(mode="json"),
+                }
+                write_json(out / SUMMARY_NAME, summary)
         finally:
             if worker is not None:
                 worker.shutdown(wait=True, cancel_futures=True)

@@ -1093,3 +1093,26 @@ def test_a_replayed_file_cut_off_halfway_ends_the_live_run_normally_as_outputs_m
     assert "(or `live`)" not in doc
     assert "For `live` it is only a frame a stage refused" in doc
     assert "even one cut off halfway, ends the live run normally (exit 0, `error` null)" in doc
+
+
+def test_a_second_ctrl_c_while_the_grabbers_stop_keeps_summary_json(tmp_path, monkeypatch):
+    """Stopping the grabbers waits up to 5 s a camera; a second Ctrl-C or a repeated SIGTERM there lost
+    summary.json (built after them). Now the summary is written (interrupted); the deferred-detection
+    worker's shutdown still comes last."""
+    import pipeline.live as live
+
+    stop = live.Grabber.stop
+
+    def stop_then_signal(self, *a, **kw):
+        stop(self, *a, **kw)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(live.Grabber, "stop", stop_then_signal)
+    v = write_video(tmp_path / "cam0.mkv", 10, times=[k / 20 for k in range(10)])
+    rig = mono_rig()
+    with pytest.raises(KeyboardInterrupt):
+        _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)],
+              front=FakeFrontEnd(rig, interrupt_at=3))
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["interrupted"] is True and s["frames"] == 3
+    assert len((tmp_path / "out" / "tracks.jsonl").read_text().splitlines()) == 3
