@@ -698,7 +698,8 @@ _BATCH_WORKER: dict[str, Any] = {"stop": None, "in_job": False, "interrupted": F
 
 def _batch_worker_init(stop: Any) -> None:
     """A batch worker process: a Ctrl-C (the terminal's, to the whole process group) or a SIGTERM (from
-    the parent, which alone got a supervisor's) stops the recording under way as in a single run
+    the parent, or a supervisor's to every process of the unit: systemd's KillMode=control-group) stops
+    the recording under way as in a single run
     (its summary.json written, ``interrupted`` true); later signals do nothing, so that the clean-up
     is not cut short; a recording not yet started is not run (the stop event)."""
     import signal
