@@ -375,7 +375,10 @@ def test_batch_in_parallel_worker_processes(tmp_path):
         s = json.loads((tmp_path / "out" / name / "summary.json").read_text())
         assert s["frames"] == 4 and len(_lines(tmp_path / "out" / name / "tracks.jsonl")) == 4
         pids.add(s["pid"])
-    assert len(pids) == 2 and run_mod.os.getpid() not in pids  # two worker processes
+    # worker processes, not this one; one of them may take both (it ends recA before the other has
+    # started, on a loaded machine): that two run at once is tested with recordings held under way
+    # (test_cli_bad_input.py, test_sigterm_stops_a_batch_its_recordings_under_way_and_starts_no_other)
+    assert run_mod.os.getpid() not in pids
 
 
 @pytest.mark.parametrize(
