@@ -1114,5 +1114,7 @@ def test_a_second_ctrl_c_while_the_grabbers_stop_keeps_summary_json(tmp_path, mo
         _live(tmp_path, [make_reader_factory(str(v), "cam0", paced=False)],
               front=FakeFrontEnd(rig, interrupt_at=3))
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert s["interrupted"] is True and s["frames"] == 3
-    assert len((tmp_path / "out" / "tracks.jsonl").read_text().splitlines()) == 3
+    # (3 frames, or fewer when the loop took the newest frame past dropped ones and the file ended first:
+    # the second signal then interrupts a run that had ended)
+    assert s["interrupted"] is True and 1 <= s["frames"] <= 3
+    assert len((tmp_path / "out" / "tracks.jsonl").read_text().splitlines()) == s["frames"]
