@@ -770,6 +770,18 @@ def _pool_result(f: Any, out_dir: str) -> dict:
         raise
 
 
+def _stopped_result(f: Any, out_dir: str) -> dict:
+    """The result of the batch worker future ``f`` (done or cancelled) once the batch was stopped: not
+    run when cancelled, else as :func:`_pool_result` gives it (a worker that died: an error line), a bug
+    as an error line (the stop is what the batch reports)."""
+    if f.cancelled():
+        return {"out_dir": out_dir, "frames": 0, "not_run": True}
+    try:
+        return _pool_result(f, out_dir)
+    except Exception as e:
+        return {"out_dir": out_dir, "frames": 0, "error": f"{type(e).__name__}: {e}"}
+
+
 def run_batch(
     cfg: PipelineConfig,
     items: list[Path],
@@ -898,9 +910,6 @@ def run_batch(
             ex.shutdown(wait=True, cancel_futures=True)
             if on_done:
                 for f, j in zip(futures[len(results):], jobs[len(results):], strict=True):
-                    if f.cancelled() or f.exception() is not None:
-                        on_done({"out_dir": j[1], "frames": 0, "not_run": True})
-                    else:
-                        on_done(f.result())
+                    on_done(_stopped_result(f, j[1]))
             raise
     return results

@@ -820,3 +820,27 @@ def test_a_ctrl_c_in_a_one_worker_batch_names_the_recording_stopped_and_those_no
     assert json.loads((out / "v1" / "summary.json").read_text())["interrupted"] is True
     assert f"{out / 'v1'}: interrupted; what it did is in the folder" in err, err
     assert f"{out / 'v2'}: not run (the batch was stopped)" in err and not (out / "v2").exists(), err
+
+
+def test_a_stopped_batch_names_a_recording_whose_worker_died_not_as_not_run(tmp_path):
+    """After a Ctrl-C or SIGTERM, each unfinished recording's line comes from its future: cancelled, not
+    run; its worker died (BrokenProcessPool) with its folder there, the worker-died error (was "not
+    run" for every future that ended with an exception); a bug, its error."""
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    def done(exc=None, value=None):
+        f = Future()
+        f.set_exception(exc) if exc is not None else f.set_result(value)
+        return f
+
+    (tmp_path / "started").mkdir()
+    cancelled = Future()
+    cancelled.cancel()
+    assert run_mod._stopped_result(cancelled, str(tmp_path / "queued"))["not_run"] is True
+    r = run_mod._stopped_result(done(BrokenProcessPool("x")), str(tmp_path / "started"))
+    assert "not_run" not in r and r["error"].startswith("its worker process died")
+    r = run_mod._stopped_result(done(RuntimeError("a bug")), str(tmp_path / "started"))
+    assert r["error"] == "RuntimeError: a bug"
+    ok = {"out_dir": str(tmp_path / "started"), "frames": 3, "interrupted": True}
+    assert run_mod._stopped_result(done(value=ok), ok["out_dir"]) == ok
