@@ -15,8 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-# np.cross and np.linalg.norm(x, axis=1) bit for bit, without their axis handling
-from estimators.geometry import _cross, _isin, _norm_rows
+# np.cross and np.linalg.norm (of a vector or of rows) bit for bit, without their axis handling
+from estimators.geometry import _cross, _isin, _norm, _norm_rows
 from trackers.features import KLT_WIN_PX, _lk_part, _lk_whole
 
 
@@ -31,9 +31,9 @@ def epipolar_residual(b0: np.ndarray, b1: np.ndarray, R_C1_C0: np.ndarray, t_C1_
         (1 where the plane is undefined: b0 along the baseline).
     """
     t = np.asarray(t_C1_C0, float)
-    tn = np.linalg.norm(t)
+    tn = _norm(t)
     if tn == 0:
-        return np.linalg.norm(np.cross(b1, b0 @ np.asarray(R_C1_C0).T), axis=1)  # pure rotation: rays equal
+        return _norm_rows(_cross(b1, b0 @ np.asarray(R_C1_C0).T))  # pure rotation: rays equal
     n = _cross(t / tn, b0 @ np.asarray(R_C1_C0).T)
     nn = _norm_rows(n)
     res = np.abs(np.add.reduce(b1 * n, axis=1)) / np.where(nn > 1e-9, nn, 1.0)
@@ -68,11 +68,11 @@ def match_features(
         return np.zeros((0, 2), np.intp)
     # epipolar residual of every pair: |b1 . n_i| / |n_i| (in place on the (N0, N1) products)
     t = np.asarray(t_C1_C0, float)
-    tn = np.linalg.norm(t)
+    tn = _norm(t)
     Rb0 = b0 @ np.asarray(R_C1_C0).T
     if tn > 0:
         n = _cross(t / tn, Rb0)
-        nn = np.linalg.norm(n, axis=1)
+        nn = _norm_rows(n)
         res = n @ b1.T
         np.abs(res, out=res)
         res /= np.where(nn > 1e-9, nn, 1.0)[:, None]
@@ -214,7 +214,7 @@ def stereo_klt(
         inf = (~own).nonzero()[0]
         d = b_a[inf] @ np.asarray(R_b_a).T
         t = np.asarray(t_b_a, float).reshape(3)
-        base = float(np.linalg.norm(t))
+        base = _norm(t)
         if crop and base > 0:
             # the start and where the point projects nearer than infinity, in one call (each row is
             # projected on its own): R b_a + w t at the inverse ranges w (1/m) of EPIPOLAR_STEPS
@@ -331,7 +331,7 @@ def depth_consistent(
     owner = np.asarray(owner, np.intp).reshape(-1)
     keep = np.ones(len(b_a), bool)
     t = np.asarray(t_b_a, float).reshape(3)
-    base = float(np.linalg.norm(t))
+    base = _norm(t)
     if len(b_a) < min_found or base <= 0:
         return keep
     d = b_a @ np.asarray(R_b_a, float).T
@@ -502,14 +502,14 @@ def box_pairs(
     t = np.asarray(t_C1_C0, float).reshape(3)
     d = b0 @ R.T  # (N0, 3) camera 0's rays in C1
     tol = np.maximum(np.asarray(half0, float)[:, None], np.asarray(half1, float)[None, :]) + margin_rad
-    tn = np.linalg.norm(t)
+    tn = _norm(t)
     if tn > 0:
-        n = np.cross(t / tn, d)
-        nn = np.linalg.norm(n, axis=1)
+        n = _cross(t / tn, d)
+        nn = _norm_rows(n)
         res = np.abs(n @ b1.T) / np.where(nn > 1e-9, nn, 1.0)[:, None]
         res[nn <= 1e-9] = 0.0  # along the baseline: every plane holds it (the angle test decides)
     else:
-        res = np.linalg.norm(np.cross(d[:, None, :], b1[None, :, :]), axis=2)  # rays equal
+        res = _norm_rows(_cross(d[:, None, :], b1[None, :, :]))  # rays equal
     ok = res < np.sin(np.minimum(tol, np.pi / 2))
     c = d @ b1.T  # (N0, N1) cosines between the rays
     dt = d @ t  # (N0,)

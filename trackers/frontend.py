@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from estimators.errors import ConfigError, InputError, did_you_mean, frame_at
-from estimators.geometry import _isin
+from estimators.geometry import _isin, _norm_rows
 from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera, Rig
 from trackers.association import (
@@ -1306,7 +1306,7 @@ class FrontEnd:
             # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a))); a mean is the sum / n
             n_f = hi - lo
             reps[k] = add(bb[lo:hi], 0) / n_f + R_b_a @ (todo[ti].b_C - add(ba_found[lo:hi], 0) / n_f)
-        reps /= np.linalg.norm(reps, axis=1, keepdims=True)
+        reps /= _norm_rows(reps, keepdims=True)
         uv, okp = self.cams[b].model.bearing_to_pixel(reps)
         found = mem[idx]
         if pid:  # under their physical-point ids
@@ -1350,7 +1350,7 @@ class FrontEnd:
         b_a = self.trackers[a].b_C.take(rows, 0)
         # each track's angular radius: the largest angle of its members from their mean bearing
         sums = np.stack([np.bincount(own, b_a[:, k], minlength=n) for k in range(3)], axis=1)
-        nrm = np.linalg.norm(sums, axis=1, keepdims=True)
+        nrm = _norm_rows(sums, keepdims=True)
         mean = sums / np.where(nrm > 0, nrm, 1.0)
         ang = np.arccos(np.clip(np.sum(b_a * mean[own], axis=1), -1.0, 1.0))
         # own is non-decreasing: each track's rows are one run

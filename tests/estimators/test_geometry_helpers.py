@@ -9,7 +9,7 @@ import pytest
 
 from estimators.geometry import _cross, _einsum, _isin, _norm, _norm_rows
 
-SHAPES = [((3,), (3,)), ((7, 3), (7, 3)), ((1, 3), (9, 3)), ((3,), (5, 3))]
+SHAPES = [((3,), (3,)), ((7, 3), (7, 3)), ((1, 3), (9, 3)), ((3,), (5, 3)), ((6, 1, 3), (1, 4, 3))]
 
 
 @pytest.mark.parametrize("shape_a, shape_b", SHAPES)
@@ -39,6 +39,8 @@ def test_norms_are_bit_identical_to_numpy():
                 m = rng.normal(size=(n, k)) * 10.0 ** rng.uniform(-9, 9)
                 assert np.array_equal(_norm_rows(m), np.linalg.norm(m, axis=1))
                 assert np.array_equal(_norm_rows(m, keepdims=True), np.linalg.norm(m, axis=1, keepdims=True))
+            c = rng.normal(size=(n, 5, 3)) * 10.0 ** rng.uniform(-9, 9)  # match_bearings' (N0, N1, 3)
+            assert np.array_equal(_norm_rows(c), np.linalg.norm(c, axis=2))
     assert _norm(np.array([3.0, 4.0, 0.0])) == 5.0
 
 
