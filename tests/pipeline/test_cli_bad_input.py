@@ -432,17 +432,22 @@ def test_a_config_that_is_no_text_is_an_error_not_a_traceback(tmp_path, capsys):
         "(rig, ego_motion, ...), e.g. configs/mono_forward.yaml"]
 
 
+def _live_over(tmp_path, monkeypatch, capsys, frames, tum):
+    """``live`` (fake stages, no trajectory wait) replaying a video of ``frames`` frames at 10 Hz against
+    the trajectory text ``tum``: (exit code, stderr lines, summary.json)."""
+    _fake_stages(monkeypatch)
+    v = write_video(tmp_path / "cam0.mkv", frames, times=[k / 10 for k in range(frames)])
+    traj = tmp_path / "traj.tum"
+    traj.write_text(tum)
+    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
+               "--out", str(tmp_path / "o")])
+    return rc, _err_lines(capsys), json.loads((tmp_path / "o" / "summary.json").read_text())
+
+
 def test_live_says_how_many_frames_it_skipped_for_want_of_a_pose(tmp_path, monkeypatch, capsys):
     """A trajectory that stops short of the frames: the frames past its end are skipped (counted in
     summary.json's frames_without_pose); the closing line says so too (was silent there)."""
-    _fake_stages(monkeypatch)
-    v = write_video(tmp_path / "cam0.mkv", 8, times=[k / 10 for k in range(8)])
-    traj = tmp_path / "short.tum"
-    traj.write_text("0.0 0 0 0 0 0 0 1\n0.35 1 0 0 0 0 0 1\n")
-    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
-               "--out", str(tmp_path / "o")])
-    err = _err_lines(capsys)
-    sm = json.loads((tmp_path / "o" / "summary.json").read_text())
+    rc, err, sm = _live_over(tmp_path, monkeypatch, capsys, 8, "0.0 0 0 0 0 0 0 1\n0.35 1 0 0 0 0 0 1\n")
     skipped, gap = sm["frames_without_pose"], sm["pose_gap_after_s"]
     assert rc == 0 and skipped >= 1  # (4 unless the loaded machine dropped some as stale)
     assert 0.05 <= gap <= 0.35 + 1e-9 and sm["frames_before_trajectory"] == 0  # (0.4-0.7 s past 0.35 s)
@@ -455,14 +460,7 @@ def test_live_names_the_clock_when_frames_lie_far_past_a_trajectorys_last_pose(t
     """Frames on the unix clock against a trajectory on a flight controller's boot clock (poses at
     -500..-499 s): every frame lies ~500 s past the last pose; the closing line gives that gap and names
     ego_motion.time_offset_s / live.clock, which a writer's usual lag (above) does not get."""
-    _fake_stages(monkeypatch)
-    v = write_video(tmp_path / "cam0.mkv", 4, times=[k / 10 for k in range(4)])
-    traj = tmp_path / "boot.tum"
-    traj.write_text("-500.0 0 0 0 0 0 0 1\n-499.0 1 0 0 0 0 0 1\n")
-    rc = main(["live", "--camera", str(v), "--trajectory", str(traj), "--set", "live.trajectory_wait_s=0",
-               "--out", str(tmp_path / "o")])
-    err = _err_lines(capsys)
-    sm = json.loads((tmp_path / "o" / "summary.json").read_text())
+    rc, err, sm = _live_over(tmp_path, monkeypatch, capsys, 4, "-500.0 0 0 0 0 0 0 1\n-499.0 1 0 0 0 0 0 1\n")
     assert rc == 0 and sm["frames_without_pose"] >= 1 and 499.0 <= sm["pose_gap_after_s"] <= 499.3 + 1e-9
     assert (f"the farthest was {sm['pose_gap_after_s']:.3f} s past its last pose: a trajectory on another "
             "clock needs ego_motion.time_offset_s, its time minus the frame's, or live.clock), latency "
