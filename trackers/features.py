@@ -1108,12 +1108,11 @@ class FeatureTracker:
             self._append(uv, np.concatenate(new_des), np.full(len(uv), -1, np.intp))
         added = len(self.ids) - n0
         if added:
-            rows = np.arange(n0, len(self.ids))
             b, valid = self.model.pixel_to_bearing(self.uv[n0:].astype(np.float64))
             self.b_C[n0:] = b
             self._write_history(self.slot[n0:], self.uv[n0:], b, frame, t_s)
             if not np.all(valid):
-                self._drop(rows[~valid], remember=False)
+                self._drop(n0 + (~valid).nonzero()[0], remember=False)
         return added
 
     # --------------------------------------------------------------------------- internals
