@@ -724,8 +724,11 @@ def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
     takes no second signal, would run the next recording to its end."""
     _BATCH_WORKER["in_job"] = True
     try:
-        if _BATCH_WORKER["interrupted"] or _BATCH_WORKER["stop"].is_set():
+        if _BATCH_WORKER["stop"].is_set():
             return {"out_dir": args[1], "frames": 0, "not_run": True}
+        if _BATCH_WORKER["interrupted"]:
+            why = "its worker process was interrupted"
+            return {"out_dir": args[1], "frames": 0, "not_run": True, "why": why}
         return _batch_worker(args)
     except KeyboardInterrupt:
         return {"out_dir": args[1], "interrupted": True}

@@ -105,6 +105,12 @@ def register(app: typer.Typer) -> None:
                 config_source=config,
                 on_done=lambda r: print(_batch_line(r), file=sys.stderr),
             )
+            stopped = sum(1 for r in results if r.get("interrupted") or r.get("not_run"))
+            if stopped:  # a signal to one worker alone (the batch's own stop raises KeyboardInterrupt)
+                from pipeline.cli import interrupted
+
+                raise interrupted(f"{stopped} of {len(results)} batch runs were interrupted or not run (a "
+                                  "signal reached a worker process); the others ran to their end (see above)")
             if any(r.get("error") for r in results):
                 from estimators.errors import SourceError
 
@@ -128,7 +134,7 @@ def register(app: typer.Typer) -> None:
 def _batch_line(r: dict) -> str:
     """The line ``run --batch`` prints for one recording's result (``run_batch``'s dict)."""
     if r.get("not_run") or (r.get("interrupted") and not Path(r["out_dir"]).is_dir()):
-        return f"{r['out_dir']}: not run (the batch was stopped)"
+        return f"{r['out_dir']}: not run ({r.get('why', 'the batch was stopped')})"
     if r.get("interrupted"):
         return f"{r['out_dir']}: interrupted; what it did is in the folder"
     if r.get("error") and not Path(r["out_dir"]).is_dir():  # refused before its first frame

@@ -794,7 +794,8 @@ def test_a_batch_worker_once_interrupted_runs_no_other_recording(tmp_path, monke
     finally:
         for s, h in saved.items():
             signal.signal(s, h)
-    assert ran == [] and r == {"out_dir": str(tmp_path / "v3"), "frames": 0, "not_run": True}
+    assert ran == [] and r == {"out_dir": str(tmp_path / "v3"), "frames": 0, "not_run": True,
+                               "why": "its worker process was interrupted"}
 
 
 def test_a_ctrl_c_in_a_one_worker_batch_names_the_recording_stopped_and_those_not_run(tmp_path, monkeypatch,
@@ -842,3 +843,41 @@ def test_a_stopped_batch_names_a_recording_whose_worker_died_not_as_not_run(tmp_
     assert r["error"] == "RuntimeError: a bug"
     ok = {"out_dir": str(tmp_path / "started"), "frames": 3, "interrupted": True}
     assert run_mod._stopped_result(done(value=ok), ok["out_dir"]) == ok
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
+def test_a_batch_worker_signalled_by_hand_makes_the_batch_exit_130(tmp_path):
+    """A SIGINT to one batch worker alone (`kill -INT <its pid>`) interrupts its recording; the batch
+    carried on and exited 0, as if every recording had run to its end. Now the other recordings still
+    run, and the batch exits 130 naming how many were interrupted or not run."""
+    import os
+    import signal
+    import subprocess
+
+    cmd, env, out, release = _batch(tmp_path, 20)
+    f = out / "v1" / "tracks.jsonl"
+    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:  # v1 held at its third frame, its file open
+            _wait_for(lambda: _lines_in(f) >= 2)
+            pid = _writer_of(f)
+            assert pid is not None and pid != p.pid
+            os.kill(pid, signal.SIGINT)
+            _wait_for(lambda: (out / "v1" / "summary.json").is_file())
+            release.touch()  # the other recordings run on
+            err = p.communicate(timeout=90)[1]
+        finally:
+            if p.poll() is None:
+                p.kill()
+    assert p.returncode == 130, err
+    s = json.loads((out / "v1" / "summary.json").read_text())
+    assert s["interrupted"] is True and s["frames"] == 2, s
+    assert f"{out / 'v1'}: interrupted; what it did is in the folder" in err
+    # the signalled worker starts no other recording (it may take v2 or v3 first: "not run"); a recording
+    # the other worker took runs to its end
+    ran = [n for n in ("v2", "v3") if (out / n / "summary.json").is_file()]
+    for n in ran:
+        assert json.loads((out / n / "summary.json").read_text())["frames"] == 20, n
+    for n in {"v2", "v3"} - set(ran):
+        assert f"{out / n}: not run (its worker process was interrupted)" in err, err
+    assert (f"{3 - len(ran)} of 3 batch runs were interrupted or not run (a signal reached a worker "
+            "process)") in err, err
