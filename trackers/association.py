@@ -51,7 +51,8 @@ def match_features(
     max_hamming: int = 64,
     ratio: float = 0.9,
 ) -> np.ndarray:
-    """Descriptor matches between two cameras' features that satisfy the epipolar constraint.
+    """Descriptor matches between two cameras' features that satisfy the epipolar constraint and
+    whose rays meet ahead of both cameras (within ``epipolar_rad``).
 
     Args:
         b0, b1: (N0, 3), (N1, 3) unit bearings in cameras 0 and 1; d0, d1: their (N, 32) uint8 ORB
@@ -76,10 +77,25 @@ def match_features(
         res = n @ b1.T
         np.abs(res, out=res)
         res /= np.where(nn > 1e-9, nn, 1.0)[:, None]
-        ok = res < np.sin(epipolar_rad)
+        sin_eps = np.sin(epipolar_rad)
+        ok = res < sin_eps
         # both rays on the same side (for baselines much shorter than the range)
-        ok &= (Rb0 @ b1.T) > 0
+        c = Rb0 @ b1.T
+        ok &= c > 0
         ok[nn <= 1e-9] = False  # b0 along the baseline: residual 1, never below sin(epipolar_rad)
+        # the rays meet ahead of both cameras (t + s R b0 = u b1 with s, u > 0): camera 1 sees the
+        # point on the arc of the epipolar plane from R b0 (infinite depth) to t_hat (the epipole),
+        # so b1 . e >= 0 and b1 . f >= 0 with e, f the plane's unit vectors square to R b0 and to
+        # t_hat that point into the arc (e = (t_hat - g R b0) / |n|, f = (R b0 - g t_hat) / |n|,
+        # g = t_hat . R b0), each within the epipolar angle (noise at infinite depth). The same-side
+        # test alone lets diverging rays through where the baseline lies along the rays: on a
+        # top/bottom rig a feature 60 deg above the horizon in the up camera and one 18 deg below it
+        # in the down camera share an epipolar plane (docs/ARCHITECTURE.md "The 360-degree rig")
+        t_hat = t / tn
+        g = (Rb0 @ t_hat)[:, None]
+        inv_n = 1.0 / np.where(nn > 1e-9, nn, 1.0)[:, None]
+        ok &= (t_hat @ b1.T - g * c) * inv_n >= -sin_eps
+        ok &= (c - g * (t_hat @ b1.T)) * inv_n >= -sin_eps
     else:
         ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
     # descriptor distances only for the epipolar candidates (i0, i1), row-major

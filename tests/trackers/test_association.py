@@ -73,17 +73,23 @@ def test_matching_keeps_epipolar_pairs_and_rejects_a_lookalike_off_the_plane(ste
 
 def _reference_matches(b0, d0, b1, d1, R, t, epipolar_rad, max_hamming, ratio=0.9):
     """match_features by its definition, pair by pair: the epipolar residual |b1 . n| / |n| with
-    n = t_hat x R b0 (1 where |n| <= 1e-9), rays ahead, Hamming distance by counting set bits;
+    n = t_hat x R b0 (1 where |n| <= 1e-9), rays ahead, b1 on the epipolar plane's arc from R b0 to
+    t_hat (its components along the in-plane unit vectors square to R b0 and to t_hat, pointing
+    into the arc, Gram-Schmidt, >= -sin(epipolar_rad)), Hamming distance by counting set bits;
     each row's best column (least distance, the first on ties), mutual, with Lowe's ratio."""
     n0, n1 = len(b0), len(b1)
     t_hat = np.asarray(t, float) / np.linalg.norm(t)
     H = np.full((n0, n1), np.inf)
     for i in range(n0):
-        n = np.cross(t_hat, R @ b0[i])
+        d = R @ b0[i]
+        n = np.cross(t_hat, d)
+        e = t_hat - (t_hat @ d) * d  # in the plane, square to d, towards t_hat
+        f = d - (d @ t_hat) * t_hat  # in the plane, square to t_hat, towards d
         for j in range(n1):
             nn = float(np.sqrt(n @ n))
             res = abs(float(b1[j] @ n)) / nn if nn > 1e-9 else 1.0
-            if res < np.sin(epipolar_rad) and float((R @ b0[i]) @ b1[j]) > 0:
+            in_arc = nn > 1e-9 and min(b1[j] @ unit(e), b1[j] @ unit(f)) >= -np.sin(epipolar_rad)
+            if res < np.sin(epipolar_rad) and float(d @ b1[j]) > 0 and in_arc:
                 h = sum(bin(int(x)).count("1") for x in np.bitwise_xor(d0[i], d1[j]))
                 if h <= max_hamming:
                     H[i, j] = h
@@ -119,6 +125,33 @@ def test_matching_equals_the_pairwise_definition_with_ties(stereo, seed):
         got = match_features(b0, d0, b1, d1, T.R, T.t, np.radians(epi_deg), max_h)
         want = _reference_matches(b0, d0, b1, d1, T.R, T.t, np.radians(epi_deg), max_h)
         np.testing.assert_array_equal(got, want)
+
+
+def test_top_bottom_matching_refuses_rays_that_diverge():
+    """The top/bottom rig (baseline along the optical axes): every elevation at one azimuth lies in
+    one epipolar plane, so a lookalike 18 deg below the horizon in the down camera passes the
+    epipolar and same-side tests for a feature 60 deg above it in the up camera, yet the two rays
+    diverge (top_bottom_climb: the box's up-camera track linked to the ground's down-camera track).
+    The same point seen by both (5 deg above the horizon, 4 m away) still matches."""
+    from estimators.rig import top_bottom_rig
+
+    rig = top_bottom_rig(equidistant(), separation_m=0.10)
+    up, down = rig.cameras
+    T = down.T_C_B @ up.T_C_B.inverse()  # T_Cdown_Cup
+
+    def el(deg, r):  # a body point at azimuth 30 deg, elevation deg, range r from the body origin
+        a, e = np.radians(30.0), np.radians(deg)
+        return r * np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+
+    d = np.random.default_rng(0).integers(0, 256, (1, 32), dtype=np.uint8)
+    b_up = unit(up.T_C_B.apply(el(60.0, 4.0)))
+    b_down = unit(down.T_C_B.apply(el(-18.0, 15.0)))
+    assert epipolar_residual(b_up[None], b_down[None], T.R, T.t)[0] < 1e-12  # one epipolar plane
+    assert float((T.R @ b_up) @ b_down) > 0  # and on the same side
+    assert match_features(b_up[None], d, b_down[None], d, T.R, T.t).shape == (0, 2)
+    p = el(5.0, 4.0)  # seen by both (the down camera reaches 7.5 deg above the horizon)
+    got = match_features(unit(up.T_C_B.apply(p))[None], d, unit(down.T_C_B.apply(p))[None], d, T.R, T.t)
+    assert got.tolist() == [[0, 0]]
 
 
 def test_a_ray_along_the_baseline_is_no_candidate(stereo):
