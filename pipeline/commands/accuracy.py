@@ -6,7 +6,8 @@ Prints one table (ours, the thesis's two-frame law-of-sines method, the target, 
 the 18 fresh-seed validation scenes (``accuracy_validation.*``), ``--set both`` tuned and held-out
 side by side (``accuracy_both.*``), ``--set demo`` the scene of ``fisheye-des demo`` rendered as the
 demo renders it, ``--set lowres`` 640x360 copies of six scenes (lens scaled), ``--set highfps``
-100-fps copies of four scenes, ``--set all`` tuned, held-out, validation, demo, lowres and highfps.
+100-fps copies of four scenes, ``--set rig360`` the top/bottom 360-degree pair in two climbing flights,
+``--set all`` tuned, held-out, validation, demo, lowres, highfps and rig360.
 ``--override section.key=value`` sets a config key for every scene's run (``fisheye-des run
 --set``'s grammar), e.g.
 ``--override tracker.grouping.link_px=30``; pipeline mode keeps scene renders in
@@ -78,8 +79,10 @@ def register(app: typer.Typer) -> None:
                 "(lowres_<scene>: 640x360 copies, lens scaled, of mono_straight, moving_crossing and four "
                 "stereo flying scenes; used to fit nothing; no --quick scenes), highfps (fps100_<scene>: "
                 "100-fps copies of mono_straight, moving_crossing, stereo_flying and heldout_stereo_flying; "
-                "used to fit nothing; no --quick scenes) or all (tuned, heldout, validation, demo, lowres, "
-                "highfps). Pipeline mode also prints each set's pooled range z^2 "
+                "used to fit nothing; no --quick scenes), rig360 (top_bottom_climb, top_bottom_turn: the "
+                "chapter-5 top/bottom 360-degree pair, its one-camera reports scored as monocular, no "
+                "stereo rows; used to fit nothing; no --quick scenes) or all (tuned, heldout, validation, "
+                "demo, lowres, highfps, rig360). Pipeline mode also prints each set's pooled range z^2 "
                 "(median, mean without the top 1 %, share > 9), its top 10 z^2 reports and the range "
                 "error of every report the demo scores (confirmed, on an obstacle, any age). With --out, "
                 "a set other than tuned writes accuracy_<set>.json / .txt.",

@@ -43,6 +43,29 @@ def test_summarize_mono_selection_and_quantiles():
     assert m["mono_p90_rel"] == pytest.approx(0.09)  # numpy linear quantile of 0..0.10 step 0.01
 
 
+def test_summarize_scores_a_top_bottom_rigs_one_camera_reports_as_monocular():
+    """The 360-degree top/bottom rig ranges each obstacle off the horizon band with one camera over
+    the drone's motion: its one-camera reports are the mono metric's, its two-camera ones are not."""
+    samples = [_s(rig="top_bottom", range_m=10.0 + 0.1 * k) for k in range(5)]  # 0 .. 4 %
+    samples += [_s(rig="top_bottom", n_views=2, range_m=0.0)]  # both cameras: not monocular
+    m = summarize(samples)
+    assert m["mono_n"] == 5
+    assert m["mono_median_rel"] == pytest.approx(0.02)
+
+
+def test_format_table_keeps_only_the_rows_asked_for():
+    """A set whose rig has no stereo pair prints only the target rows that apply (``SET_ROWS``)."""
+    from pipeline.accuracy import SET_ROWS
+
+    m = summarize([_s(range_m=10.1)])
+    full = format_table(m)
+    assert "stereo 0.30 m, <=3 m" in full and "median speed err" in full
+    t = format_table(m, keys=SET_ROWS["rig360"])
+    assert not [line for line in t.splitlines() if line.startswith("stereo")]
+    assert "mono 3-20 m, >=10 deg off, >=1 s: median rel err" in t
+    assert "moving <= max speed: bounds coverage" in t and "range NEES mean (1 dof" in t
+
+
 def test_summarize_bounds_coverage_counts_only_obstacles_within_max_speed():
     samples = [
         _s(moving=True, speed_true=3.0, range_min_m=8.0, range_max_m=12.0),  # inside
@@ -153,6 +176,19 @@ def test_bearings_mode_one_scene_matches_truth():
     assert last.range_m is not None
     assert abs(last.range_m - last.range_true) / last.range_true < 0.03
     assert last.thesis_range_m is not None  # 0.5 s back is within the run
+
+
+def test_bearings_mode_labels_a_top_bottom_rig_by_its_kind_not_its_camera_count():
+    """Two cameras up and down are not a stereo pair: bearings mode's samples carry the scenario's
+    rig kind (as pipeline mode's), so their one-camera reports count as monocular, none as stereo."""
+    from pipeline.accuracy import harness_scenario
+
+    _, scn = harness_scenario("top_bottom_climb")
+    scn = scn.model_copy(update={"duration_s": 1.5})
+    ss = run_bearings(scn, AccuracyOptions(), np.random.default_rng(0))
+    assert ss and {s.rig for s in ss} == {"top_bottom"}
+    m = summarize(ss)
+    assert m["stereo_8m_n"] == 0 and m["mono_n"] > 0
 
 
 @pytest.mark.heavy

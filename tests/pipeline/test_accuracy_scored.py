@@ -230,9 +230,9 @@ def test_set_lowres_lists_its_scenes_and_all_holds_it():
     assert "lowres" not in SET_GROUPS["both"]
     for n in _LOWRES:  # copies of presets (the originals stay in their own sets)
         assert (scenarios_dir() / f"{n.removeprefix('lowres_')}.yaml").is_file()
-    with pytest.raises(ConfigError, match="lowres, highfps, both, all"):
+    with pytest.raises(ConfigError, match="lowres, highfps, rig360, both, all"):
         run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowers"))
-    with pytest.raises(ConfigError, match="the validation, demo, lowres and highfps sets have none"):
+    with pytest.raises(ConfigError, match="the validation, demo, lowres, highfps and rig360 sets have none"):
         run_accuracy(AccuracyOptions(mode="pipeline", scene_set="lowres", quick=True))
 
 
@@ -314,17 +314,17 @@ _HIGHFPS = ("fps100_mono_straight", "fps100_moving_crossing", "fps100_stereo_fly
             "fps100_heldout_stereo_flying")
 
 
-def test_set_highfps_lists_its_scenes_and_all_ends_with_it():
+def test_set_highfps_lists_its_scenes_and_all_holds_it():
     from estimators.errors import ConfigError
     from pipeline.accuracy import SCENE_SETS, SET_GROUPS, AccuracyOptions, run_accuracy
     from pipeline.config import scenarios_dir
 
     assert SCENE_SETS["highfps"] == (_HIGHFPS, ())
-    assert SET_GROUPS["all"] == ("tuned", "heldout", "validation", "demo", "lowres", "highfps")
+    assert SET_GROUPS["all"][:6] == ("tuned", "heldout", "validation", "demo", "lowres", "highfps")
     assert "highfps" not in SET_GROUPS["both"]
     for n in _HIGHFPS:  # copies of presets (the originals stay in their own sets)
         assert (scenarios_dir() / f"{n.removeprefix('fps100_')}.yaml").is_file()
-    with pytest.raises(ConfigError, match="lowres and highfps sets have none"):
+    with pytest.raises(ConfigError, match="lowres, highfps and rig360 sets have none"):
         run_accuracy(AccuracyOptions(mode="pipeline", scene_set="highfps", quick=True))
 
 
@@ -373,3 +373,70 @@ def test_highfps_copy_is_its_original_at_100_fps_and_the_run_reads_its_frame_tim
         acc.run_accuracy(acc.AccuracyOptions(mode="pipeline", scene_set="highfps"), tmp_path)
     assert seen == [("fps100_mono_straight", "fps100_mono_straight", 100.0, {},
                      (scenarios_dir() / "mono_straight.yaml").read_text())]
+
+
+# ------------------------------------------------------------ the 360-degree set (--set rig360)
+_RIG360 = ("top_bottom_climb", "top_bottom_turn")
+
+
+def test_set_rig360_lists_its_top_bottom_scenes_and_all_ends_with_it():
+    from estimators.errors import ConfigError
+    from pipeline.accuracy import (
+        SCENE_SETS,
+        SET_GROUPS,
+        SET_ROWS,
+        AccuracyOptions,
+        harness_scenario,
+        run_accuracy,
+        scene_render,
+    )
+
+    assert SCENE_SETS["rig360"] == (_RIG360, ())
+    assert SET_GROUPS["all"] == ("tuned", "heldout", "validation", "demo", "lowres", "highfps", "rig360")
+    assert "rig360" not in SET_GROUPS["both"]
+    assert not any(k.startswith("stereo") for k in SET_ROWS["rig360"])
+    for n in _RIG360:  # presets of their own, rendered as they are
+        _, scn = harness_scenario(n)
+        assert scn.name == n and scn.rig.kind == "top_bottom" and scene_render(n) == {}
+    with pytest.raises(ConfigError, match="rig360 sets have none"):
+        run_accuracy(AccuracyOptions(mode="pipeline", scene_set="rig360", quick=True))
+
+
+@pytest.mark.parametrize("name", _RIG360)
+def test_rig360_scenes_render_and_load_as_an_up_and_a_down_camera(tmp_path, name):
+    """A tiny render (2 frames at 96x96) of each scene loads as the run config the harness builds:
+    two cameras, cam0's optical axis along body +z and cam1's along -z, 0.10 m apart (the
+    scenarios' rig), the image tops towards the nose; every obstacle in the truth."""
+    import numpy as np
+
+    import pipeline.accuracy as acc
+    import pipeline.sim.writer as writer
+    from pipeline.evaluate import ScenarioTruth
+    from pipeline.run import build_rig
+
+    _, scn = acc.harness_scenario(name)
+    writer.simulate(scn, tmp_path / "r", frames=2, resolution=(96, 96))
+    rig = build_rig(acc.scene_config(tmp_path / "r"))
+    assert rig.names == ("cam0", "cam1")
+    up, down = rig.cameras
+    # rows of R_C_B are the camera axes in B: z_C (optical axis) and y_C (image down = towards the tail)
+    np.testing.assert_allclose(up.T_C_B.R[2], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(down.T_C_B.R[2], [0, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(up.T_C_B.R[1], [-1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(down.T_C_B.R[1], [-1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(up.T_C_B.inverse().t - down.T_C_B.inverse().t, [0, 0, 0.10], atol=1e-12)
+    truth = ScenarioTruth.load(tmp_path / "r")
+    assert len(truth.gt) == 2
+    assert {o["id"] for o in truth.gt[0]["obstacles"]} == {o.id for o in scn.obstacles}
+
+
+@pytest.mark.heavy
+def test_rig360_meets_the_monocular_and_bounds_targets(tmp_path):
+    """``accuracy --mode pipeline --set rig360`` (renders cached; ~4 min on a fresh cache): the
+    one-camera reports meet the monocular targets, the moving drone's bounds hold the truth."""
+    from pipeline.accuracy import AccuracyOptions, run_accuracy
+
+    m = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="rig360"), tmp_path)["metrics"]
+    assert m["mono_n"] > 500 and m["mono_median_rel"] <= 0.02 and m["mono_p90_rel"] <= 0.05
+    assert m["bounds_n"] > 100 and m["bounds_coverage"] >= 0.99
+    assert m["mono_obstacle_coverage"] >= 0.95

@@ -119,11 +119,13 @@ def test_set_validation_runs_the_18_and_prints_verdicts_pooled_figures_halves_an
     assert (tmp_path / "accuracy_validation.json").is_file()
 
 
-def test_set_all_is_tuned_heldout_validation_demo_lowres_highfps_and_both_is_unchanged(monkeypatch, tmp_path):
+def test_set_all_is_tuned_heldout_validation_demo_lowres_highfps_rig360_and_both_is_unchanged(monkeypatch,
+                                                                                             tmp_path):
     from pipeline.accuracy import (
         PIPELINE_SCENES_HELDOUT,
         PIPELINE_SCENES_HIGHFPS,
         PIPELINE_SCENES_LOWRES,
+        PIPELINE_SCENES_RIG360,
         PIPELINE_SCENES_VALIDATION,
         AccuracyOptions,
         run_accuracy,
@@ -133,12 +135,12 @@ def test_set_all_is_tuned_heldout_validation_demo_lowres_highfps_and_both_is_unc
     _canned(monkeypatch, calls)
     res = run_accuracy(AccuracyOptions(mode="pipeline", scene_set="all"), tmp_path)
     assert calls == [TUNED, PIPELINE_SCENES_HELDOUT, PIPELINE_SCENES_VALIDATION, ("demo",),
-                     PIPELINE_SCENES_LOWRES, PIPELINE_SCENES_HIGHFPS]
-    assert list(res["sets"]) == ["tuned", "heldout", "validation", "demo", "lowres", "highfps"]
+                     PIPELINE_SCENES_LOWRES, PIPELINE_SCENES_HIGHFPS, PIPELINE_SCENES_RIG360]
+    assert list(res["sets"]) == ["tuned", "heldout", "validation", "demo", "lowres", "highfps", "rig360"]
     assert "range z^2 mean without the top 1 %" in res["table"]  # side by side
     header = next(line for line in res["table"].splitlines() if line.startswith("metric (side by side)"))
     assert header.split()[4:] == ["tuned", "held-out", "validation", "demo", "lowres", "highfps",
-                                   "target"]
+                                   "rig360", "target"]
     calls.clear()
     run_accuracy(AccuracyOptions(mode="pipeline", scene_set="both"), tmp_path)
     assert calls == [TUNED, PIPELINE_SCENES_HELDOUT]
