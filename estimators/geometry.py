@@ -246,16 +246,25 @@ def _tangent_basis(b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u1, _cross(b, u1)
 
 
-def _range_sigma(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> float:
+def _sigma_step(sin_par):
+    """Central-difference step (rad) of the range sigma for rays at sin(parallax) ``sin_par``
+    (a float or an array): 1e-6 rad, or an 80th of sin(parallax) when that is smaller (parallax
+    under 8e-5 rad or within it of 180 deg). The range is singular where the rays are parallel, so a
+    step must stay well inside the parallax: a fixed 1e-6 was +12 % at a parallax of 3e-6 rad and
+    reached across the singularity below it (x1.9e9 at 1e-6, x1e-3 at 1e-7 against the closed form)."""
+    return np.minimum(1e-6, sin_par / 80.0)
+
+
+def _range_sigma(c_a, b_a, c_b, b_b, origin, sigma_rad: float, sin_par: float) -> float:
     """First-order std of the midpoint range under isotropic bearing noise ``sigma_rad`` per ray.
 
     sigma_range = sigma_rad * |J|, J = d range / d(phi_a1, phi_a2, phi_b1, phi_b2), the four small
-    rotations of the two bearings in their tangent planes; J by central differences (h = 1e-6 rad),
-    evaluated in one vectorised call.
+    rotations of the two bearings in their tangent planes; J by central differences (step
+    ``_sigma_step(sin_par)``, sin_par = |b_a x b_b|), evaluated in one vectorised call.
     """
     if sigma_rad == 0.0:
         return 0.0
-    h = 1e-6
+    h = float(_sigma_step(sin_par))
     ua = _tangent_basis(b_a)
     ub = _tangent_basis(b_b)
     rows_ba, rows_bb = [], []
@@ -342,7 +351,7 @@ def triangulate(
     return Triangulation(
         p=p,
         range_m=rng,
-        range_sigma_m=_range_sigma(c_a, b_a, c_b, b_b, o, sigma),
+        range_sigma_m=_range_sigma(c_a, b_a, c_b, b_b, o, sigma, sin_par),
         depth_a_m=s,
         depth_b_m=t,
         parallax_rad=parallax,
@@ -466,7 +475,7 @@ def triangulate_batch(
     rng = _norm_rows(p - o)
     sig = np.zeros(n)
     if sigma > 0.0 and ok.any():
-        sig[ok] = _range_sigma_batch(c_a[ok], b_a[ok], c_b[ok], b_b[ok], o[ok], sigma)
+        sig[ok] = _range_sigma_batch(c_a[ok], b_a[ok], c_b[ok], b_b[ok], o[ok], sigma, sin_par[ok])
     z = ~ok
     p[z] = 0.0
     for arr in (rng, s, t, parallax, sig):
@@ -485,14 +494,15 @@ def triangulate_batch(
     )
 
 
-def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> np.ndarray:
-    """Vectorised ``_range_sigma`` for (M, 3) inputs -> (M,).
+def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float, sin_par: np.ndarray) -> np.ndarray:
+    """Vectorised ``_range_sigma`` for (M, 3) inputs and sin(parallax) (M,) -> (M,).
 
     The 8 perturbed ray pairs of every row (+-h about each of the two tangent directions of ray a,
-    then of ray b) are stacked into one (8M, 3) batch for a single ``_closest_depths`` call; the
-    arithmetic is row-wise, so each row's value is the one a separate call would give.
+    then of ray b; h = ``_sigma_step`` of the row) are stacked into one (8M, 3) batch for a single
+    ``_closest_depths`` call; the arithmetic is row-wise, so each row's value is the one a separate
+    call would give.
     """
-    h = 1e-6
+    h = _sigma_step(sin_par)  # (M,)
     m = c_a.shape[0]
     rows_ba, rows_bb = [], []
     for which in ("a", "b"):
@@ -503,7 +513,7 @@ def _range_sigma_batch(c_a, b_a, c_b, b_b, origin, sigma_rad: float) -> np.ndarr
         u1 /= _norm_rows(u1, keepdims=True)
         for u in (u1, _cross(b, u1)):  # the two tangent directions of this ray
             for sgn in (1.0, -1.0):
-                v = b + sgn * h * u
+                v = b + sgn * h[:, None] * u
                 v /= _norm_rows(v, keepdims=True)
                 rows_ba.append(v if which == "a" else b_a)
                 rows_bb.append(b_b if which == "a" else v)
