@@ -42,7 +42,7 @@ def test_ray_covariances_match_the_single_point_form():
         assert math.isclose(u @ R[k] @ u, s_along[k] ** 2 + 1e-12, rel_tol=1e-9)
 
 
-def test_noisy_bound_rays_turn_ray_b_by_delta_in_the_epipolar_plane():
+def test_noisy_bound_rays_turn_ray_b_and_ray_a_by_delta_in_the_epipolar_plane():
     c_a = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     c_b = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])  # second pair: zero baseline
     b_a = np.array([[0.6, 0.1, 0.8], [0.0, 0.0, 1.0]])
@@ -50,19 +50,51 @@ def test_noisy_bound_rays_turn_ray_b_by_delta_in_the_epipolar_plane():
     delta = np.array([0.01, 0.2])
     own, ca, ba, cb, bb = _noisy_bound_rays_batch(c_a, b_a, c_b, b_b, delta)
     rows0 = np.flatnonzero(own == 0)
-    assert len(rows0) == 3  # b_b, +-delta (ray a is ~0.64 rad away: not within delta)
+    # b_b and b_b +-delta with the projected ray a; the projected ray a +-delta with b_b (ray a is
+    # ~0.64 rad away: not within delta)
+    assert len(rows0) == 5
     n = np.array([0.0, -1.0, 0.0])  # (c_b - c_a) x b_b = x x z = -y
     ang = sorted(math.atan2(float(n @ np.cross(b_b[0], d)), float(b_b[0] @ d)) for d in bb[rows0])
-    np.testing.assert_allclose(ang, [-0.01, 0.0, 0.01], atol=1e-12)
+    np.testing.assert_allclose(ang, [-0.01, 0.0, 0.0, 0.0, 0.01], atol=1e-12)
+    a_in = np.array([0.6, 0.0, 0.8])  # ray a projected into the plane y = 0
+    ang = sorted(math.atan2(float(n @ np.cross(a_in, d)), float(a_in @ d)) for d in ba[rows0])
+    np.testing.assert_allclose(ang, [-0.01, 0.0, 0.0, 0.0, 0.01], atol=1e-12)
     np.testing.assert_allclose(bb[rows0] @ n, 0.0, atol=1e-12)
     np.testing.assert_allclose(ba[rows0] @ n, 0.0, atol=1e-12)  # ray a projected into the plane
     np.testing.assert_allclose(np.linalg.norm(ba[rows0], axis=1), 1.0)
     # zero baseline: plane of the two bearings, ray b within delta of ray a: ray a itself is added
     rows1 = np.flatnonzero(own == 1)
-    assert len(rows1) == 4
+    assert len(rows1) == 6
     assert any(np.allclose(d, b_a[1]) for d in bb[rows1])
-    np.testing.assert_array_equal(ca[own == 1], c_a[[1] * 4])
-    np.testing.assert_array_equal(cb[own == 1], c_b[[1] * 4])
+    np.testing.assert_array_equal(ca[own == 1], c_a[[1] * 6])
+    np.testing.assert_array_equal(cb[own == 1], c_b[[1] * 6])
+
+
+def test_noisy_bounds_cover_an_error_of_ray_a_at_the_speed_limit():
+    # planar, A = 0, B = (5, 0, 0), D = 5 m (the obstacle as fast as the drone, 1 s). The obstacle was
+    # at P_a = 5.59 (cos a, sin a), a = atan2(1, 5.5), and moved D across ray a: P_b = P_a + D (-sin a,
+    # cos a), exactly D from ray a, so its depth on ray b is an end of the exact interval. Ray a is
+    # seen 1 mrad too far from P_b (a - 1e-3): P_b is then D + 5.59 sin(1e-3) = D + 5.6 mm from it,
+    # outside the exact interval of the two rays as seen. Ray b as seen is the truth's. The rays are
+    # 83.5 deg apart, so turning ray b by delta = 4 sqrt(2) mrad changes the distance of its point at
+    # r = 5.93 m from line a by only r delta cos(83.5 deg) = 5.93 * 5.66e-3 * 0.113 = 3.8 mm, short of
+    # the 5.6 mm; turning ray a by delta back past its 1 mrad error covers it
+    from estimators import geometry as g
+
+    a = math.atan2(1.0, 5.5)
+    P_a = math.hypot(5.5, 1.0) * np.array([math.cos(a), math.sin(a), 0.0])
+    P_b = P_a + 5.0 * np.array([-math.sin(a), math.cos(a), 0.0])
+    c_a, c_b = np.zeros(3), np.array([5.0, 0.0, 0.0])
+    b_a = np.array([math.cos(a - 1e-3), math.sin(a - 1e-3), 0.0])
+    b_b = (P_b - c_b) / np.linalg.norm(P_b - c_b)
+    r_true = float(np.linalg.norm(P_b - c_b))
+    exact = g.moving_obstacle_bounds(c_a, b_a, c_b, b_b, 5.0)
+    assert exact.range_max_m < r_true  # the exact interval of the rays as seen misses the truth
+    own, ca, ba, cb, bb = _noisy_bound_rays_batch(c_a[None], b_a[None], c_b[None], b_b[None],
+                                                  np.array([4.0 * math.sqrt(2.0) * 1e-3]))
+    r_min, r_max, _, _, ok = g.moving_obstacle_bounds_batch(ca, ba, cb, bb, np.full(len(own), 5.0), cb)
+    assert ok.all()
+    assert r_min.min() <= r_true <= r_max.max()
 
 
 def test_feature_rows_first_appearance_and_prune():
