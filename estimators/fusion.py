@@ -254,10 +254,11 @@ class FusionSettings:
             meet in front, the test fails outright. Default True (False: such features are left
             out of the test, as before).
         restart_keeps_motion: a member-replacement restart (``member_reset_frac``) keeps the
-            obstacle's measured velocity (``motion_carry``: of the velocity evidence and the moving
-            filter's measured velocity, the surer one, ``_motion_evidence``): the front end handed
+            obstacle's measured velocities that reject zero (``motion_carry``: the velocity
+            evidence and the moving filter's velocity, assumed or not, each kept as the tests
+            before the restart used it, ``_motion_evidence``): the front end handed
             the id to other points of the same obstacle, so the state and sightings belong to the
-            old points but the motion belongs to the obstacle. While that velocity, its covariance
+            old points but the motion belongs to the obstacle. While one of them, its covariance
             grown by the moving process noise, rejects zero (``_carried_moving``), the restarted
             track is not ranged from static feature points (a moving obstacle's fresh corners,
             tracked by one camera of a flying rig, fit static points at a wrong depth: motion along
@@ -268,7 +269,10 @@ class FusionSettings:
             replayed over one recording of 804cf02's front end: demo range NEES 2.436 -> 1.640,
             z^2 > 9 5.02 -> 4.88 %, stereo <= 3 m 1.409 -> 1.400 %, moving stereo-rig p90 19.96 ->
             18.91 %; validation NEES 1.977 -> 1.977, stereo <= 8 m 1.0144 -> 1.0148 %; tuned and
-            held-out unchanged).
+            held-out unchanged). The filter's velocity is kept when ``vel_assumed`` too (since
+            dm31: the demo's track 119 at 2.567 s, whose velocity its successive stereo fixes of one
+            corner had measured, -1.33 +- 0.29 m/s, with too few shared corners for a feature
+            velocity: 0.60 m against 0.92 m at sigma 7 mm, z^2 2059, after the restart).
         stereo_jump_check: a shared feature whose two-ray stereo point moved since its last one
             by more than the obstacle's motion (velocity prior) and both points' noise allow
             (``_stereo_jumps``) is not used that frame (its two cameras' rays are on two physical
@@ -1257,8 +1261,8 @@ class _Track:
     feature_velocity: tuple | None = None  # (v_W (3,), R (3, 3)) measured this frame, or None
     vel_moving: bool = False  # its velocity evidence rejects zero (not a static obstacle)
     vel_acc: tuple | None = None  # velocity evidence (v (3,), P (3, 3), t_s) from feature velocities
-    motion_carry: tuple | None = None  # (v, P, t_s): the obstacle's velocity measured before a
-    # member-replacement restart (``restart_keeps_motion``)
+    motion_carry: tuple | None = None  # ((v, P, t_s), ...): the obstacle's velocities measured before a
+    # member-replacement restart that rejected zero then (``restart_keeps_motion``)
     vel_assumed: bool = False  # the state's velocity is the prior's (state replaced), not measured
     n_members: int = 0  # member feature rays (all views) in the last frame it was seen
     t_members: float = -math.inf  # time of that frame
@@ -1651,31 +1655,29 @@ class ObstacleFusion:
             tr.member_ids = ids[o:o + nk]
 
     def _motion_evidence(self, tr: _Track, t_s: float) -> tuple | None:
-        """The obstacle velocity a track has measured, as velocity evidence (v (3,) m/s, P (3, 3)
-        m^2/s^2, t_e s; ``_velocity_evidence``) to keep over a member-replacement restart: of its
-        evidence ``vel_acc`` and its moving filter's measured velocity (x[3:], P_vv at t_kf), the
-        one with the smaller trace of P grown to t_s (P + q (t_s - t) I), or the one it carried over
-        an earlier restart (``motion_carry``); None without any."""
-        cands = [e for e in (tr.vel_acc, tr.motion_carry) if e is not None]
-        if tr.kf is not None and tr.moving and not tr.vel_assumed:
+        """The obstacle velocities a track has measured that reject zero at t_s, as velocity
+        evidence ((v (3,) m/s, P (3, 3) m^2/s^2, t_e s), ...; ``_velocity_evidence``) to keep over a
+        member-replacement restart: the tests that kept its features' static points from ranging
+        it before the restart, each kept: its evidence ``vel_acc`` (``vel_moving``), its moving
+        filter's velocity (x[3:], P_vv at t_kf; ``_filter_moving``'s, an assumed velocity too:
+        the prior's zero rejects nothing, so one that does was measured by the fixes since), and
+        those it carried over an earlier restart (``motion_carry``); None without any."""
+        cands = [e for e in (tr.vel_acc, *(tr.motion_carry or ())) if e is not None]
+        if tr.kf is not None and tr.moving:
             cands.append((tr.kf.x[3:].copy(), tr.kf.P[3:, 3:].copy(), tr.t_kf))
-        if not cands:
-            return None
-        q = self.settings.max_accel_mps2**2 * self.settings.accel_time_s
-        return min(cands, key=lambda e: float(np.trace(e[1])) + 3.0 * q * max(t_s - e[2], 0.0))
+        keep = tuple(e for e in cands if self._rejects_zero(e, t_s))
+        return keep or None
 
     def _carried_moving(self, tr: _Track, t_s: float) -> bool:
-        """Whether the velocity a track carried over a member-replacement restart (``motion_carry``
-        = (v, P, t_e)) still rejects zero at t_s: v^T (P + q (t_s - t_e) I)^-1 v > chi2_3(gate_
-        probability), q = max_accel_mps2^2 accel_time_s (``_evidence_now``'s test). Evidence that
-        no longer rejects zero is dropped: it decides nothing after it has aged."""
-        e = tr.motion_carry
-        if e is None:
+        """Whether a velocity a track carried over a member-replacement restart (``motion_carry``
+        = ((v, P, t_e), ...)) still rejects zero at t_s: v^T (P + q (t_s - t_e) I)^-1 v > chi2_3(
+        gate_probability), q = max_accel_mps2^2 accel_time_s (``_evidence_now``'s test). Evidence
+        that no longer rejects zero is dropped: it decides nothing after it has aged."""
+        if tr.motion_carry is None:
             return False
-        m = self._rejects_zero(e, t_s)
-        if not m:
-            tr.motion_carry = None
-        return m
+        keep = tuple(e for e in tr.motion_carry if self._rejects_zero(e, t_s))
+        tr.motion_carry = keep or None
+        return bool(keep)
 
     def _rejects_zero(self, e: tuple, t_s: float) -> bool:
         """``_evidence_now``'s test for one velocity evidence e = (v (3,) m/s, P (3, 3), t_e s):

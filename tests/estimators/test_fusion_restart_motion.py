@@ -37,8 +37,9 @@ V_DRONE = 2.0
 T_SWAP = 1.0
 
 
-def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4):
-    """[(t, report, true range from the body origin)] per frame of the scene above."""
+def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4, few_shared: bool = False):
+    """[(t, report, true range from the body origin)] per frame of the scene above; few_shared:
+    before the swap cam1 lists corner 0 and one other, 1 in even frames and 2 in odd ones."""
     rng = np.random.default_rng(seed)
     rig = stereo_forward_rig(MODEL, 0.30)
     ego = ConstantVelocity(V_DRONE)
@@ -54,50 +55,72 @@ def _run(settings: FusionSettings, T_s: float = 1.5, seed: int = 4):
         swapped = t >= T_SWAP - 1e-9
         cams = [rig["cam1"]] if swapped else list(rig)
         ids = np.arange(len(pts)) + (100 if swapped else 0)
+        listed = [ids] * len(cams)
+        if few_shared and not swapped:
+            listed[1] = ids[[0, 1 + k % 2]]
         views = tuple(
-            CameraView(c.name, bearing(c, T_W_B, centre), [0, 0], sig, feature_ids=ids,
-                       feature_b_C=np.array([bearing(c, T_W_B, q) for q in pts]))
-            for c in cams)
+            CameraView(c.name, bearing(c, T_W_B, centre), [0, 0], sig, feature_ids=f,
+                       feature_b_C=np.array([bearing(c, T_W_B, q) for q in pts[f % 100]]))
+            for c, f in zip(cams, listed, strict=True))
         (r,) = fus.step([ObstacleObservation(7, "obstacle", t, "confirmed", views)], k, t)
         out.append((t, r, float(np.linalg.norm(centre - T_W_B.t)), fus))
     return out
 
 
 def test_motion_evidence_closed_form():
-    # evidence v_e = (1, 0, 0), P_e = 0.04 I at t = 0, and a moving filter whose measured velocity
-    # (0.5, 0, 0) has P_vv = 0.01 I at t = 0; at t = 0.1 s both grow by q dt = 0.1 x 0.1 = 0.01 per
-    # axis: traces 0.15 and 0.06, so the filter's is kept; an assumed filter velocity (the prior) is
-    # no measurement: the evidence; neither: None (the same for a velocity carried over an earlier
-    # restart, motion_carry, as for the evidence)
+    # q = max_accel^2 tau = 0.1, so P grows by q dt = 0.01 per axis from t = 0 to t = 0.1 s;
+    # chi = v^T P^-1 v against chi2_3(0.999) = 16.27:
+    #   evidence v_e = (1, 0, 0), P_e = 0.04 I: chi = 1 / 0.05 = 20 (rejects zero: kept)
+    #   moving filter (0.5, 0, 0), P_vv = 0.01 I: chi = 0.25 / 0.02 = 12.5 (does not: dropped)
+    #   the same filter at P_vv = 0.001 I: chi = 0.25 / 0.011 = 22.7 (kept, with the evidence),
+    #   assumed (``vel_assumed``: its state was put on a feature stereo point with the velocity
+    #   prior) or not: what moved it off the prior's zero since is the fixes' measurement
+    #   (``_filter_moving`` tests it too); with neither a carried one (motion_carry) is kept
     fus = ObstacleFusion(stereo_forward_rig(MODEL, 0.30), ConstantVelocity(0.0),
                          FusionSettings(max_accel_mps2=1.0, accel_time_s=0.1))
     tr = _Track(1, "orb")
     assert fus._motion_evidence(tr, 0.1) is None
-    tr.vel_acc = (np.array([1.0, 0.0, 0.0]), 0.04 * np.eye(3), 0.0)
+    ev = (np.array([1.0, 0.0, 0.0]), 0.04 * np.eye(3), 0.0)
+    tr.vel_acc = ev
     tr.kf = fus._new_kf(np.zeros(3), np.eye(3), 0.1)
     tr.kf.x[3:] = (0.5, 0.0, 0.0)
     tr.t_kf = 0.0
     tr.moving = True
-    v, P, t = fus._motion_evidence(tr, 0.1)
-    np.testing.assert_allclose(v, [0.5, 0.0, 0.0])
-    np.testing.assert_allclose(P, 0.01 * np.eye(3))
-    assert t == 0.0
-    tr.vel_assumed = True
-    v, _P, _t = fus._motion_evidence(tr, 0.1)
-    np.testing.assert_allclose(v, [1.0, 0.0, 0.0])
+    (e,) = fus._motion_evidence(tr, 0.1)
+    assert e is ev
+    tr.kf.P[3:, 3:] = 0.001 * np.eye(3)
+    for assumed in (False, True):
+        tr.vel_assumed = assumed
+        got = fus._motion_evidence(tr, 0.1)
+        assert len(got) == 2 and got[0] is ev
+        np.testing.assert_allclose(got[1][0], [0.5, 0.0, 0.0])
+        np.testing.assert_allclose(got[1][1], 0.001 * np.eye(3))
+        assert got[1][2] == 0.0
+    tr.vel_acc = None
+    tr.kf.x[3:] = 0.0  # the prior's zero: no evidence of motion
+    assert fus._motion_evidence(tr, 0.1) is None
+    tr.motion_carry = (ev,)
+    assert fus._motion_evidence(tr, 0.1) == (ev,)
 
 
 def test_carried_motion_decides_until_it_no_longer_rejects_zero():
     # closed form (as test_filter_moving_closed_form): carried v = (0.5, 0, 0) m/s, P = 0.01 I at
     # t = 0, grown by q dt I, q = 0.1: chi = 0.25 / 0.01 = 25 > chi2_3(0.999) = 16.27 at t = 0
-    # (moving), 0.25 / 0.11 = 2.27 at t = 1 s (not: the carried evidence is dropped)
+    # (moving), 0.25 / 0.11 = 2.27 at t = 1 s (not: the carried evidence is dropped); a second one,
+    # v = (2, 0, 0), P = 0.01 I: chi 4 / 0.11 = 36 at 1 s, so the pair still decides then (the first
+    # dropped), and 4 / 0.31 = 12.9 at t = 3 s: neither
     fus = ObstacleFusion(stereo_forward_rig(MODEL, 0.30), ConstantVelocity(0.0),
                          FusionSettings(max_accel_mps2=1.0, accel_time_s=0.1))
     tr = _Track(1, "orb")
     assert not fus._carried_moving(tr, 0.0)
-    tr.motion_carry = (np.array([0.5, 0.0, 0.0]), 0.01 * np.eye(3), 0.0)
+    slow = (np.array([0.5, 0.0, 0.0]), 0.01 * np.eye(3), 0.0)
+    tr.motion_carry = (slow,)
     assert fus._carried_moving(tr, 0.0)
     assert not fus._carried_moving(tr, 1.0) and tr.motion_carry is None
+    fast = (np.array([2.0, 0.0, 0.0]), 0.01 * np.eye(3), 0.0)
+    tr.motion_carry = (slow, fast)
+    assert fus._carried_moving(tr, 1.0) and tr.motion_carry == (fast,)
+    assert not fus._carried_moving(tr, 3.0) and tr.motion_carry is None
 
 
 def test_restart_keeps_a_moving_obstacles_motion():
@@ -119,3 +142,23 @@ def test_without_the_rule_the_static_fit_ranges_the_mover_short():
            if t >= T_SWAP and r.range_m is not None and abs(r.range_m - rt) > 3.0 * r.range_sigma_m]
     assert bad
     assert all(rng < rt for _t, rng, rt in bad)  # short (the epipolar-plane ambiguity above)
+
+
+def test_restart_keeps_motion_its_stereo_fixes_measured():
+    # the demo's track 119 (2.567 s): a track whose filter velocity only its successive stereo fixes
+    # measured (too few shared corners for a feature velocity: ``vel_assumed`` stays set, no
+    # velocity reported) is restarted by a member replacement; the filter's velocity, which kept
+    # static points from ranging it before the restart (``_filter_moving``), keeps doing so after
+    # it. Here cam1 lists corner 0 and one other that alternates (1, 2) before the swap: the fixes
+    # follow corner 0, and no two corners are shared a lag apart. Without the rule, cam1's fresh
+    # corners ranged it 45-55 % short at sigmas of 1-5 cm (the 2 / 3.5 scale of the docstring).
+    run = _run(FusionSettings(), few_shared=True)
+    fus = run[0][3]
+    before = [r for t, r, _rt, _f in run if t < T_SWAP - 1e-9]
+    assert all(r.range_m is not None for r in before[3:]) and all(r.speed_mps is None for r in before)
+    assert any(r.range_m is None for t, r, _rt, _f in run if abs(t - T_SWAP) < 1e-6)
+    tr = fus._tracks[7]
+    assert tr.vel_acc is None  # (no feature velocity was measured)
+    after = [(t, r, rt) for t, r, rt, _f in run if t >= T_SWAP - 1e-9]
+    for t, r, rt in after:
+        assert r.range_m is None or abs(r.range_m - rt) <= 3.0 * r.range_sigma_m, (t, r.range_m, rt)
