@@ -40,7 +40,7 @@ from trackers.association import (
 from trackers.clock import check_durations, renamed_text
 from trackers.detectors import Detector, boxes_unused, make_detector, to_grey
 from trackers.features import KLT_WIN_PX, FeatureTracker, klt_window_px, lens_mask
-from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack
+from trackers.grouping import BoxTracker, ObstacleGrouper, ObstacleTrack, _bincount3
 
 STAGES = ("resize", "detect", "track", "group", "associate", "report")
 _OPTION_GROUPS = (
@@ -1298,14 +1298,17 @@ class FrontEnd:
         if not len(good):
             return []
         R_b_a = self._T_b_a[(a, b)].R
-        ba_found = ft.b_C[rows[idx]]
-        reps = np.empty((len(good), 3))
         gl, los, his = good.tolist(), (ends - cnt)[good].tolist(), ends[good].tolist()
-        add = np.add.reduce
-        for k, (ti, lo, hi) in enumerate(zip(gl, los, his, strict=True)):
-            # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a))); a mean is the sum / n
-            n_f = hi - lo
-            reps[k] = add(bb[lo:hi], 0) / n_f + R_b_a @ (todo[ti].b_C - add(ba_found[lo:hi], 0) / n_f)
+        # rep_b = normalise(mean(b_b) + R_b_a (rep_a - mean(b_a))) for all good tracks at once: a mean is
+        # the sum / n, the sums by bincount (row by row from 0.0: a slice's np.add.reduce's sums, where
+        # np.add.reduceat's pairwise ones are not), R_b_a on each row by one broadcast matmul (a
+        # matrix-vector product per row, as R_b_a @ v)
+        own_f = own[idx]
+        n_f = cnt[good][:, None]
+        rep_a = np.array([todo[ti].b_C for ti in gl], float).reshape(-1, 3)
+        mean_a = _bincount3(own_f, ft.b_C[rows[idx]], len(todo))[good] / n_f
+        mean_b = _bincount3(own_f, bb, len(todo))[good] / n_f
+        reps = mean_b + np.matmul(R_b_a, (rep_a - mean_a)[:, :, None])[:, :, 0]
         reps /= _norm_rows(reps, keepdims=True)
         uv, okp = self.cams[b].model.bearing_to_pixel(reps)
         found = mem[idx]
