@@ -381,11 +381,19 @@ def _lk_box(pts: np.ndarray, margin: float, shape: tuple[int, ...], align: int) 
     px with ``margin`` px around, its origin on a multiple of ``align`` px (so the part's pyramid
     levels sample the image's own grid), clipped to the image; the whole image when no point is
     finite (a non-finite one is ignored: LK reports it lost)."""
-    pts = pts.compress(np.isfinite(pts).all(axis=1), 0)
     if not len(pts):
         return 0, 0, shape[1], shape[0]
-    lo = np.floor(pts.min(axis=0) - margin)
-    hi = np.ceil(pts.max(axis=0) + margin) + 1
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    # every point finite exactly when hi - lo is (a NaN propagates through min and max; an infinite
+    # extreme makes the difference infinite or NaN): the finite points' extremes are then these, and
+    # only otherwise is the filter run
+    if not np.isfinite(hi - lo).all():
+        pts = pts.compress(np.isfinite(pts).all(axis=1), 0)
+        if not len(pts):
+            return 0, 0, shape[1], shape[0]
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo = np.floor(lo - margin)
+    hi = np.ceil(hi + margin) + 1
     x0 = max(int(lo[0]) // align * align, 0)
     y0 = max(int(lo[1]) // align * align, 0)
     return x0, y0, min(int(hi[0]), shape[1]), min(int(hi[1]), shape[0])
