@@ -473,6 +473,52 @@ def _lk_part(
     return q + o, st.reshape(-1), err.reshape(-1)
 
 
+def _lk_top_level(shape: tuple[int, ...], win_px: int, level: int) -> int:
+    """The coarsest pyramid level OpenCV's LK searches on images of ``shape`` (H, W, ...) with a
+    ``win_px`` window at maxLevel ``level``: ``cv2.buildOpticalFlowPyramid`` stops at the level whose
+    next one (half the size, rounded up) is no larger than the window."""
+    h, w = shape[0], shape[1]
+    top = 0
+    while top < level:
+        w, h = (w + 1) // 2, (h + 1) // 2
+        if w <= win_px or h <= win_px:
+            break
+        top += 1
+    return top
+
+
+def _lk_pyramids(pyr_prev, pyr_next, p_prev, p_next, win_px, level, crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW):
+    """``_lk_whole`` on two images given with their pyramids (lists [image, cv2.pyrDown(image),
+    cv2.pyrDown of that, ...], at least ``_lk_top_level`` + 1 levels): OpenCV's search level by
+    level, coarsest first, one maxLevel-0 call a level, so that an image's levels are built once
+    and not by every call that reads it (OpenCV's Python binding takes no prebuilt pyramid).
+
+    The same numbers as the one call: OpenCV's LK builds each level by ``pyrDown`` of the one
+    below and reads it through a reflected border of the window's width, as a maxLevel-0 call on
+    that level builds its border; each level starts from the point and the level above's result
+    scaled by powers of two (exact in float32), the coarsest from ``p_next`` so scaled; a level
+    above the finest sets no status there (a point it loses goes on from where it was), so the
+    upper levels' statuses are not read, and they run with ``OPTFLOW_LK_GET_MIN_EIGENVALS`` (no
+    residual pass, which moves nothing). The finest level's call gives the status and err (err
+    of a lost point is OpenCV's unspecified value either way).
+    tests/trackers/test_lk_pyramids.py holds the agreement on rendered frames."""
+    top = _lk_top_level(pyr_prev[0].shape, win_px, level)
+    q = p_next * np.float32(1.0 / (1 << top))  # (the coarsest level's start)
+    upper = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
+    for lv in range(top, -1, -1):
+        q, st, err = cv2.calcOpticalFlowPyrLK(
+            pyr_prev[lv],
+            pyr_next[lv],
+            p_prev * np.float32(1.0 / (1 << lv)),
+            q if lv == top else q * np.float32(2.0),
+            winSize=(win_px, win_px),
+            maxLevel=0,
+            criteria=crit,
+            flags=(flags | cv2.OPTFLOW_USE_INITIAL_FLOW) if lv == 0 else upper,
+        )
+    return q, st.reshape(-1), err.reshape(-1)
+
+
 def _lk_whole(grey_prev, grey_next, p_prev, p_next, win_px, level, crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW):
     """``_lk_part`` on the whole images (the reference it must agree with)."""
     q, st, err = cv2.calcOpticalFlowPyrLK(
@@ -766,6 +812,8 @@ class FeatureTracker:
         # the last frames' roi crops, oldest first, (frame index, time (s), crop): KLT's reference
         # images, the frames up to klt_step_s back (the frame rate seen by self.clock)
         self._refs: deque[tuple[int, float, np.ndarray]] = deque()
+        # the reference crops' pyramids for the whole-crop KLT calls (``_pyramid``), by id(crop)
+        self._pyrs: dict[int, list[np.ndarray]] = {}
         self._t_uv = 0.0  # time (s) of the positions in self.uv
         self.clock = FrameClock()  # the frame rate seen, for klt_step_s, redetect_s and reacquire_s
         self._frames_since_detect = FrameClock.UNKNOWN  # (the first frame detects)
@@ -861,6 +909,8 @@ class FeatureTracker:
         while len(self._refs) > keep and not self._refs[0][1] >= t_det:
             self._refs.popleft()
         self._n_step = min(len(self._refs), keep)
+        live = {id(r[2]) for r in self._refs}
+        self._pyrs = {k: v for k, v in self._pyrs.items() if k in live}
         self._t_uv = float(t_s)
         t1 = time.perf_counter()
         self._frames_since_detect += 1
@@ -1333,7 +1383,21 @@ class FeatureTracker:
         k = self.win[0]
         if part:
             return _lk_part(prev, nxt, p, start, k, level, self._criteria, flags=flags)
-        return _lk_whole(prev, nxt, p, start, k, level, self._criteria, flags)
+        top = _lk_top_level(prev.shape, k, level)
+        pyr_prev, pyr_next = self._pyramid(prev, top), self._pyramid(nxt, top)
+        return _lk_pyramids(pyr_prev, pyr_next, p, start, k, level, self._criteria, flags)
+
+    def _pyramid(self, crop: np.ndarray, level: int) -> list[np.ndarray]:
+        """``crop``'s pyramid ([crop, cv2.pyrDown(crop), ...], levels 0..level at least), kept while
+        the crop is a reference frame (``_refs``, pruned in ``track``): a frame's levels are built
+        once, though the whole-crop KLT calls of this frame and the next steps read them up to four
+        times (this frame's forward and backward passes, and again as a reference)."""
+        pyr = self._pyrs.get(id(crop))
+        if pyr is None or pyr[0] is not crop:
+            pyr = self._pyrs[id(crop)] = [crop]
+        while len(pyr) <= level:
+            pyr.append(cv2.pyrDown(pyr[-1]))
+        return pyr
 
     def _texture(self, image: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Mean absolute deviation of the grey values (N,) over the KLT window centred on each of the
