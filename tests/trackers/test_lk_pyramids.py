@@ -99,3 +99,22 @@ def test_tracker_builds_each_frames_levels_once(monkeypatch):
     # frame's two levels in the forward pass, level 1 again in the backward, all again two frames on)
     assert len(calls) == 2 * n
     assert set(ft._pyrs) == {id(r[2]) for r in ft._refs}
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_lk_box_is_the_finite_points_box(bad):
+    """``_lk_box`` (the part of an image a KLT call reads): the finite points' extremes with the
+    margin around, the origin down to a multiple of ``align``, clipped to the image; a non-finite
+    coordinate drops its point, none finite gives the whole image. Worked by hand: x in [100.25,
+    300.5], y in [50.75, 201.0], margin 22: x0 = floor(78.25) = 78 -> 72 (align 8), y0 = 28 -> 24,
+    x1 = ceil(322.5) + 1 = 324, y1 = ceil(223.0) + 1 = 224."""
+    from trackers.features import _lk_box
+
+    pts = np.array([[100.25, 120.0], [300.5, 50.75], [180.0, 201.0]], np.float32)
+    assert _lk_box(pts, 22.0, (480, 640), 8) == (72, 24, 324, 224)
+    odd = np.array([[bad, 5.0], [600.0, bad]], np.float32)
+    assert _lk_box(np.concatenate([pts, odd]), 22.0, (480, 640), 8) == (72, 24, 324, 224)
+    assert _lk_box(odd, 22.0, (480, 640), 8) == (0, 0, 640, 480)
+    assert _lk_box(pts[:0], 22.0, (480, 640), 8) == (0, 0, 640, 480)
+    # clipped to the image
+    assert _lk_box(pts, 200.0, (300, 400), 16) == (0, 0, 400, 300)
