@@ -626,10 +626,12 @@ class FeatureTracker:
             fps (outputs as before), 3 at 100 fps (median squared drift of fps100_mono_straight's static
             obstacles' features at 0.33 / 1.0 s of age 1.65 / 7.80 -> 0.46 / 2.11 px^2; 30-fps
             mono_straight 0.54 / 2.21). Costs a pair of LK calls a frame per reference frame in use (each
-            call builds both images' pyramids: OpenCV 4.14's Python binding refuses a prebuilt one,
+            call built both images' pyramids then: OpenCV 4.14's Python binding refuses a prebuilt one,
             ``cv2.buildOpticalFlowPyramid``'s list, in ``calcOpticalFlowPyrLK`` and
-            ``SparsePyrLKOpticalFlow.calc`` alike): on the bench's 640x480 100-Hz clip the track stage
-            took x1.21 in kf22's A/B of this step alone, and its median 3.44 -> 4.83 ms a frame in session
+            ``SparsePyrLKOpticalFlow.calc`` alike; since session 31 the whole-crop pair runs level by
+            level on pyramids built once a frame, ``_pyramid``, with the same numbers): on the bench's
+            640x480 100-Hz clip the track stage took x1.21 in kf22's A/B of this step alone, and its
+            median 3.44 -> 4.83 ms a frame in session
             22's full bench (with the re-detection in seconds and rk22's fixes; 720p 60 Hz 4.41 -> 6.11
             ms). The features younger than the step (densified and re-detected: 5-40 a frame on the
             bench clips, clustered around small obstacles) take their pairs on the parts of the crops
@@ -886,8 +888,8 @@ class FeatureTracker:
 
         t0 = time.perf_counter()
         # (OpenCV's Python binding takes images, not prebuilt pyramids (cv2.buildOpticalFlowPyramid's
-        # list is refused): LK builds them per call, on the lens's crop, or on the part of it a call's
-        # search reads for the features younger than the KLT step)
+        # list is refused): the whole-crop LK runs level by level on the crops' pyramids, built once
+        # a frame (``_pyramid``); the younger features' calls build their parts' own)
         cur = self._crop(grey)
         self.last_stats = {}
         self.clock.tick(t_s)
@@ -1193,8 +1195,9 @@ class FeatureTracker:
         adds a small random error, and a chain of 100-fps steps drifted from its physical point ~3x faster
         per second than a 30-fps one (docs: ARCHITECTURE "KLT steps in seconds"). At <= 1 / klt_step_s fps
         every feature steps from the previous frame; above, one pair of LK calls a frame per reference
-        frame in use (each builds both images' pyramids): the oldest reference's (most features, about
-        the lens) on the whole crops, the younger ones' (few, clustered) on the parts of the crops their
+        frame in use: the oldest reference's (most features, about the lens) on the whole crops (level
+        by level on their pyramids, built once a frame: ``_lk_pyramids``), the younger ones' (few,
+        clustered) on the parts of the crops their
         search reads (``_lk_part``: the same pixels, so the same tracks but for the last bits of LK's
         float32 coordinates, which are the part's, and which an ill-conditioned window can carry to ~1 px).
         """
