@@ -16,6 +16,7 @@ from typing import NamedTuple
 import numpy as np
 
 # np.cross and np.linalg.norm (of a vector or of rows) bit for bit, without their axis handling
+from estimators.cameras import _tangent_basis
 from estimators.geometry import _cross, _isin, _norm, _norm_rows
 from trackers.features import KLT_WIN_PX, _lk_part, _lk_whole
 
@@ -301,6 +302,120 @@ def stereo_klt(
             _norm_rows((p0r - p0.take(ci, 0)).reshape(-1, 2)) <= fb_max_px
         )
     return StereoKLT(idx[good], uv_b.compress(good, 0), bb.compress(good, 0), chk[good])
+
+
+#: Stereo KLT follows translation only: a camera pair where some feature's patch turns by more than
+#: this (degrees, ``patch_turn_deg``) from camera a's image to camera b's is searched in b's image
+#: resampled into a's geometry (``TurnedPair``). On the top/bottom rig a point on the horizon at
+#: azimuth psi from the nose turns by 180 - 2 psi (the down camera's image is the up camera's
+#: mirrored, its radius reflected about the horizon's circle): only abeam does it keep its
+#: orientation, and plain KLT found none of top_bottom_turn's sphere members in the other camera
+#: (docs/ARCHITECTURE.md "The 360-degree rig"). A pair with parallel axes and one model turns by 0.
+TURNED_DEG = 30.0
+
+
+def patch_jacobian(model_a, model_b, b_a: np.ndarray, R_b_a: np.ndarray) -> np.ndarray:
+    """The local map of camera a's image onto camera b's at each feature, d uv_b / d uv_a, for a
+    point far away (seen along R_b_a b_a from b; the baseline moves a near one, not its patch's shape).
+
+    Args:
+        model_a, model_b: the cameras' CameraModels; b_a: (N, 3) unit bearings in C_a; R_b_a (3, 3).
+    Returns:
+        (N, 2, 2) px per px; NaN rows where either camera does not see the direction.
+    """
+    b_a = np.asarray(b_a, float).reshape(-1, 3)
+    R = np.asarray(R_b_a, float)
+    # a tangent basis E (3, 2) at b_a: a step E c moves uv_a by P_a E c and uv_b by P_b R E c
+    E = _tangent_basis(b_a)
+    A = model_a.bearing_to_pixel_jacobian(b_a) @ E
+    B = model_b.bearing_to_pixel_jacobian(b_a @ R.T) @ (R @ E)
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    ok = (np.abs(det) > 1e-12) & np.any(B != 0, axis=(1, 2))
+    J = np.full((len(b_a), 2, 2), np.nan)
+    if ok.any():
+        J[ok] = B[ok] @ np.linalg.inv(A[ok])
+    return J
+
+
+def patch_turn_deg(J: np.ndarray) -> np.ndarray:
+    """(N,) degrees in [-180, 180]: the rotation of the local maps J (N, 2, 2) (their polar
+    decomposition's, atan2(J10 - J01, J00 + J11)); NaN where J is."""
+    J = np.asarray(J, float).reshape(-1, 2, 2)
+    return np.degrees(np.arctan2(J[:, 1, 0] - J[:, 0, 1], J[:, 0, 0] + J[:, 1, 1]))
+
+
+def pair_turns(model_a, model_b, R_b_a: np.ndarray, step_px: int = 16) -> bool:
+    """Whether some feature's patch turns by more than ``TURNED_DEG`` from camera a's image to camera
+    b's (``patch_turn_deg`` at a's pixels every ``step_px`` px whose direction b sees)."""
+    v, u = np.mgrid[0 : model_a.height : step_px, 0 : model_a.width : step_px]
+    b, ok = model_a.pixel_to_bearing(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+    if not ok.any():
+        return False
+    turn = patch_turn_deg(patch_jacobian(model_a, model_b, b[ok], R_b_a))
+    return bool(np.any(np.abs(turn) > TURNED_DEG))  # (NaN where b does not see it: False)
+
+
+class TurnedPair:
+    """Stereo KLT of camera a's features in camera b's image for a pair whose images turn a patch
+    (``pair_turns``): b's lens crop is resampled into a's crop geometry, the view of a virtual camera
+    b' at b's centre with a's orientation and a's model, in which a far point sits at its pixel in a
+    and a near one moves along its epipolar curve by the parallax only, as between parallel cameras:
+    there ``stereo_klt`` (translation only) holds. Its matches are mapped back to b's pixels and
+    bearings through the models (not through the resampled image).
+
+    Args:
+        model_a, model_b: the cameras' CameraModels; R_b_a (3, 3), t_b_a (3,) m: p_Cb = R p_Ca + t.
+        shape_a: (h, w) of a's crop, off_a: its origin in a's frame; off_b: b's crop's origin in b's.
+    """
+
+    def __init__(self, model_a, model_b, R_b_a, t_b_a, shape_a, off_a, off_b) -> None:
+        import cv2
+
+        self.model_a, self.model_b = model_a, model_b
+        self.R = np.asarray(R_b_a, float)
+        self.t_v = self.R.T @ np.asarray(t_b_a, float).reshape(3)  # p_Cb' = p_Ca + R^T t
+        h, w = shape_a
+        v, u = np.mgrid[0:h, 0:w]
+        uv = np.stack([u.ravel(), v.ravel()], 1).astype(float) + np.asarray(off_a, float).reshape(2)
+        b, ok = model_a.pixel_to_bearing(uv)
+        uv_b, ok_b = model_b.bearing_to_pixel(b[ok] @ self.R.T)
+        m = np.full((h * w, 2), -1.0)  # (-1: outside b's image)
+        m[ok.nonzero()[0][ok_b]] = uv_b[ok_b] - np.asarray(off_b, float).reshape(2)
+        m = m.reshape(h, w, 2).astype(np.float32)
+        self._maps = cv2.convertMaps(m[..., 0], m[..., 1], cv2.CV_16SC2)
+
+    def resample(self, grey_a: np.ndarray, grey_b: np.ndarray) -> np.ndarray:
+        """b's crop (uint8) seen by b', an image of a's crop's size, and a's crop ``grey_a`` where b
+        does not see: b's black beyond its field would be an edge in the coarse pyramid levels that
+        draws KLT's search off (top_bottom_turn: maxLevel 4 sent the sphere's members 200-700 px away).
+        One remap of the crop (fixed-point maps): ~2.7 ms a frame and pair at 948x948 px."""
+        import cv2
+
+        out = grey_a.copy()
+        return cv2.remap(grey_b, *self._maps, cv2.INTER_LINEAR, dst=out, borderMode=cv2.BORDER_TRANSPARENT)
+
+    def to_virtual(self, uv_b: np.ndarray) -> np.ndarray:
+        """(N, 2) full-frame px in b -> in b' (the same directions); NaN where either does not see."""
+        bb, ok = self.model_b.pixel_to_bearing(np.asarray(uv_b, float).reshape(-1, 2))
+        uv, okv = self.model_a.bearing_to_pixel(bb @ self.R)
+        return np.where((ok & okv)[:, None], uv, np.nan)
+
+    def stereo_klt(self, grey_a, b_in_a, b_a, uv_a, guess_v=None, **kw) -> StereoKLT:
+        """``stereo_klt`` of a's features b_a (N, 3) at uv_a (N, 2) in b' (``b_in_a``: ``resample`` of
+        b's crop; ``guess_v``: (N, 2) full-frame px in b', NaN rows: none), other keywords as
+        ``stereo_klt``'s (its off_b is a's crop's origin here). Rows whose direction b does not see
+        are not searched. Returns its ``StereoKLT`` in b: idx into the N rows, uv_b full-frame px in
+        b, b_b unit bearings in C_b, checked."""
+        _, seen = self.model_b.bearing_to_pixel(np.asarray(b_a, float) @ self.R.T)
+        rows = seen.nonzero()[0]
+        g = None if guess_v is None else np.asarray(guess_v, float)[rows]
+        r = stereo_klt(
+            grey_a, b_in_a, b_a[rows], uv_a[rows], self.model_a, np.eye(3), self.t_v, guess_b=g,
+            **{k: (v[rows] if k == "check" and v is not None else v) for k, v in kw.items()},
+        )
+        b_b = r.b_b @ self.R.T
+        uv_b, ok = self.model_b.bearing_to_pixel(b_b)
+        return StereoKLT(rows[r.idx[ok]], uv_b[ok], b_b[ok], r.checked[ok])
 
 
 def depth_consistent(

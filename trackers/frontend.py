@@ -28,12 +28,14 @@ from estimators.records import CameraView, ObstacleObservation
 from estimators.rig import Camera, Rig
 from trackers.association import (
     BoxStereo,
+    TurnedPair,
     box_pairs,
     boxes_compatible,
     consistent_pairs,
     depth_consistent,
     klt_links,
     match_features,
+    pair_turns,
     stereo_klt,
     unheld,
 )
@@ -430,6 +432,15 @@ class FrontEnd:
             for b in self.cams
             if a != b
         }
+        # camera pairs (a, b) whose images turn a feature's patch (the top/bottom rig's): stereo KLT
+        # searches b's crop resampled into a's geometry (TurnedPair; none for parallel axes)
+        self._turned: dict[tuple[str, str], TurnedPair] = {}
+        for (a, b), T in self._T_b_a.items():
+            ma, mb = self.cams[a].model, self.cams[b].model
+            if a in self.trackers and b in self.trackers and pair_turns(ma, mb, T.R):
+                (x0, y0, x1, y1), rb = self.trackers[a].roi, self.trackers[b].roi
+                self._turned[(a, b)] = TurnedPair(ma, mb, T.R, T.t, (y1 - y0, x1 - x0), (x0, y0), rb[:2])
+        self._b_in_a: dict[tuple[str, str], np.ndarray] = {}  # this frame's resampled crops, per pair
         # this frame's stereo KLT results per camera pair (shared by _associate and _derive_views)
         self._stereo_cache: dict[tuple[str, str], tuple] = {}
         # last frame's stereo KLT matches per camera pair (_remember_stereo), where this frame's start
@@ -708,8 +719,11 @@ class FrontEnd:
 
         A feature found last frame starts from there, moved by its own motion in a, and skips the
         forward-backward check unless its last check is ``recheck_every`` frames old or it did not
-        land within ``recheck_px`` of that start (new features are always checked)."""
+        land within ``recheck_px`` of that start (new features are always checked). A pair whose
+        images turn a patch (``self._turned``) is searched in b's crop resampled into a's geometry
+        (``TurnedPair``), where that start is last frame's match seen there moved alike."""
         fa, fb = self.trackers[a], self.trackers[b]
+        turned = self._turned.get((a, b))
         n = len(fa.ids)
         c = self._stereo_cache.get((a, b))
         if c is None or len(c[0]) != n:
@@ -731,7 +745,9 @@ class FrontEnd:
                 hit = (m_ids[k] == ids).nonzero()[0]
                 kk = k[hit]
                 # last frame's match moved as the feature moved in a: uv_b + (uv_a now - uv_a then)
-                guess[hit] = m[3].take(kk, 0) + (fa.uv.take(todo[hit], 0) - m[2].take(kk, 0))
+                # (in b' for a turned pair: b's image there has a's orientation)
+                last_b = m[3].take(kk, 0) if turned is None else turned.to_virtual(m[3].take(kk, 0))
+                guess[hit] = last_b + (fa.uv.take(todo[hit], 0) - m[2].take(kk, 0))
                 last[hit] = m[4][kk]
             if follow_only:  # last frame's matches followed, plus the retry rows (see _follow_only)
                 tried[todo] = True
@@ -743,26 +759,28 @@ class FrontEnd:
                 todo, guess, last = todo[keep], guess[keep], last[keep]
         if len(todo):
             (ca, oa), (cb, ob) = fa.crop, fb.crop
-            T = self._T_b_a[(a, b)]
-            r = stereo_klt(
-                ca,
-                cb,
-                fa.b_C[todo],
-                fa.uv[todo].astype(float),
-                self.cams[b].model,
-                T.R,
-                T.t,
-                self.epipolar_rad,
+            kw = dict(
                 win_px=fa.win[0],  # the temporal KLT's window (tracked_window)
                 off_a=oa,
-                off_b=ob,
-                guess_b=guess,
                 check=np.zeros(len(todo), bool)
                 if follow_only
                 else (last < 0) | (self._n - last >= self.recheck_every),
                 recheck_px=self.recheck_px,
                 follow_levels=self.follow_levels,
+                epipolar_rad=self.epipolar_rad,
             )
+            if turned is None:
+                T = self._T_b_a[(a, b)]
+                r = stereo_klt(
+                    ca, cb, fa.b_C[todo], fa.uv[todo].astype(float), self.cams[b].model, T.R, T.t,
+                    off_b=ob, guess_b=guess, **kw,
+                )
+            else:
+                b_in_a = self._b_in_a.get((a, b))
+                if b_in_a is None:
+                    b_in_a = self._b_in_a[(a, b)] = turned.resample(ca, cb)
+                uv_a = fa.uv[todo].astype(float)
+                r = turned.stereo_klt(ca, b_in_a, fa.b_C[todo], uv_a, guess, off_b=oa, **kw)
             tried[todo] = True
             found = todo[r.idx]
             uvb[found] = r.uv_b
@@ -785,6 +803,7 @@ class FrontEnd:
             mem[(a, b)] = (self._n, ft.ids[f], ft.uv[f].astype(float), uvb[f], chk[f])
         self._stereo_mem = mem
         self._stereo_cache.clear()
+        self._b_in_a.clear()
 
     def _prefetch_stereo(
         self, seen: dict[str, list[ObstacleTrack]], greys: dict[str, np.ndarray], assoc_now: bool

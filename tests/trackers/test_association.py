@@ -789,3 +789,137 @@ def test_depth_consistent_bound_follows_the_obstacle_width():
         p = np.stack([d * 4.0] * 5 + [d * r]) + [[0.01, 0.0, 0.0]]
         a, b = _rays(p, t)
         assert depth_consistent(a, b, own, np.eye(3), t, np.array([rho]), 0.0)[5] == kept
+
+
+
+def _horizon_plane_pair():
+    """A top/bottom rig (equidistant 195 deg, 480x480, 0.10 m apart) facing a textured plane 3 m
+    ahead (x_B = 3, |y| < 3 m, |z| < 1 m), each camera's frame ray-cast through its model. Returns
+    the rig, both frames and ``truth(b_up)``: for up-camera bearings (N, 3), where the down camera
+    sees their plane points (by projection) and whether they lie on the plane within 0.15 m of the
+    horizon and 0.3 m of its sides (both cameras see them, their windows on the texture)."""
+    import cv2
+
+    from estimators.rig import top_bottom_rig
+    from tests.trackers.conftest import blocky_texture
+
+    model = equidistant(480, 480, fov_deg=195.0)
+    rig = top_bottom_rig(model, separation_m=0.10)
+    up, down = rig.cameras
+    tex = blocky_texture(1024, 48, 3)
+    x_p, half_y, half_z = 3.0, 3.0, 1.0
+
+    def on_plane(cam, b_C):  # the plane point along each bearing, and whether the ray meets it
+        d = b_C @ cam.T_C_B.R  # b_B = R_C_B^T b_C
+        o = cam.centre_B
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = o + ((x_p - o[0]) / d[:, 0])[:, None] * d
+        return p, (d[:, 0] > 0) & (np.abs(p[:, 1]) < half_y) & (np.abs(p[:, 2]) < half_z)
+
+    def render(cam):
+        v, u = np.mgrid[0 : model.height, 0 : model.width]
+        b, ok = cam.model.pixel_to_bearing(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+        p, hit = on_plane(cam, b)
+        hit &= ok
+        mx = np.where(hit, (p[:, 1] + half_y) / (2 * half_y) * 1023, 0).astype(np.float32)
+        my = np.where(hit, (half_z - p[:, 2]) / (2 * half_z) * 1023, 0).astype(np.float32)
+        val = cv2.remap(tex, mx.reshape(model.height, -1), my.reshape(model.height, -1), cv2.INTER_LINEAR)
+        return np.where(hit, val.ravel(), 128).astype(np.uint8).reshape(model.height, model.width)
+
+    def truth(b_up):
+        p, hit = on_plane(up, b_up)
+        band = hit & (np.abs(p[:, 1]) < half_y - 0.3) & (np.abs(p[:, 2]) < 0.15)
+        p_down = np.where(band[:, None], p, 1.0) @ down.T_C_B.R.T + down.T_C_B.t
+        uv, seen = down.model.bearing_to_pixel(p_down)
+        return uv, band & seen
+
+    return rig, render(up), render(down), truth
+
+
+def test_patch_turn_on_the_top_bottom_horizon_is_180_minus_twice_the_azimuth():
+    """The down camera's image is the up camera's mirrored about the nose's image axis with its
+    radius reflected about the horizon's circle (r -> f pi - r): at azimuth psi on the horizon a
+    patch turns by 180 - 2 psi degrees (worked by hand: the radial and the tangential directions
+    both flip, about image axes 2 psi apart). A forward pair with parallel axes and one model turns
+    by 0; the front end takes the top/bottom pairs (both ways) and no forward pair for turned."""
+    from estimators.rig import top_bottom_rig
+    from trackers.association import pair_turns, patch_jacobian, patch_turn_deg
+    from trackers.frontend import FrontEnd
+
+    model = equidistant(480, 480, fov_deg=195.0)
+    rig = top_bottom_rig(model, separation_m=0.10)
+    up, down = rig.cameras
+    T = down.T_C_B @ up.T_C_B.inverse()
+    psi = np.array([0.0, 10.0, 30.0, 45.0, 60.0, 90.0, 120.0, -30.0, -75.0, 170.0])
+    r = np.radians(psi)
+    b_B = np.stack([np.cos(r), np.sin(r), np.zeros_like(r)], axis=1)  # on the horizon (far)
+    turn = patch_turn_deg(patch_jacobian(up.model, down.model, b_B @ up.T_C_B.R.T, T.R))
+    expected = (180.0 - 2.0 * psi + 180.0) % 360.0 - 180.0  # wrapped to [-180, 180)
+    np.testing.assert_allclose(np.cos(np.radians(turn)), np.cos(np.radians(expected)), atol=1e-9)
+    np.testing.assert_allclose(np.sin(np.radians(turn)), np.sin(np.radians(expected)), atol=1e-9)
+    fwd = stereo_forward_rig(model, 0.30)
+    Tf = fwd.cameras[1].T_C_B @ fwd.cameras[0].T_C_B.inverse()
+    v, u = np.mgrid[0:480:16, 0:480:16]
+    b, ok = model.pixel_to_bearing(np.stack([u.ravel(), v.ravel()], 1).astype(float))
+    np.testing.assert_allclose(patch_turn_deg(patch_jacobian(model, model, b[ok], Tf.R)), 0.0, atol=1e-9)
+    assert pair_turns(up.model, down.model, T.R) and not pair_turns(model, model, Tf.R)
+    assert set(FrontEnd(rig, detector="orb")._turned) == {("cam0", "cam1"), ("cam1", "cam0")}
+    assert not FrontEnd(fwd, detector="orb")._turned
+
+
+def test_stereo_klt_finds_a_feature_turned_between_the_top_and_bottom_images():
+    """top_bottom_turn's sphere at the rig's height was never one two-view track: stereo KLT
+    follows translation only and none of its up-camera members was found in the down camera,
+    whose image turns them by 180 - 2 psi. In the down image resampled into the up camera's
+    geometry (TurnedPair) the corners of a plane 3 m ahead at the horizon are found where the
+    down camera's model projects their plane points (ray-cast; 4-5 px of parallax), each within
+    1 px and 90 % within 0.4 px, new or followed from a start 1.5 px off (given in the resampled
+    image, where a far point sits at its up-camera pixel); on the images as they are, none is."""
+    import cv2
+
+    from trackers.association import TurnedPair, stereo_klt
+
+    cv2.setNumThreads(1)
+    rig, img_up, img_down, truth = _horizon_plane_pair()
+    up, down = rig.cameras
+    uv = cv2.goodFeaturesToTrack(img_up, 400, 0.01, 6).reshape(-1, 2).astype(float)
+    b_up, _ = up.model.pixel_to_bearing(uv)
+    uv_t, band = truth(b_up)
+    uv, b_up, uv_t = uv[band], b_up[band], uv_t[band]
+    assert len(uv) >= 30
+    T = down.T_C_B @ up.T_C_B.inverse()
+    tp = TurnedPair(up.model, down.model, T.R, T.t, img_up.shape, (0, 0), (0, 0))
+    far, _ = down.model.bearing_to_pixel(b_up @ T.R.T)
+    np.testing.assert_allclose(tp.to_virtual(far), uv, atol=1e-6)
+    b_in_up = tp.resample(img_up, img_down)
+    guess = tp.to_virtual(uv_t) + np.array([1.2, -0.9])
+    for kw in ({}, {"guess_v": guess, "follow_levels": 1}):
+        r = tp.stereo_klt(img_up, b_in_up, b_up, uv, **kw)
+        assert len(r.idx) >= 0.9 * len(uv)
+        err = np.linalg.norm(r.uv_b - uv_t[r.idx], axis=1)
+        assert err.max() < 1.0 and np.percentile(err, 90) < 0.4
+        expected_b, _ = down.model.pixel_to_bearing(r.uv_b)
+        np.testing.assert_allclose(r.b_b, expected_b, atol=1e-9)
+    plain = stereo_klt(img_up, img_down, b_up, uv, down.model, T.R, T.t)
+    assert not np.any(np.linalg.norm(plain.uv_b - uv_t[plain.idx], axis=1) < 1.0)
+
+
+def test_front_end_finds_the_up_cameras_horizon_features_in_the_down_image():
+    """The front end's stereo search (FrontEnd._stereo) on the top/bottom rig: the up camera's ORB
+    features on the plane at the horizon are found in the down image where the down camera's model
+    projects their plane points (ray-cast), 80 % of them, within 1 px (none without TurnedPair)."""
+    import cv2
+
+    from trackers.frontend import FrontEnd
+
+    cv2.setNumThreads(1)
+    rig, img_up, img_down, truth = _horizon_plane_pair()
+    fe = FrontEnd(rig, detector="orb")
+    fe.process({"cam0": img_up, "cam1": img_down}, 0, 0.0)
+    ft = fe.trackers["cam0"]
+    uv_t, band = truth(ft.b_C)
+    rows = band.nonzero()[0]
+    assert len(rows) >= 15
+    idx, uv_b, b_b = fe._stereo("cam0", "cam1", rows)
+    assert len(idx) >= 0.8 * len(rows)
+    assert np.linalg.norm(uv_b - uv_t[rows[idx]], axis=1).max() < 1.0
