@@ -496,14 +496,16 @@ def _lk_pyramids(pyr_prev, pyr_next, p_prev, p_next, win_px, level, crit, flags=
     The same numbers as the one call: OpenCV's LK builds each level by ``pyrDown`` of the one
     below and reads it through a reflected border of the window's width, as a maxLevel-0 call on
     that level builds its border; each level starts from the point and the level above's result
-    scaled by powers of two (exact in float32), the coarsest from ``p_next`` so scaled; a level
-    above the finest sets no status there (a point it loses goes on from where it was), so the
-    upper levels' statuses are not read, and they run with ``OPTFLOW_LK_GET_MIN_EIGENVALS`` (no
-    residual pass, which moves nothing). The finest level's call gives the status and err (err
+    scaled by powers of two (exact in float32), the coarsest from ``p_next`` so scaled (from
+    ``p_prev`` when ``flags`` lack ``OPTFLOW_USE_INITIAL_FLOW``, as OpenCV's); a level above the
+    finest sets no status there (a point it loses goes on from where it was), so the upper levels'
+    statuses are not read, and they run with ``OPTFLOW_LK_GET_MIN_EIGENVALS`` (no residual pass,
+    which moves nothing). The finest level's call gives the status and err (err
     of a lost point is OpenCV's unspecified value either way).
     tests/trackers/test_lk_pyramids.py holds the agreement on rendered frames."""
     top = _lk_top_level(pyr_prev[0].shape, win_px, level)
-    q = p_next * np.float32(1.0 / (1 << top))  # (the coarsest level's start)
+    # the coarsest level's start: p_next there, or the points themselves without USE_INITIAL_FLOW
+    q = (p_next if flags & cv2.OPTFLOW_USE_INITIAL_FLOW else p_prev) * np.float32(1.0 / (1 << top))
     upper = cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS
     for lv in range(top, -1, -1):
         q, st, err = cv2.calcOpticalFlowPyrLK(

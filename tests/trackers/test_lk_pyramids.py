@@ -52,6 +52,7 @@ def test_top_level_is_opencvs_pyramid_depth(h, w, win, level):
         (300, 340, 13, 1, cv2.OPTFLOW_USE_INITIAL_FLOW | cv2.OPTFLOW_LK_GET_MIN_EIGENVALS),
         (300, 340, 11, 3, cv2.OPTFLOW_USE_INITIAL_FLOW),
         (90, 70, 13, 4, cv2.OPTFLOW_USE_INITIAL_FLOW),  # (OpenCV stops at level 1 here)
+        (300, 340, 13, 2, 0),  # no initial flow: the search starts at the points, the guess unread
     ],
 )
 def test_level_by_level_equals_one_call_bit_for_bit(h, w, win, level, flags):
