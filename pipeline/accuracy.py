@@ -925,11 +925,12 @@ _SCORED_COMPARE = (
 def scored_ranges(rows_by_scene: dict[str, tuple[str, list]]) -> dict[str, dict]:
     """Range errors of every report ``fisheye-des demo`` scores (confirmed tracks' reports whose
     bearing hits an obstacle, of ANY age: ``pipeline.evaluate.scored_range_metrics``), pooled over
-    scenes. ``rows_by_scene``: scene name -> (rig kind "mono" | "stereo", the evaluator's rows of that
-    scene, ``pipeline.evaluate.score_reports``). Returns ``pipeline.evaluate.range_metrics`` dicts
-    ("ranged", "rel_err_median", "rel_err_p90", "within_10pct", ...; relative errors as fractions)
-    for "all", "stationary", "moving" (every rig), "moving_mono_rig" and "moving_stereo_rig" (the
-    moving obstacles of the mono-rig and of the stereo-rig scenes). Informational: the verdict
+    scenes. ``rows_by_scene``: scene name -> (rig kind, ``pipeline.sim.scene.RigSpec.kind``, the
+    evaluator's rows of that scene, ``pipeline.evaluate.score_reports``). Returns
+    ``pipeline.evaluate.range_metrics`` dicts ("ranged", "rel_err_median", "rel_err_p90",
+    "within_10pct", ...; relative errors as fractions) for "all", "stationary", "moving" (every rig),
+    "moving_mono_rig" and "moving_stereo_rig" (the moving obstacles of the scenes of a ``MONO_RIGS``
+    rig, as the mono metric counts them, and of the stereo-rig scenes). Informational: the verdict
     metrics of ``summarize`` count only some of these (mono: stationary, >= 1 s in view; stereo
     velocity: >= 1 s), so a change that hurts young or moving obstacles' ranges shows only here.
     Non-finite values (the median width of bounds without an upper end) are None, as in the
@@ -939,8 +940,8 @@ def scored_ranges(rows_by_scene: dict[str, tuple[str, list]]) -> dict[str, dict]
 
     g = scored_range_metrics([r for _rig, rows in rows_by_scene.values() for r in rows])
     out = {"all": g["confirmed"], "stationary": g["stationary"], "moving": g["moving"]}
-    for rig in ("mono", "stereo"):
-        sel = [r for k, rows in rows_by_scene.values() if k == rig for r in rows]
+    for rig, kinds in (("mono", MONO_RIGS), ("stereo", ("stereo",))):
+        sel = [r for k, rows in rows_by_scene.values() if k in kinds for r in rows]
         out[f"moving_{rig}_rig"] = scored_range_metrics(sel)["moving"]
     return to_plain(out)
 

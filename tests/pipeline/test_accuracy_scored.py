@@ -82,6 +82,21 @@ def test_scored_ranges_pools_scenes_and_splits_moving_by_rig():
     assert empty["all"] == {"reports": 0, "ranged": 0}
 
 
+def test_scored_ranges_counts_a_top_bottom_rigs_movers_with_the_mono_rigs():
+    """The top/bottom rig's scenes (``--set rig360``) are scored as monocular (``MONO_RIGS``): their
+    moving obstacles' reports are the mono-rig group's too (they were in neither rig group: rig360's
+    "moving obstacles, mono rig" and "stereo rig" rows both read ranged 0 beside 6 moving ranged)."""
+    from pipeline.accuracy import scored_ranges
+
+    tb = [_row("tb", oid=5, moving=True, true=5.0, rng=6.0),  # moving, +20 %
+          _row("tb", track=2, oid=1, rng=10.5)]               # stationary
+    sr = scored_ranges({"tb": ("top_bottom", tb)})
+    assert sr["moving"]["ranged"] == 1
+    assert sr["moving_mono_rig"]["ranged"] == 1
+    assert sr["moving_mono_rig"]["rel_err_median"] == pytest.approx(0.2)
+    assert sr["moving_stereo_rig"]["ranged"] == 0
+
+
 def test_scored_ranges_are_strict_json():
     """Bounds without an upper end have an infinite median width: written null, as metrics.json does."""
     import json
