@@ -1,4 +1,4 @@
-"""Helpers shared by the fusion tests (not a test module)."""
+"""Helpers shared by the fusion and geometry tests (not a test module)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,17 @@ def noisy_bearing(rng, sigma):
         return b / np.linalg.norm(b)
 
     return bearing
+
+
+def noisy_units(rng, b, sigma, n):
+    """n unit vectors about unit b (3,) with isotropic tangent-plane noise of std sigma (radians)."""
+    e = np.eye(3)[np.argmin(np.abs(b))]
+    u1 = np.cross(b, e)
+    u1 /= np.linalg.norm(u1)
+    u2 = np.cross(b, u1)
+    z = rng.standard_normal((n, 2)) * sigma
+    v = b + z[:, :1] * u1 + z[:, 1:] * u2
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 # The far-wall scene of test_fusion_window and test_fusion_occlusion_window (truth by hand in their

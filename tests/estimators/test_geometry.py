@@ -14,6 +14,7 @@ import pytest
 
 from estimators import geometry as g
 from estimators.errors import InputError
+from tests.estimators.fusion_helpers import noisy_units
 
 SQ3 = math.sqrt(3.0)
 
@@ -156,17 +157,6 @@ def test_triangulate_malformed_input_raises(kwargs):
 # --------------------------------------------------------------------------- range sigma
 
 
-def _noisy(rng, b, sigma, n):
-    """n unit vectors around unit b with isotropic tangent-plane noise of std sigma (radians)."""
-    e = np.eye(3)[np.argmin(np.abs(b))]
-    u1 = np.cross(b, e)
-    u1 /= np.linalg.norm(u1)
-    u2 = np.cross(b, u1)
-    z = rng.standard_normal((n, 2)) * sigma
-    v = b + z[:, :1] * u1 + z[:, 1:] * u2
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
 @pytest.mark.parametrize(
     "c_a, c_b, p, sigma",
     [
@@ -181,7 +171,7 @@ def test_range_sigma_matches_monte_carlo(c_a, c_b, p, sigma):
     r0 = g.triangulate(c_a, b_a, c_b, b_b, bearing_sigma_rad=sigma)
     rng = np.random.default_rng(7)
     n = 2000
-    BA, BB = _noisy(rng, b_a, sigma, n), _noisy(rng, b_b, sigma, n)
+    BA, BB = noisy_units(rng, b_a, sigma, n), noisy_units(rng, b_b, sigma, n)
     batch = g.triangulate_batch(c_a, BA, c_b, BB)  # row-wise equal to triangulate (tested below)
     assert batch.valid.all()
     std = float(np.std(batch.range_m))

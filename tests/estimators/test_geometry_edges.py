@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from estimators import geometry as g
+from tests.estimators.fusion_helpers import noisy_units
 
 R = math.radians
 
@@ -29,17 +30,6 @@ R = math.radians
 def _sigma_closed_form(d, t1, t2, sigma):
     S = math.sin(t1 + t2)
     return sigma * d * math.sqrt(math.sin(t2) ** 2 + (math.sin(t1) * math.cos(t1 + t2)) ** 2) / S**2
-
-
-def _noisy(rng, b, sigma, n):
-    """n unit vectors about unit b with isotropic tangent-plane noise of std sigma (radians)."""
-    e = np.eye(3)[np.argmin(np.abs(b))]
-    u1 = np.cross(b, e)
-    u1 /= np.linalg.norm(u1)
-    u2 = np.cross(b, u1)
-    z = rng.standard_normal((n, 2)) * sigma
-    v = b + z[:, :1] * u1 + z[:, 1:] * u2
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 # --------------------------------------------------------------------------- range and its sigma
@@ -83,7 +73,7 @@ def test_range_sigma_at_a_tiny_parallax_matches_monte_carlo():
     c_a, b_a, c_b, b_b = g.planar_rays(1.0, t1, t2)
     rng = np.random.default_rng(5)
     n = 4000
-    mc = g.triangulate_batch(c_a, _noisy(rng, b_a, 1e-10, n), c_b, _noisy(rng, b_b, 1e-10, n),
+    mc = g.triangulate_batch(c_a, noisy_units(rng, b_a, 1e-10, n), c_b, noisy_units(rng, b_b, 1e-10, n),
                              min_parallax_rad=0.0)
     assert mc.valid.all()
     std = float(np.std(mc.range_m))
@@ -110,7 +100,7 @@ def test_stereo_range_sigma_matches_monte_carlo_at_small_vergence_and_behind(p, 
         assert r.range_sigma_m == pytest.approx(math.sqrt(2) * 100 * sigma / 0.1, rel=0.01)
     rng = np.random.default_rng(11)
     n = 4000
-    mc = g.triangulate_batch(c_a, _noisy(rng, b_a, sigma, n), c_b, _noisy(rng, b_b, sigma, n))
+    mc = g.triangulate_batch(c_a, noisy_units(rng, b_a, sigma, n), c_b, noisy_units(rng, b_b, sigma, n))
     assert mc.valid.all()
     assert r.range_sigma_m == pytest.approx(float(np.std(mc.range_m)), rel=0.08)
 
