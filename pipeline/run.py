@@ -731,7 +731,9 @@ def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
             return {"out_dir": args[1], "frames": 0, "not_run": True, "why": why}
         return _batch_worker(args)
     except KeyboardInterrupt:
-        return {"out_dir": args[1], "interrupted": True}
+        if _BATCH_WORKER["stop"].is_set():
+            return {"out_dir": args[1], "interrupted": True}
+        return {"out_dir": args[1], "interrupted": True, "why": "its worker process was interrupted"}
     finally:
         _BATCH_WORKER["in_job"] = False
 
@@ -805,7 +807,9 @@ def run_batch(
         camera_names: rig camera names used to recognise recording folders (default ``["cam0"]``, or
             ``["cam0", "cam1"]`` for a two-camera calibration).
 
-    Returns one dict per run (out_dir, frames, tracks, frames_per_s, error), in input order.
+    Returns one dict per run (out_dir, frames, tracks, frames_per_s, error), in input order; a
+    recording a signal stopped has ``interrupted`` true, one never started ``not_run`` true, and
+    either may give ``why`` (a signal to its worker process alone, not the batch's stop).
 
     Raises:
         KeyboardInterrupt: on a Ctrl-C or SIGTERM (the recordings under way stop with their outputs

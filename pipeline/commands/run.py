@@ -109,8 +109,10 @@ def register(app: typer.Typer) -> None:
             if stopped:  # a signal to one worker alone (the batch's own stop raises KeyboardInterrupt)
                 from pipeline.cli import interrupted
 
+                bad = sum(1 for r in results if r.get("error"))
                 raise interrupted(f"{stopped} of {len(results)} batch runs were interrupted or not run (a "
-                                  "signal reached a worker process); the others ran to their end (see above)")
+                                  "signal reached a worker process); the others ran to their end"
+                                  + (f", {bad} of them with an error" if bad else "") + " (see above)")
             if any(r.get("error") for r in results):
                 from estimators.errors import SourceError
 

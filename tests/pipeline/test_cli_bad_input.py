@@ -720,8 +720,13 @@ def test_a_batch_worker_signalled_as_it_reads_the_stop_event_runs_no_recording(t
     ran = []
     monkeypatch.setattr(run_mod, "_batch_worker", lambda args: ran.append(args) or {"out_dir": args[1]})
 
-    class Event:  # the stop event: not set when read, and the parent's SIGTERM arrives right then
+    class Event:  # the stop event: not set when first read, and the parent, which has just set it,
+        read = False  # sends its SIGTERM right then
+
         def is_set(self):
+            if self.read:
+                return True
+            self.read = True
             signal.getsignal(signal.SIGTERM)(signal.SIGTERM, None)
             return False
 
@@ -881,3 +886,40 @@ def test_a_batch_worker_signalled_by_hand_makes_the_batch_exit_130(tmp_path):
         assert f"{out / n}: not run (its worker process was interrupted)" in err, err
     assert (f"{3 - len(ran)} of 3 batch runs were interrupted or not run (a signal reached a worker "
             "process)") in err, err
+
+
+
+@pytest.mark.parametrize("stopped", [False, True])
+def test_a_batch_recording_interrupted_before_its_folder_names_who_stopped_it(tmp_path, monkeypatch, stopped):
+    """A recording interrupted before its folder existed is printed as not run; its line said "the
+    batch was stopped" also when the signal had reached its worker alone (and the batch ran on). Now
+    it says which: the batch's stop event set by the time the worker took the signal, or not."""
+    import signal
+
+    from pipeline.commands.run import _batch_line
+    from pipeline.run import _BATCH_WORKER, _batch_pool_job, _batch_worker_init
+
+    class Event:  # the parent's stop: not set when the recording starts
+        flag = False
+
+        def is_set(self):
+            return self.flag
+
+    stop = Event()
+
+    def interrupted(args):  # the signal, after the batch's stop event was set (or not)
+        stop.flag = stopped
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_mod, "_batch_worker", interrupted)
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    monkeypatch.setattr(run_mod, "_BATCH_WORKER", dict(_BATCH_WORKER))
+    try:
+        _batch_worker_init(stop)
+        r = _batch_pool_job(({}, str(tmp_path / "v1"), None))
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert r["interrupted"] is True and not (tmp_path / "v1").exists()
+    why = "the batch was stopped" if stopped else "its worker process was interrupted"
+    assert _batch_line(r) == f"{tmp_path / 'v1'}: not run ({why})"
