@@ -588,8 +588,10 @@ def moving_obstacle_bounds(
 
     c_a, c_b: (3,) centres in metres; b_a, b_b: (3,) directions (normalised here); origin: (3,),
     default c_b; all in one common frame. max_displacement_m >= 0 (may be +inf: then only the
-    half-line constraint remains); None (default) = the baseline |c_b - c_a|, i.e. the obstacle is
-    at most as fast as the drone (the thesis's assumption, eq. 3.11-3.13). Returns RangeBounds, or
+    half-line constraint remains); None (default) = the baseline |c_b - c_a|, i.e. the obstacle
+    moves no farther than the camera did (the thesis's assumption, eq. 3.11-3.13: as fast as the
+    drone in straight flight; on a curved path the chord is shorter than speed * dt, so pass
+    max speed * dt there, as the fusion does). Returns RangeBounds, or
     Unobservable("inconsistent with max speed") when R is empty. Raises InputError on malformed input.
     See ``moving_obstacle_bounds_unchecked`` for the same without the input checks (hot loops).
     """
