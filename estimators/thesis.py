@@ -70,22 +70,43 @@ def _t(a_deg: float) -> float:
 
 # --------------------------------------------------------------------------- chapter 3, as printed
 
+#: |sin(theta1 + theta2)| below this is no triangle (the rays parallel): the printed formulas divide by
+#: it (cos(th1 + th2 - 90), tan(180 - th1 - th2)) and gave ~1e16 or ZeroDivisionError there
+_PARALLEL_SIN = 1e-12
 
-def eq_3_1_stereo_Z(d: float, theta1_deg: float, theta2_deg: float) -> float:
+
+def _parallel(theta1_deg: float, theta2_deg: float) -> geo.Unobservable | None:
+    """Unobservable when the two rays are parallel (theta1 + theta2 = 180 deg: no triangle), else None."""
+    if abs(_s(theta1_deg + theta2_deg)) < _PARALLEL_SIN:
+        return geo.Unobservable(
+            f"parallel rays (theta1 + theta2 = {theta1_deg + theta2_deg:g} deg): no triangle, no range"
+        )
+    return None
+
+
+def eq_3_1_stereo_Z(d: float, theta1_deg: float, theta2_deg: float) -> float | geo.Unobservable:
     """Eq. 3.1: perpendicular distance from the camera baseline, Z = d sin th1 sin th2 / cos(th1 + th2 - 90).
 
-    Signed: negative when th1 + th2 > 180 deg (the rays diverge; the thesis then reports |Z|).
+    Signed: negative when th1 + th2 > 180 deg (the rays diverge; the thesis then reports |Z|);
+    Unobservable at th1 + th2 = 180 deg (parallel rays).
     """
+    if (u := _parallel(theta1_deg, theta2_deg)) is not None:
+        return u
     return d * _s(theta1_deg) * _s(theta2_deg) / _c(theta2_deg + theta1_deg - 90.0)
 
 
-def eq_3_2_stereo_CF(d: float, theta1_deg: float, theta2_deg: float, *, as_printed: bool = False) -> float:
+def eq_3_2_stereo_CF(
+    d: float, theta1_deg: float, theta2_deg: float, *, as_printed: bool = False
+) -> float | geo.Unobservable:
     """Eq. 3.2: distance from the baseline's midpoint F to the obstacle C, derived for th1 > 90 deg.
 
     CB = sin th2 AB / tan(180 - th1 - th2) + cos th2 AB, theta3 = 180 - th1 - th2,
     theta4 = 90 - th2 - th3, CF = sqrt((sin th2 CB)^2 + (CB sin th2 tan th4 + d/2)^2).
     ``as_printed=True`` uses the printed "tan(9 deg - th2 - th3)" instead of 90 deg (a typo).
+    Unobservable at th1 + th2 = 180 deg (parallel rays).
     """
+    if (u := _parallel(theta1_deg, theta2_deg)) is not None:
+        return u
     th3 = 180.0 - theta1_deg - theta2_deg
     cb = _s(theta2_deg) * d / _t(th3) + _c(theta2_deg) * d
     th4 = (9.0 if as_printed else 90.0) - theta2_deg - th3
@@ -130,18 +151,27 @@ def eq_3_7_spacing(dt_s: float, drone_speed: float) -> float:
     return dt_s * drone_speed
 
 
-def eq_3_8_mono_Y(d: float, theta1_deg: float, theta2_deg: float) -> float:
-    """Eq. 3.8: range from the second pose, Y = d sin th1 / cos(th1 + th2 - 90) (= law of sines)."""
+def eq_3_8_mono_Y(d: float, theta1_deg: float, theta2_deg: float) -> float | geo.Unobservable:
+    """Eq. 3.8: range from the second pose, Y = d sin th1 / cos(th1 + th2 - 90) (= law of sines);
+    Unobservable at th1 + th2 = 180 deg (parallel rays)."""
+    if (u := _parallel(theta1_deg, theta2_deg)) is not None:
+        return u
     return d * _s(theta1_deg) / _c(theta2_deg + theta1_deg - 90.0)
 
 
-def eq_3_9_mono_CB(d: float, theta1_deg: float, theta2_deg: float) -> float:
-    """Eq. 3.9 (th1 = angle CAB > 90): CB = sin(CBA) AB / tan(180 - CAB - CBA) + cos(CBA) AB."""
+def eq_3_9_mono_CB(d: float, theta1_deg: float, theta2_deg: float) -> float | geo.Unobservable:
+    """Eq. 3.9 (th1 = angle CAB > 90): CB = sin(CBA) AB / tan(180 - CAB - CBA) + cos(CBA) AB;
+    Unobservable at th1 + th2 = 180 deg (parallel rays)."""
+    if (u := _parallel(theta1_deg, theta2_deg)) is not None:
+        return u
     return _s(theta2_deg) * d / _t(180.0 - theta1_deg - theta2_deg) + _c(theta2_deg) * d
 
 
-def eq_3_10_mono_CB(d: float, theta1_deg: float, theta2_deg: float) -> float:
-    """Eq. 3.10 (th2 = angle CBA > 90): CB = sin(CAB) AB / cos(CBA + CAB - 90) (brackets restored)."""
+def eq_3_10_mono_CB(d: float, theta1_deg: float, theta2_deg: float) -> float | geo.Unobservable:
+    """Eq. 3.10 (th2 = angle CBA > 90): CB = sin(CAB) AB / cos(CBA + CAB - 90) (brackets restored);
+    Unobservable at th1 + th2 = 180 deg (parallel rays)."""
+    if (u := _parallel(theta1_deg, theta2_deg)) is not None:
+        return u
     return _s(theta1_deg) * d / _c(theta2_deg + theta1_deg - 90.0)
 
 

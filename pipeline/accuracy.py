@@ -380,7 +380,7 @@ def _law_of_sines(c_a, b_a, c_b, b_b, o_W) -> float | None:
     if th1 + th2 >= 180.0 or th1 <= 0 or th2 <= 0:
         return None
     cb = eq_3_8_mono_Y(d, th1, th2)  # |BC| = d sin th1 / cos(th1 + th2 - 90)
-    if not (cb > 0 and math.isfinite(cb)):
+    if not (isinstance(cb, float) and cb > 0 and math.isfinite(cb)):  # (Unobservable: parallel rays)
         return None
     return float(np.linalg.norm(c_b + cb * b_b - o_W))
 
@@ -415,7 +415,7 @@ def _point(c_a, b_a, c_b, b_b) -> np.ndarray | None:
     if th1 + th2 >= 180.0:
         return None
     cb = eq_3_8_mono_Y(d, th1, th2)
-    return c_b + cb * b_b if cb > 0 else None
+    return c_b + cb * b_b if isinstance(cb, float) and cb > 0 else None
 
 
 # ------------------------------------------------------------------------------------ summary

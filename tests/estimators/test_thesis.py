@@ -50,6 +50,22 @@ def test_eq_3_2_midpoint_range_hand_value():
     assert th.eq_3_2_stereo_CF(1.0, 120, 30, as_printed=True) != pytest.approx(math.sqrt(1.75), rel=1e-3)
 
 
+
+@pytest.mark.parametrize("t1, t2", [(90, 90), (120, 60), (30, 150)])
+def test_printed_range_formulas_report_parallel_rays_unobservable(t1, t2):
+    """theta1 + theta2 = 180 deg: the rays are parallel, no triangle. eq. 3.9 and 3.2 divided by
+    tan(0) (ZeroDivisionError) and eq. 3.8, 3.10 and 3.1 by cos(90 deg) = 6e-17 (~1e16 m): now each
+    answers Unobservable, as the general estimators do; a degree off, a finite range again (law of
+    sines by hand: d sin t1 / sin(t1 + t2 - 1))."""
+    from estimators.geometry import Unobservable
+
+    printed = (th.eq_3_1_stereo_Z, th.eq_3_2_stereo_CF, th.eq_3_8_mono_Y, th.eq_3_9_mono_CB,
+               th.eq_3_10_mono_CB)
+    for f in printed:
+        r = f(1.0, t1, t2)
+        assert isinstance(r, Unobservable) and "parallel rays" in r.reason, (f.__name__, r)
+    assert th.eq_3_8_mono_Y(1.0, t1, t2 - 1) == pytest.approx(math.sin(R(t1)) / math.sin(R(t1 + t2 - 1)))
+
 def test_eq_3_11_and_3_12_right_triangles():
     # th4 = 90: FB = sqrt(FC^2 + CB^2) = 5 for 3, 4
     assert th.eq_3_11_FB(4.0, 3.0, 90) == pytest.approx(5.0)
