@@ -668,30 +668,43 @@ def _writer_of(path) -> int | None:
     return None
 
 
+def _signal_v1s_worker(tmp_path, sig: int, wait_for: str | None = None) -> tuple[int, str, Path]:
+    """``_batch`` of three 20-frame recordings; the worker process of v1, held at its third frame with
+    its tracks.jsonl open (found through /proc), gets ``sig``; once v1's folder holds ``wait_for`` (if
+    given) the other recordings are released. Returns the batch's exit code, its stderr and the
+    output folder."""
+    import os
+    import subprocess
+
+    cmd, env, out, release = _batch(tmp_path, 20)
+    f = out / "v1" / "tracks.jsonl"
+    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:
+            _wait_for(lambda: _lines_in(f) >= 2)
+            pid = _writer_of(f)
+            assert pid is not None and pid != p.pid
+            os.kill(pid, sig)
+            if wait_for:
+                _wait_for(lambda: (out / "v1" / wait_for).is_file())
+            release.touch()  # (the other recordings, if their workers still run)
+            err = p.communicate(timeout=90)[1]
+        finally:
+            if p.poll() is None:
+                p.kill()
+    return p.returncode, err, out
+
+
 @pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux /proc")
 def test_a_batch_worker_killed_by_the_system_is_named_and_the_batch_exits_2(tmp_path):
     """A batch worker killed mid-recording (SIGKILL, as the kernel's out-of-memory killer does) broke the
     pool: the batch died with BrokenProcessPool's traceback naming no recording. Now each recording left
     unfinished gets its line (started: what it wrote is in its folder; not started: not run) and the
     batch exits 2."""
-    import os
     import signal
-    import subprocess
 
-    cmd, env, out, release = _batch(tmp_path, 20)
+    rc, err, out = _signal_v1s_worker(tmp_path, signal.SIGKILL)
     f = out / "v1" / "tracks.jsonl"
-    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
-        try:  # v1 held at its third frame, its file open
-            _wait_for(lambda: _lines_in(f) >= 2)
-            pid = _writer_of(f)
-            assert pid is not None and pid != p.pid
-            os.kill(pid, signal.SIGKILL)
-            release.touch()  # (v2, if its worker still runs)
-            err = p.communicate(timeout=60)[1]
-        finally:
-            if p.poll() is None:
-                p.kill()
-    assert p.returncode == 2, err
+    assert rc == 2, err
     assert "Traceback" not in err and "BrokenProcessPool" not in err, err
     assert f"{out / 'v1'}: 0 frames  ERROR its worker process died" in err
     assert _lines_in(f) == 2  # what it wrote is kept
@@ -855,25 +868,10 @@ def test_a_batch_worker_signalled_by_hand_makes_the_batch_exit_130(tmp_path):
     """A SIGINT to one batch worker alone (`kill -INT <its pid>`) interrupts its recording; the batch
     carried on and exited 0, as if every recording had run to its end. Now the other recordings still
     run, and the batch exits 130 naming how many were interrupted or not run."""
-    import os
     import signal
-    import subprocess
 
-    cmd, env, out, release = _batch(tmp_path, 20)
-    f = out / "v1" / "tracks.jsonl"
-    with subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env) as p:
-        try:  # v1 held at its third frame, its file open
-            _wait_for(lambda: _lines_in(f) >= 2)
-            pid = _writer_of(f)
-            assert pid is not None and pid != p.pid
-            os.kill(pid, signal.SIGINT)
-            _wait_for(lambda: (out / "v1" / "summary.json").is_file())
-            release.touch()  # the other recordings run on
-            err = p.communicate(timeout=90)[1]
-        finally:
-            if p.poll() is None:
-                p.kill()
-    assert p.returncode == 130, err
+    rc, err, out = _signal_v1s_worker(tmp_path, signal.SIGINT, wait_for="summary.json")
+    assert rc == 130, err
     s = json.loads((out / "v1" / "summary.json").read_text())
     assert s["interrupted"] is True and s["frames"] == 2, s
     assert f"{out / 'v1'}: interrupted; what it did is in the folder" in err
