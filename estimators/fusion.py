@@ -129,6 +129,7 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
 from estimators import geometry
+from estimators.cameras import _tangent_basis  # (N, 3) unit rows -> (N, 3, 2) across them
 from estimators.egomotion import EgoMotion
 from estimators.errors import ConfigError, InputError, frame_at
 from estimators.fusion_stats import chi2_ppf, median_variance_factor
@@ -3903,10 +3904,7 @@ def _miss_distances(r: np.ndarray, w: np.ndarray, t: np.ndarray,
     head_on = d <= 1e-9  # (m: rounding noise of r's size, its direction meaningless)
     n = m / np.where(head_on, 1.0, d)[:, None]
     if head_on.any():  # no direction of the miss: any one across w
-        uh = u[head_on]
-        a = np.where((np.abs(uh[:, 0]) < 0.9)[:, None], (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-        a = a - _dot_rows(a, uh)[:, None] * uh
-        n[head_on] = a / np.sqrt(_dot_rows(a, a))[:, None]
+        n[head_on] = _tangent_basis(u[head_on])[:, :, 0]
     G = np.empty((len(d), 2, 6))  # the Jacobians [n, t* n] of d and [e, t* e] across
     G[:, 0, :3] = n
     G[:, 1, :3] = _cross(u, n)

@@ -715,6 +715,10 @@ def _batch_worker_init(stop: Any) -> None:
     signal.signal(signal.SIGTERM, interrupt)
 
 
+# why a recording did not run, or stopped, when a signal reached its worker process alone
+_WORKER_INTERRUPTED = "its worker process was interrupted"
+
+
 def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
     """:func:`_batch_worker` in a worker process: not run once the batch is stopped; an interrupted
     recording is reported as such (``interrupted``). A recording is under way (``in_job``) from before
@@ -727,13 +731,12 @@ def _batch_pool_job(args: tuple[dict, str, str | None]) -> dict:
         if _BATCH_WORKER["stop"].is_set():
             return {"out_dir": args[1], "frames": 0, "not_run": True}
         if _BATCH_WORKER["interrupted"]:
-            why = "its worker process was interrupted"
-            return {"out_dir": args[1], "frames": 0, "not_run": True, "why": why}
+            return {"out_dir": args[1], "frames": 0, "not_run": True, "why": _WORKER_INTERRUPTED}
         return _batch_worker(args)
     except KeyboardInterrupt:
         if _BATCH_WORKER["stop"].is_set():
             return {"out_dir": args[1], "interrupted": True}
-        return {"out_dir": args[1], "interrupted": True, "why": "its worker process was interrupted"}
+        return {"out_dir": args[1], "interrupted": True, "why": _WORKER_INTERRUPTED}
     finally:
         _BATCH_WORKER["in_job"] = False
 

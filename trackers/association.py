@@ -94,9 +94,10 @@ def match_features(
         # in the down camera share an epipolar plane (docs/ARCHITECTURE.md "The 360-degree rig")
         t_hat = t / tn
         g = (Rb0 @ t_hat)[:, None]
+        tb1 = t_hat @ b1.T
         inv_n = 1.0 / np.where(nn > 1e-9, nn, 1.0)[:, None]
-        ok &= (t_hat @ b1.T - g * c) * inv_n >= -sin_eps
-        ok &= (c - g * (t_hat @ b1.T)) * inv_n >= -sin_eps
+        ok &= (tb1 - g * c) * inv_n >= -sin_eps
+        ok &= (c - g * tb1) * inv_n >= -sin_eps
     else:
         ok = (Rb0 @ b1.T) > np.cos(epipolar_rad)
     # descriptor distances only for the epipolar candidates (i0, i1), row-major
